@@ -1,0 +1,27 @@
+"""slipstep: fast, trustworthy time-domain simulation of structures with friction contacts.
+
+Implements the methods of Gastaldi & Berruti (2018), "Competitive Time Marching Solution
+Methods for Systems with Friction-Induced Nonlinearities", on any linear structure with
+any number of spring-slider contact elements.
+"""
+
+from slipstep.config import builtin_cases, load_case, load_system
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.methods.registry import METHODS, PAPER_METHODS, get_method
+from slipstep.methods.schemes import Scheme, generalized_alpha, hht, newmark
+from slipstep.methods.simulation import RunOptions, Simulation, run, state_t_min
+from slipstep.model.contact import ContactElement
+from slipstep.model.damper import DamperContact, Platform, rigid_damper
+from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
+from slipstep.model.structure import Structure
+from slipstep.results import load as load_result, save as save_result
+from slipstep.system import CompiledSystem, System
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CompiledSystem", "ContactElement", "DamperContact", "Excitation", "Harmonic", "InputError", "METHODS",
+    "PAPER_METHODS", "Platform", "RunOptions", "Scheme", "Signal", "Simulation", "SolverError", "Status",
+    "Structure", "System", "Tabulated", "builtin_cases", "generalized_alpha", "get_method", "hht", "load_case",
+    "load_result", "load_system", "newmark", "rigid_damper", "run", "save_result", "state_t_min",
+]

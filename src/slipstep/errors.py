@@ -1,0 +1,64 @@
+"""Status codes returned by the compiled kernels and the exceptions raised at the edge.
+
+Kernels never raise: they return one of the integer codes below together with the
+step at which they stopped, and keep everything computed before it. The Python layer
+turns a code into a :class:`Status` with a message; it raises only if the caller asks
+(``raise_on_failure=True``) or when the input itself is wrong (:class:`InputError`).
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class Status(IntEnum):
+    """Outcome of a time march. The integer values are what the kernels return."""
+
+    OK = 0
+    NOT_CONVERGED = 1
+    STATE_CYCLING = 2
+    SINGULAR = 3
+    CAPACITY = 4
+    NON_FINITE = 5
+
+    @property
+    def message(self) -> str:
+        return _MESSAGES[self]
+
+
+_MESSAGES = {
+    Status.OK: "completed",
+    Status.NOT_CONVERGED: (
+        "the Newton iteration did not converge within the iteration cap; reduce the step "
+        "ratio (--step-ratio) or raise max_iterations"
+    ),
+    Status.STATE_CYCLING: (
+        "the contact-state iteration cycled between incompatible states; raise "
+        "state_tolerance or reduce the step"
+    ),
+    Status.SINGULAR: (
+        "the effective stiffness of the contact state is singular: no equilibrium exists "
+        "(all contacts lifted off, or a mechanism). For the quasi-static method this means "
+        "the case needs inertia: use a dynamic method"
+    ),
+    Status.CAPACITY: "the output buffer filled before the end time (adaptive step too small)",
+    Status.NON_FINITE: "the solution became non-finite (NaN or inf)",
+}
+
+
+class InputError(ValueError):
+    """Bad user input: names the field, what is wrong, and how to fix it."""
+
+    def __init__(self, field: str, problem: str, fix: str):
+        self.field = field
+        self.problem = problem
+        self.fix = fix
+        super().__init__(f"{field}: {problem}. Fix: {fix}")
+
+
+class SolverError(RuntimeError):
+    """A march that stopped early, raised only on request; carries the partial result."""
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result

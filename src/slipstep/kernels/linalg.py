@@ -1,0 +1,70 @@
+"""Dense LU factorisation with partial pivoting, kept so a factorisation can be cached and
+reused (numba's np.linalg.solve refactorises on every call).
+
+    P A = L U,   solve A x = b  by  L y = P b,  U x = y.
+"""
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def lu_factor(A, lu, piv, singular_rtol):
+    """Factorise A into ``lu`` (L below the diagonal, unit diagonal implied; U on and above)
+    and row pivots ``piv``. Returns False if a pivot is below ``singular_rtol * max|A|``."""
+    n = A.shape[0]
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            lu[i, j] = A[i, j]
+            if abs(A[i, j]) > scale:
+                scale = abs(A[i, j])
+    if scale == 0.0:
+        return False
+    for k in range(n):
+        p = k
+        big = abs(lu[k, k])
+        for i in range(k + 1, n):
+            if abs(lu[i, k]) > big:
+                big = abs(lu[i, k])
+                p = i
+        piv[k] = p
+        if big <= singular_rtol * scale:
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = lu[k, j]
+                lu[k, j] = lu[p, j]
+                lu[p, j] = tmp
+        inv = 1.0 / lu[k, k]
+        for i in range(k + 1, n):
+            lu[i, k] *= inv
+            lik = lu[i, k]
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    lu[i, j] -= lik * lu[k, j]
+    return True
+
+
+@njit(cache=True)
+def lu_solve(lu, piv, b, x):
+    """Solve with a factorisation from :func:`lu_factor`; ``x`` and ``b`` must be distinct."""
+    n = lu.shape[0]
+    for i in range(n):
+        x[i] = b[i]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = x[k]
+            x[k] = x[p]
+            x[p] = tmp
+    for i in range(n):
+        s = x[i]
+        for j in range(i):
+            s -= lu[i, j] * x[j]
+        x[i] = s
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, n):
+            s -= lu[i, j] * x[j]
+        x[i] = s / lu[i, i]

@@ -1,0 +1,57 @@
+"""The paper's methods as named combinations of a step solver and a step control.
+
+| name                       | paper      | step solver (kernels.march) | step control          |
+|----------------------------|------------|-----------------------------|-----------------------|
+| newmark                    | Method 1   | modified Newton, stick J    | fixed r T_min(stick)/pi |
+| newmark-adaptive           | Method 2   | modified Newton, stick J    | contact-state adaptive |
+| piecewise-linear           | Method 3   | piecewise linear            | fixed                 |
+| piecewise-linear-adaptive  | Method 2+3 | piecewise linear            | contact-state adaptive |
+| quasi-static               | Method 4   | piecewise linear, no inertia| fixed, steps per period |
+| full-newton                | (option)   | Newton, current-state J     | fixed                 |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from slipstep.errors import InputError
+from slipstep.kernels.march import FULL_NEWTON, MODIFIED_NEWTON, PIECEWISE_LINEAR
+
+
+@dataclass(frozen=True)
+class Method:
+    name: str
+    paper_label: str
+    solver: int
+    adaptive: bool
+    quasi_static: bool
+    description: str
+
+
+METHODS: dict[str, Method] = {m.name: m for m in (
+    Method("newmark", "Method 1", MODIFIED_NEWTON, False, False,
+           "standard Newmark: modified Newton with the full-stick tangent, fixed step"),
+    Method("newmark-adaptive", "Method 2", MODIFIED_NEWTON, True, False,
+           "standard Newmark with the step adapted to the contact state"),
+    Method("piecewise-linear", "Method 3", PIECEWISE_LINEAR, False, False,
+           "piecewise-linear Newmark: postulate the state, one solve, check, re-solve on a transition"),
+    Method("piecewise-linear-adaptive", "Method 2+3", PIECEWISE_LINEAR, True, False,
+           "piecewise-linear Newmark with the contact-state adaptive step"),
+    Method("quasi-static", "Method 4", PIECEWISE_LINEAR, False, True,
+           "quasi-static time marching (no inertia), piecewise-linear state loop"),
+    Method("full-newton", "Newton", FULL_NEWTON, False, False,
+           "Newmark with full Newton (current-state tangent), fixed step"),
+)}
+
+ALIASES = {"1": "newmark", "2": "newmark-adaptive", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive",
+           "23": "piecewise-linear-adaptive", "4": "quasi-static"}
+
+PAPER_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static")
+
+
+def get_method(name: str) -> Method:
+    key = ALIASES.get(str(name).strip().lower(), str(name).strip().lower())
+    if key not in METHODS:
+        raise InputError("method", f"unknown method {name!r}",
+                         f"use one of {', '.join(METHODS)} (or the paper's numbers 1, 2, 3, 2+3, 4)")
+    return METHODS[key]

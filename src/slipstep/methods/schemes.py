@@ -1,0 +1,54 @@
+"""Implicit time-integration schemes of the Newmark / generalised-alpha family (paper App. A).
+
+All are the generalised-alpha balance of :mod:`slipstep.kernels.march` with parameters:
+
+    Newmark(beta, gamma):        alpha_m = alpha_f = 0
+    HHT(alpha), alpha in [0, 1/3]: alpha_m = 0, alpha_f = alpha, gamma = 1/2 + alpha, beta = (1 + alpha)^2 / 4
+    Generalised-alpha(rho_inf)  (Chung & Hulbert 1993):
+        alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1),
+        gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m + alpha_f)^2 / 4
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from slipstep.errors import InputError
+
+
+@dataclass(frozen=True)
+class Scheme:
+    name: str
+    beta: float = 0.25
+    gamma: float = 0.5
+    alpha_m: float = 0.0
+    alpha_f: float = 0.0
+
+    @property
+    def step_limit_factor(self) -> float:
+        """dt <= factor * T_min: the convergence limit of the fixed-point (modified Newton)
+        iteration of a Newmark step, dt < T_min / (2 pi sqrt(beta)) (paper 4.2)."""
+        return 1.0 / (2.0 * math.pi * math.sqrt(self.beta))
+
+
+def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:
+    if not (beta > 0 and gamma >= 0.5):
+        raise InputError("scheme.beta/gamma", f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
+                         "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)")
+    name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={beta:g},gamma={gamma:g})"
+    return Scheme(name, beta, gamma)
+
+
+def hht(alpha: float = 0.05) -> Scheme:
+    if not 0 <= alpha <= 1 / 3:
+        raise InputError("scheme.alpha", f"is {alpha}", "give 0 <= alpha <= 1/3")
+    return Scheme(f"hht(alpha={alpha:g})", (1 + alpha) ** 2 / 4, 0.5 + alpha, 0.0, alpha)
+
+
+def generalized_alpha(rho_inf: float = 0.9) -> Scheme:
+    if not 0 <= rho_inf <= 1:
+        raise InputError("scheme.rho_inf", f"is {rho_inf}", "give 0 <= rho_inf <= 1")
+    am = (2 * rho_inf - 1) / (rho_inf + 1)
+    af = rho_inf / (rho_inf + 1)
+    return Scheme(f"generalized-alpha(rho={rho_inf:g})", (1 - am + af) ** 2 / 4, 0.5 - am + af, am, af)

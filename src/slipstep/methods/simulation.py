@@ -1,0 +1,336 @@
+"""The Python face of a time march: validate options, compile, allocate, preload, call the
+kernel, wrap the arrays in a Dataset. No numerics here beyond set-up (T_min, dt).
+
+    sim = Simulation(system, "piecewise-linear", periods=3)
+    ds = sim.run()            # preload + march + Dataset
+    sim.march()               # re-march from the stored preload (for timing)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.kernels import march as K
+from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.methods.registry import Method, get_method
+from slipstep.methods.schemes import Scheme, newmark
+from slipstep.model.excitation import CompiledSignal, evaluate_compiled
+from slipstep.model.validate import positive
+from slipstep.results import STATE_NAMES, build_dataset
+from slipstep.system import CompiledSystem, System
+
+SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear"}
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Options of a run; every field is validated in :meth:`validated`.
+
+    periods / duration: simulated time after the preload (duration [s] wins if given).
+    step_ratio: r in dt = r * T_min / (2 pi sqrt(beta)) (dynamic methods).
+    steps_per_period: quasi-static step count per excitation period.
+    tolerance: Newton stop, max |A delta| <= tolerance * length scale.
+    state_tolerance: relative tolerance of the compatibility check (physics.md 3).
+    max_step: cap of the adaptive step [s] (default: period / 50).
+    """
+
+    periods: float = 3.0
+    duration: float | None = None
+    step_ratio: float = 1.0
+    steps_per_period: int = 300
+    scheme: Scheme = field(default_factory=newmark)
+    tolerance: float = 1e-8
+    state_tolerance: float = 1e-9
+    singular_tolerance: float = 1e-12
+    max_iterations: int = 500
+    max_state_iterations: int = 20
+    max_redo: int = 4
+    max_step: float | None = None
+    preload_increments: int = 45
+    fallback: bool = True
+
+    def validated(self) -> "RunOptions":
+        positive("periods", self.periods)
+        if self.duration is not None:
+            positive("duration", self.duration)
+        r = positive("step_ratio", self.step_ratio)
+        if r > 50:
+            raise InputError("step_ratio", f"is {r}: the step would be {r} times the stability/convergence limit",
+                             "use a ratio of about 1 (below 1 for more accuracy)")
+        for name in ("steps_per_period", "max_iterations", "max_state_iterations", "preload_increments"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise InputError(name, f"is {value!r}", "give a whole number >= 1")
+        for name in ("tolerance", "state_tolerance", "singular_tolerance"):
+            value = positive(name, getattr(self, name))
+            if value >= 1:
+                raise InputError(name, f"is {value}", "give a small relative tolerance (e.g. 1e-6)")
+        if self.max_step is not None:
+            positive("max_step", self.max_step)
+        if not isinstance(self.scheme, Scheme):
+            raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
+        return self
+
+
+def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
+    """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
+    (paper Eq. 8), and the eigenvalues themselves."""
+    Keff = cs.K.copy()
+    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
+    ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
+    wmax2 = np.abs(ev).max()
+    return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), ev
+
+
+class Simulation:
+    """One system marched by one method with one set of options."""
+
+    def __init__(self, system: System, method: str | Method = "newmark", **options):
+        if not isinstance(system, System):
+            raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+        unknown = set(options) - set(RunOptions.__dataclass_fields__)
+        if unknown:
+            raise InputError("options", f"unknown option(s) {sorted(unknown)}",
+                             f"use only {sorted(RunOptions.__dataclass_fields__)}")
+        self.system = system
+        self.method = method if isinstance(method, Method) else get_method(method)
+        self.options = RunOptions(**options).validated()
+        self.compiled = cs = system.compile()
+        n, nd = system.n_dofs, cs.kt.shape[0]
+        self.stick = np.full(nd, STICK, np.int8)
+        self.t_min_stick, _ = state_t_min(cs, self.stick)
+        period = system.period
+        opt = self.options
+        if opt.duration is not None:
+            t_end = opt.duration
+        elif period is not None:
+            t_end = opt.periods * period
+        else:
+            raise InputError("duration", "is not set and the excitation has no period (tables only)",
+                             "give duration (seconds) or a harmonic excitation")
+        self.period, self.t_end = period, t_end
+        scheme = opt.scheme
+        self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
+        if self.method.quasi_static:
+            base = period if period is not None else t_end
+            dt = base / opt.steps_per_period
+        elif not math.isfinite(self.dt_limit):
+            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
+                             "add contacts or stiffness")
+        elif period is not None:
+            dt = period / math.ceil(period / self.dt_limit * (1 - 1e-12))
+        else:
+            dt = self.dt_limit
+        if dt > t_end:
+            raise InputError("duration", f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
+                             "simulate longer or use a smaller step")
+        self.dt = dt
+        dt_max = opt.max_step if opt.max_step is not None else (period / 50 if period else 10 * self.dt_limit)
+        n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
+        if self.method.adaptive:
+            capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
+        else:
+            capacity = n_fixed + 1
+        if capacity > 50_000_000:
+            raise InputError("duration", f"needs {capacity} steps", "shorten the run or use the quasi-static method")
+        self.fpar = np.zeros(K.N_FPAR)
+        self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
+        self.fpar[K.DT] = dt
+        self.fpar[K.STEP_FACTOR] = opt.step_ratio * scheme.step_limit_factor
+        self.fpar[K.DT_MAX] = dt_max
+        self.fpar[K.TOL] = opt.tolerance
+        self.fpar[K.STATE_RTOL] = opt.state_tolerance
+        self.fpar[K.SINGULAR_RTOL] = opt.singular_tolerance
+        self.fpar[K.T_START], self.fpar[K.T_END] = 0.0, t_end
+        self.ipar = np.zeros(K.N_IPAR, np.int64)
+        self.ipar[K.SOLVER] = self.method.solver
+        self.ipar[K.ADAPTIVE] = int(self.method.adaptive)
+        self.ipar[K.INERTIA] = int(not self.method.quasi_static)
+        self.ipar[K.MAX_ITER] = opt.max_iterations
+        self.ipar[K.MAX_STATE_ITER] = opt.max_state_iterations
+        self.ipar[K.MAX_REDO] = opt.max_redo
+        self.ipar[K.FALLBACK] = int(opt.fallback)
+        self.ipar[K.SIGNALS] = 1
+        self.ws = _allocate_workspace(cs, opt.max_state_iterations)
+        self.out = _allocate_outputs(cs, capacity)
+        self.status = None
+        self.kernel_time = math.nan
+        self._preload()
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _preload(self):
+        """Ramp the constant loads quasi-statically from x = 0, w = 0, postulating full stick."""
+        cs, ws = self.compiled, self.ws
+        for arr in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w):
+            arr[:] = 0.0
+        ws.state[:] = STICK
+        _reset_cache(ws)
+        ipar = self.ipar.copy()
+        ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK]] = 0, 0, K.PIECEWISE_LINEAR, 0, 1
+        nq = cs.A.shape[0]
+        q, f = np.zeros(nq), np.zeros(nq)
+        counters = np.zeros(K.N_COUNTERS, np.int64)
+        if np.any(cs.constant_force != 0):
+            status = K.preload(cs, self.fpar, ipar, ws, self.options.preload_increments, q, f, counters)
+        else:
+            status = K.OK
+            local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
+            contact_law(cs, q, ws.w.copy(), f, ws.w, ws.state)
+        if status != K.OK:
+            states = ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(self.system.direction_names(), ws.state1))
+            raise SolverError(f"static preload failed at increment {counters[K.C_FAIL_STEP]} of "
+                              f"{self.options.preload_increments}: {Status(status).message} (states: {states})")
+        # initial point of the march: p(0), f_e(0), consistent acceleration
+        p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
+        fe0 = evaluate_compiled(_force_signal(cs), np.zeros(1))[0] + cs.constant_force
+        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale and not self.method.quasi_static:
+            warnings.warn("the prescribed motion does not start from zero: the damper receives an impulse and "
+                          "rings (physics.md 8). Start motions from zero or set ramp_time.", stacklevel=3)
+        w_pre = ws.w.copy()
+        local_displacement(cs, ws.x, p0, q)
+        contact_law(cs, q, w_pre, f, ws.w, ws.state)
+        generalised_force(cs, f, ws.gf)
+        ws.fe[:] = fe0
+        if not self.method.quasi_static:
+            ws.a[:] = np.linalg.solve(cs.M, fe0 - cs.K @ ws.x - ws.gf)
+        self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
+        self.q0, self.f0 = q.copy(), f.copy()
+
+    # -- marching -------------------------------------------------------------------------
+    def march(self) -> Status:
+        """Run the kernel from the preload state; returns the status (also in self.status)."""
+        ws = self.ws
+        for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
+            dst[:] = src
+        _reset_cache(ws)
+        self.out.counters[:] = 0
+        start = time.perf_counter()
+        status = K.march(self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        self.kernel_time = time.perf_counter() - start
+        self.status = Status(status)
+        return self.status
+
+    def run(self, raise_on_failure: bool = False):
+        """Preloaded march + Dataset. On failure the Dataset holds every step done before it."""
+        start = time.perf_counter()
+        self.march()
+        ds = self.dataset()
+        ds.attrs["wall_time_s"] = time.perf_counter() - start
+        if raise_on_failure and self.status != Status.OK:
+            raise SolverError(ds.attrs["status_message"], ds)
+        return ds
+
+    # -- results --------------------------------------------------------------------------
+    def failure_report(self) -> dict:
+        if self.status in (None, Status.OK):
+            return {}
+        c = self.out.counters
+        step = int(c[K.C_FAIL_STEP])
+        names = self.system.direction_names()
+        visited = self.ws.visited[: max(int(c[K.C_N_VISITED]), 1)]
+        text = " -> ".join("(" + ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(names, row)) + ")" for row in visited)
+        return {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step]), "states_visited": text}
+
+    def dataset(self):
+        if self.status is None:
+            raise RuntimeError("call march() first")
+        c = self.out.counters
+        n_steps = int(c[K.C_STEPS])
+        t = self.out.t[: n_steps + 1]
+        motion = evaluate_compiled(_motion_signal(self.compiled), t)
+        failure = self.failure_report()
+        message = self.status.message
+        if failure:
+            message = (f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
+                       f"t = {failure['failed_at_time_s']:.6g} s, states tried {failure['states_visited']}")
+        solves = int(self.out.solves[1: n_steps + 1].sum())
+        attrs = {
+            "title": f"slipstep result: {self.system.name}, {self.method.name}",
+            "case": self.system.name,
+            "method": self.method.name,
+            "paper_method": self.method.paper_label,
+            "solver": SOLVER_NAMES[self.method.solver],
+            "adaptive_step": self.method.adaptive,
+            "quasi_static": self.method.quasi_static,
+            "scheme": "quasi-static" if self.method.quasi_static else self.options.scheme.name,
+            "status": self.status.name,
+            "status_message": message,
+            "steps": n_steps,
+            "solves": solves,
+            "iterations": solves,
+            "mean_solves_per_step": solves / max(n_steps, 1),
+            "factorisations": int(c[K.C_FACTORISATIONS]),
+            "law_calls": int(c[K.C_LAW_CALLS]),
+            "redone_steps": int(c[K.C_REDOS]),
+            "fallback_steps": int(c[K.C_FALLBACKS]),
+            "state_changes": int(c[K.C_STATE_CHANGES]),
+            "dt_s": self.dt,
+            "t_min_s": self.t_min_stick,
+            "t_end_s": self.t_end,
+            "period_s": self.period,
+            "step_ratio": self.options.step_ratio,
+            "steps_per_period": self.options.steps_per_period if self.method.quasi_static else None,
+            "tolerance": self.options.tolerance,
+            "state_tolerance": self.options.state_tolerance,
+            "kernel_time_s": self.kernel_time,
+            "length_scale_m": self.compiled.length_scale,
+        }
+        attrs.update(failure)
+        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not self.method.quasi_static,
+                             compiled=self.compiled)
+
+
+def _motion_signal(cs: CompiledSystem) -> CompiledSignal:
+    return CompiledSignal(cs.motion_frequency, cs.motion_sin, cs.motion_cos, cs.motion_table_time,
+                          cs.motion_table_value, cs.motion_ramp)
+
+
+def _force_signal(cs: CompiledSystem) -> CompiledSignal:
+    return CompiledSignal(cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time,
+                          cs.force_table_value, cs.force_ramp)
+
+
+def _reset_cache(ws: K.Workspace) -> None:
+    ws.cache_used[:] = False
+    ws.tmin_used[:] = False
+    ws.lin_dt[0] = np.nan
+
+
+def _allocate_workspace(cs: CompiledSystem, max_state_iter: int) -> K.Workspace:
+    n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    cap = int(min(512, max(8, 2e8 // (8 * n * n))))
+    z = lambda *shape: np.zeros(shape)
+    i8 = lambda *shape: np.zeros(shape, np.int8)
+    return K.Workspace(
+        x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
+        x1=z(n), v1=z(n), a1=z(n), fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
+        dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq), Adelta=z(nq),
+        Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
+        key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
+        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),
+        cache_lu=z(cap + 1, n, n), cache_piv=np.zeros((cap + 1, n), np.int64),
+        tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
+        lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd),
+    )
+
+
+def _allocate_outputs(cs: CompiledSystem, capacity: int) -> K.Outputs:
+    n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
+    k = capacity + 1
+    return K.Outputs(
+        t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
+        q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),
+        solves=np.zeros(k, np.int64), counters=np.zeros(K.N_COUNTERS, np.int64),
+    )
+
+
+def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):
+    """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
+    result Dataset (schema in slipstep.results). Options: see :class:`RunOptions`."""
+    return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
