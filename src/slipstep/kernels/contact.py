@@ -24,13 +24,18 @@ SLIP_POS = 2
 SLIP_NEG = 3
 
 
-@njit(cache=True)
-def local_displacement(sys, x, p, q):
+
+# ---- explicit-array cores (the hot path: small argument lists, no tuples) ------------------
+# Contact table arguments, in this order everywhere:
+#   nrow (nc) normal row of each contact in q, kn (nc), mu (nc), fdir (nc) first direction,
+#   ndir (nc) number of directions, trow (nd) tangential row of each direction in q, kt (nd).
+
+
+@njit(cache=True, inline="always")
+def gather(A, B, g, x, p, q):
     """q = A x - B p + g."""
-    A = sys.A
-    B = sys.B
     for r in range(A.shape[0]):
-        s = sys.g[r]
+        s = g[r]
         for j in range(A.shape[1]):
             s += A[r, j] * x[j]
         for j in range(B.shape[1]):
@@ -38,148 +43,9 @@ def local_displacement(sys, x, p, q):
         q[r] = s
 
 
-@njit(cache=True)
-def contact_law(sys, q, w_old, f, w_new, state):
-    """The nonlinear law: forces f (local, like q), new sliders and states from q and w_old."""
-    for c in range(sys.kn.shape[0]):
-        nr = sys.normal_row[c]
-        v = q[nr]
-        d0 = sys.first_direction[c]
-        nd = sys.n_directions[c]
-        if v <= 0.0:
-            f[nr] = 0.0
-            for d in range(d0, d0 + nd):
-                tr = sys.tangential_row[d]
-                f[tr] = 0.0
-                w_new[d] = q[tr]
-                state[d] = LIFT
-            continue
-        N = sys.kn[c] * v
-        f[nr] = N
-        limit = sys.mu[c] * N
-        for d in range(d0, d0 + nd):
-            tr = sys.tangential_row[d]
-            kt = sys.kt[d]
-            trial = kt * (q[tr] - w_old[d])
-            if abs(trial) <= limit:
-                f[tr] = trial
-                w_new[d] = w_old[d]
-                state[d] = STICK
-            elif trial > 0.0:
-                f[tr] = limit
-                w_new[d] = q[tr] - limit / kt
-                state[d] = SLIP_POS
-            else:
-                f[tr] = -limit
-                w_new[d] = q[tr] + limit / kt
-                state[d] = SLIP_NEG
-
-
-@njit(cache=True)
-def linear_law(sys, state, q, w_old, f, w_new):
-    """The piecewise-linear law f = K(S) q + s(S, w_old) for a postulated state S."""
-    for c in range(sys.kn.shape[0]):
-        nr = sys.normal_row[c]
-        d0 = sys.first_direction[c]
-        nd = sys.n_directions[c]
-        if state[d0] == LIFT:
-            f[nr] = 0.0
-            for d in range(d0, d0 + nd):
-                tr = sys.tangential_row[d]
-                f[tr] = 0.0
-                w_new[d] = q[tr]
-            continue
-        N = sys.kn[c] * q[nr]
-        f[nr] = N
-        for d in range(d0, d0 + nd):
-            tr = sys.tangential_row[d]
-            kt = sys.kt[d]
-            s = state[d]
-            if s == STICK:
-                f[tr] = kt * (q[tr] - w_old[d])
-                w_new[d] = w_old[d]
-            else:
-                T = sys.mu[c] * N if s == SLIP_POS else -sys.mu[c] * N
-                f[tr] = T
-                w_new[d] = q[tr] - T / kt
-
-
-@njit(cache=True)
-def is_compatible(sys, state, q, w_old, rtol):
-    """Does the postulated state satisfy its row of the state table at q (within tolerance)?
-
-    Tolerances: rtol * L on v (L the system length scale) and rtol * (mu k_n |v| + k_t L)
-    on the friction test, so that a point on a stick/slip or contact boundary is accepted.
-    """
-    L = sys.length_scale
-    for c in range(sys.kn.shape[0]):
-        v = q[sys.normal_row[c]]
-        d0 = sys.first_direction[c]
-        nd = sys.n_directions[c]
-        tol_v = rtol * L
-        if state[d0] == LIFT:
-            if v > tol_v:
-                return False
-            continue
-        if v < -tol_v:
-            return False
-        limit = sys.mu[c] * sys.kn[c] * v
-        for d in range(d0, d0 + nd):
-            kt = sys.kt[d]
-            trial = kt * (q[sys.tangential_row[d]] - w_old[d])
-            tol_t = rtol * (abs(limit) + kt * L)
-            s = state[d]
-            if s == STICK:
-                if abs(trial) > limit + tol_t:
-                    return False
-            elif s == SLIP_POS:
-                if trial < limit - tol_t:
-                    return False
-            else:
-                if trial > -limit + tol_t:
-                    return False
-    return True
-
-
-@njit(cache=True)
-def add_contact_stiffness(sys, state, factor, out):
-    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7)."""
-    A = sys.A
-    n = A.shape[1]
-    for c in range(sys.kn.shape[0]):
-        d0 = sys.first_direction[c]
-        if state[d0] == LIFT:
-            continue
-        nr = sys.normal_row[c]
-        kn = factor * sys.kn[c]
-        for i in range(n):
-            a = kn * A[nr, i]
-            if a != 0.0:
-                for j in range(n):
-                    out[i, j] += a * A[nr, j]
-        for d in range(d0, d0 + sys.n_directions[c]):
-            tr = sys.tangential_row[d]
-            s = state[d]
-            if s == STICK:
-                k = factor * sys.kt[d]
-                col = tr
-            elif s == SLIP_POS:
-                k = factor * sys.mu[c] * sys.kn[c]
-                col = nr
-            else:
-                k = -factor * sys.mu[c] * sys.kn[c]
-                col = nr
-            for i in range(n):
-                a = k * A[tr, i]
-                if a != 0.0:
-                    for j in range(n):
-                        out[i, j] += a * A[col, j]
-
-
-@njit(cache=True)
-def generalised_force(sys, f, out):
+@njit(cache=True, inline="always")
+def scatter(A, f, out):
     """out = A^T f: the contact force on the DOFs as it enters the left-hand side."""
-    A = sys.A
     for j in range(A.shape[1]):
         out[j] = 0.0
     for r in range(A.shape[0]):
@@ -189,7 +55,167 @@ def generalised_force(sys, f, out):
                 out[j] += A[r, j] * fr
 
 
+@njit(cache=True, inline="always")
+def law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
+    """The nonlinear law: forces f (local, like q), new sliders and states from q and w_old."""
+    for c in range(kn.shape[0]):
+        nr = nrow[c]
+        v = q[nr]
+        d0 = fdir[c]
+        if v <= 0.0:
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]] = 0.0
+                w_new[d] = q[trow[d]]
+                state[d] = LIFT
+            continue
+        N = kn[c] * v
+        f[nr] = N
+        limit = mu[c] * N
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            trial = kt[d] * (q[tr] - w_old[d])
+            if abs(trial) <= limit:
+                f[tr] = trial
+                w_new[d] = w_old[d]
+                state[d] = STICK
+            elif trial > 0.0:
+                f[tr] = limit
+                w_new[d] = q[tr] - limit / kt[d]
+                state[d] = SLIP_POS
+            else:
+                f[tr] = -limit
+                w_new[d] = q[tr] + limit / kt[d]
+                state[d] = SLIP_NEG
+
+
+@njit(cache=True, inline="always")
+def piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
+    """The piecewise-linear law f = K(S) q + s(S, w_old) for a postulated state S."""
+    for c in range(kn.shape[0]):
+        nr = nrow[c]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]] = 0.0
+                w_new[d] = q[trow[d]]
+            continue
+        N = kn[c] * q[nr]
+        f[nr] = N
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            s = state[d]
+            if s == STICK:
+                f[tr] = kt[d] * (q[tr] - w_old[d])
+                w_new[d] = w_old[d]
+            else:
+                T = mu[c] * N if s == SLIP_POS else -mu[c] * N
+                f[tr] = T
+                w_new[d] = q[tr] - T / kt[d]
+
+
+@njit(cache=True, inline="always")
+def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
+    """Does the postulated state satisfy its row of the state table at q (within tolerance)?
+
+    Tolerances: rtol * L on v (L the system length scale) and rtol * (mu k_n |v| + k_t L)
+    on the friction test, so that a point on a stick/slip or contact boundary is accepted.
+    """
+    tol_v = rtol * length_scale
+    for c in range(kn.shape[0]):
+        v = q[nrow[c]]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            if v > tol_v:
+                return False
+            continue
+        if v < -tol_v:
+            return False
+        limit = mu[c] * kn[c] * v
+        for d in range(d0, d0 + ndir[c]):
+            trial = kt[d] * (q[trow[d]] - w_old[d])
+            tol_t = rtol * (abs(limit) + kt[d] * length_scale)
+            s = state[d]
+            if s == STICK:
+                if abs(trial) > limit + tol_t:
+                    return False
+            elif s == SLIP_POS:
+                if trial < limit - tol_t:
+                    return False
+            elif trial > -limit + tol_t:
+                return False
+    return True
+
+
 @njit(cache=True)
-def fill_state(sys, value, state):
-    for d in range(state.shape[0]):
-        state[d] = value
+def _add_outer(out, k, A, r1, r2):
+    """out += k * A[r1]^T A[r2]."""
+    n = A.shape[1]
+    for i in range(n):
+        a = k * A[r1, i]
+        if a != 0.0:
+            for j in range(n):
+                out[i, j] += a * A[r2, j]
+
+
+@njit(cache=True)
+def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out):
+    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7)."""
+    for c in range(kn.shape[0]):
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            continue
+        nr = nrow[c]
+        _add_outer(out, factor * kn[c], A, nr, nr)
+        for d in range(d0, d0 + ndir[c]):
+            s = state[d]
+            if s == STICK:
+                _add_outer(out, factor * kt[d], A, trow[d], trow[d])
+            elif s == SLIP_POS:
+                _add_outer(out, factor * mu[c] * kn[c], A, trow[d], nr)
+            else:
+                _add_outer(out, -factor * mu[c] * kn[c], A, trow[d], nr)
+
+
+# ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------
+
+
+@njit(cache=True)
+def local_displacement(sys, x, p, q):
+    """q = A x - B p + g."""
+    gather(sys.A, sys.B, sys.g, x, p, q)
+
+
+@njit(cache=True)
+def contact_law(sys, q, w_old, f, w_new, state):
+    """The nonlinear law (see :func:`law`)."""
+    law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
+        q, w_old, f, w_new, state)
+
+
+@njit(cache=True)
+def linear_law(sys, state, q, w_old, f, w_new):
+    """The piecewise-linear law (see :func:`piecewise_law`)."""
+    piecewise_law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
+                  state, q, w_old, f, w_new)
+
+
+@njit(cache=True)
+def is_compatible(sys, state, q, w_old, rtol):
+    """The compatibility check (see :func:`compatible`)."""
+    return compatible(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
+                      sys.kt, state, q, w_old, rtol, sys.length_scale)
+
+
+@njit(cache=True)
+def add_contact_stiffness(sys, state, factor, out):
+    """out += factor * K_D(S) (see :func:`contact_stiffness`)."""
+    contact_stiffness(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
+                      sys.kt, sys.A, state, factor, out)
+
+
+@njit(cache=True)
+def generalised_force(sys, f, out):
+    """out = A^T f."""
+    scatter(sys.A, f, out)

@@ -46,7 +46,7 @@ def lu_factor(A, lu, piv, singular_rtol):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def lu_solve(lu, piv, b, x):
     """Solve with a factorisation from :func:`lu_factor`; ``x`` and ``b`` must be distinct."""
     n = lu.shape[0]

@@ -34,19 +34,16 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.cache import find_slot
-from slipstep.kernels.contact import (
-    STICK, add_contact_stiffness, contact_law, generalised_force, is_compatible,
-    linear_law, local_displacement,
-)
+from slipstep.kernels.contact import compatible, contact_stiffness, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
-from slipstep.kernels.signals import force_at, motion_at
+from slipstep.kernels.signals import evaluate_signal
 
 # float parameters
 BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
 N_FPAR = 12
 # int parameters
-SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS = range(8)
-N_IPAR = 8
+SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD = range(9)
+N_IPAR = 9
 MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR = 0, 1, 2
 # counters
 C_STEPS, C_SOLVES, C_FACTORISATIONS, C_LAW_CALLS, C_REDOS, C_FALLBACKS, C_STATE_CHANGES, C_FAIL_STEP, C_N_VISITED = range(9)
@@ -65,9 +62,6 @@ class Workspace(NamedTuple):
     gf: np.ndarray  # A^T f_n
     w: np.ndarray
     state: np.ndarray  # int8
-    x1: np.ndarray
-    v1: np.ndarray
-    a1: np.ndarray
     fe1: np.ndarray
     gf1: np.ndarray
     f1: np.ndarray
@@ -80,7 +74,6 @@ class Workspace(NamedTuple):
     r: np.ndarray
     p: np.ndarray
     qbase: np.ndarray
-    Adelta: np.ndarray
     Lin: np.ndarray
     J: np.ndarray
     Minv: np.ndarray
@@ -114,363 +107,367 @@ class Outputs(NamedTuple):
 
 
 @njit(cache=True)
-def _newmark_coefficients(fpar, dt):
-    beta = fpar[BETA]
-    gamma = fpar[GAMMA]
-    a0 = 1.0 / (beta * dt * dt)
-    a1 = gamma / (beta * dt)
-    a2 = 1.0 / (beta * dt)
-    a3 = 1.0 / (2.0 * beta) - 1.0
-    b1 = 1.0 - gamma / beta
-    b2 = dt * (1.0 - gamma / (2.0 * beta))
-    return a0, a1, a2, a3, b1, b2
-
-
-@njit(cache=True)
-def _build_lin(sys, fpar, ipar, ws, dt):
-    """Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K  (inertia on), or K (quasi-static)."""
-    n = ws.x.shape[0]
-    if ipar[INERTIA] == 1:
-        a0, a1, a2, a3, b1, b2 = _newmark_coefficients(fpar, dt)
-        cm = (1.0 - fpar[ALPHA_M]) * a0
-        cc = (1.0 - fpar[ALPHA_F]) * a1
-        ck = 1.0 - fpar[ALPHA_F]
-        for i in range(n):
-            for j in range(n):
-                ws.Lin[i, j] = cm * sys.M[i, j] + cc * sys.C[i, j] + ck * sys.K[i, j]
-    else:
-        for i in range(n):
-            for j in range(n):
-                ws.Lin[i, j] = sys.K[i, j]
-    ws.lin_dt[0] = dt
-
-
-@njit(cache=True)
-def _factor(sys, fpar, ipar, ws, kd_state, nominal, counters):
-    """Slot of the factorised J(kd_state) = Lin + (1-af) K_D(kd_state) for the current dt.
-
-    Cached per key (kd_state, dt_state); a non-nominal dt (the last, shortened step)
-    uses the scratch slot. Returns (slot, ok)."""
-    nd = kd_state.shape[0]
-    for d in range(nd):
-        ws.key[d] = kd_state[d]
-        ws.key[nd + d] = ws.dt_state[d]
-    cap = ws.cache_used.shape[0]
+def _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, key,
+               keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters):
+    """Slot of the LU of J(S) = Lin + kfac K_D(S), cached per ``key`` (= S for K_D, S for dt).
+    A non-nominal dt (the shortened last step) uses the scratch slot. Returns (slot, ok)."""
+    cap = used.shape[0]
     if nominal:
-        slot, found = find_slot(ws.cache_keys, ws.cache_used, ws.key)
+        slot, found = find_slot(keys, used, key)
         if found:
-            return slot, ws.cache_ok[slot]
+            return slot, ok_flags[slot]
     else:
         slot = cap
-    n = ws.x.shape[0]
+    n = Lin.shape[0]
     for i in range(n):
         for j in range(n):
-            ws.J[i, j] = ws.Lin[i, j]
-    kfac = (1.0 - fpar[ALPHA_F]) if ipar[INERTIA] == 1 else 1.0
-    add_contact_stiffness(sys, kd_state, kfac, ws.J)
-    ok = lu_factor(ws.J, ws.cache_lu[slot], ws.cache_piv[slot], fpar[SINGULAR_RTOL])
-    ws.cache_ok[slot] = ok
+            J[i, j] = Lin[i, j]
+    contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, kd_state, kfac, J)
+    ok = lu_factor(J, lus[slot], pivs[slot], singular_rtol)
+    ok_flags[slot] = ok
     counters[C_FACTORISATIONS] += 1
     return slot, ok
 
 
-@njit(cache=True)
-def _residual_base(sys, fpar, ipar, ws, t1, dt, load_factor):
-    """f_e(t_{n+1}), p(t_{n+1}), q_base and r0 (the part of the residual independent of dx)."""
-    n = ws.x.shape[0]
-    if ipar[SIGNALS] == 1:
-        force_at(sys, t1, load_factor, ws.fe1)
-        motion_at(sys, t1, ws.p)
-    else:
-        for i in range(n):
-            ws.fe1[i] = load_factor * sys.constant_force[i]
-        for i in range(ws.p.shape[0]):
-            ws.p[i] = 0.0
-    local_displacement(sys, ws.x, ws.p, ws.qbase)
-    am = fpar[ALPHA_M]
-    af = fpar[ALPHA_F]
-    if ipar[INERTIA] == 1:
-        a0, a1, a2, a3, b1, b2 = _newmark_coefficients(fpar, dt)
-        for i in range(n):
-            s = (1.0 - af) * ws.fe1[i] + af * ws.fe[i] - ws.gf[i] * af
-            for j in range(n):
-                acc = (1.0 - am) * (-a2 * ws.v[j] - a3 * ws.a[j]) + am * ws.a[j]
-                vel = (1.0 - af) * (b1 * ws.v[j] + b2 * ws.a[j]) + af * ws.v[j]
-                s -= sys.M[i, j] * acc + sys.C[i, j] * vel + sys.K[i, j] * ws.x[j]
-            ws.r0[i] = s
-    else:
-        for i in range(n):
-            s = ws.fe1[i]
-            for j in range(n):
-                s -= sys.K[i, j] * ws.x[j]
-            ws.r0[i] = s
+@njit(cache=True, inline="always")
+def _set_key(key, kd_state, dt_state):
+    nd = kd_state.shape[0]
+    for d in range(nd):
+        key[d] = kd_state[d]
+        key[nd + d] = dt_state[d]
 
 
 @njit(cache=True)
-def _update_q(sys, ws):
-    """q1 = q_base + A dx."""
-    A = sys.A
-    for r in range(A.shape[0]):
-        s = ws.qbase[r]
-        for j in range(A.shape[1]):
-            s += A[r, j] * ws.dx[j]
-        ws.q1[r] = s
-
-
-@njit(cache=True)
-def _increment_small(sys, fpar, ws):
-    """Convergence on the increment: max |A delta| <= tol * L (max |delta| without contacts)."""
-    A = sys.A
-    L = fpar[TOL] * sys.length_scale
-    if A.shape[0] == 0:
-        for j in range(ws.delta.shape[0]):
-            if abs(ws.delta[j]) > L:
-                return False
-        return True
-    for r in range(A.shape[0]):
-        s = 0.0
-        for j in range(A.shape[1]):
-            s += A[r, j] * ws.delta[j]
-        if abs(s) > L:
-            return False
-    return True
-
-
-@njit(cache=True)
-def _newton(sys, fpar, ipar, ws, nominal, full, counters):
-    """Modified (J of all stick) or full (J of the current state) Newton on dx. Returns (status, solves)."""
-    n = ws.x.shape[0]
-    af = fpar[ALPHA_F] if ipar[INERTIA] == 1 else 0.0
+def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+            dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+            keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs, singular_rtol, counters):
+    """Modified Newton (J of all stick) or full Newton (J of the current iterate's state) on
+    r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0; stop when max |A delta| <= tol_abs.
+    Returns (status, solves); on success q1, f1, w1, state1, gf1 hold the converged step."""
+    n = dx.shape[0]
+    nq = A.shape[0]
     for i in range(n):
-        ws.dx[i] = 0.0
-    solves = 0
-    slot, ok = _factor(sys, fpar, ipar, ws, ws.stick, nominal, counters)
+        dx[i] = 0.0
+    _set_key(key, stick, dt_state)
+    slot, ok = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, key,
+                          keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
     if not ok:
-        return SINGULAR, solves
-    for it in range(ipar[MAX_ITER]):
-        _update_q(sys, ws)
-        contact_law(sys, ws.q1, ws.w, ws.f1, ws.w1, ws.state1)
-        counters[C_LAW_CALLS] += 1
-        generalised_force(sys, ws.f1, ws.gf1)
-        for i in range(n):
-            s = ws.r0[i] - (1.0 - af) * ws.gf1[i]
+        return SINGULAR, 0
+    solves = 0
+    for it in range(max_iter):
+        for rr in range(nq):
+            q1[rr] = qbase[rr]
             for j in range(n):
-                s -= ws.Lin[i, j] * ws.dx[j]
-            ws.r[i] = s
+                q1[rr] += A[rr, j] * dx[j]
+        law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+        counters[C_LAW_CALLS] += 1
+        scatter(A, f1, gf1)
+        for i in range(n):
+            s = r0[i] - kfac * gf1[i]
+            for j in range(n):
+                s -= Lin[i, j] * dx[j]
+            r[i] = s
         use = slot
         if full:
-            s2, ok2 = _factor(sys, fpar, ipar, ws, ws.state1, nominal, counters)
+            _set_key(key, state1, dt_state)
+            s2, ok2 = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, key,
+                                 keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
             if ok2:
                 use = s2
-        lu_solve(ws.cache_lu[use], ws.cache_piv[use], ws.r, ws.delta)
+        lu_solve(lus[use], pivs[use], r, delta)
         solves += 1
+        small = True
         for i in range(n):
-            ws.dx[i] += ws.delta[i]
-            if not np.isfinite(ws.dx[i]):
+            dx[i] += delta[i]
+            if not np.isfinite(dx[i]):
                 return NON_FINITE, solves
-        if _increment_small(sys, fpar, ws):
-            _update_q(sys, ws)
-            contact_law(sys, ws.q1, ws.w, ws.f1, ws.w1, ws.state1)
+        if nq == 0:
+            for i in range(n):
+                if abs(delta[i]) > tol_abs:
+                    small = False
+        else:
+            for rr in range(nq):
+                s = 0.0
+                for j in range(n):
+                    s += A[rr, j] * delta[j]
+                if abs(s) > tol_abs:
+                    small = False
+                    break
+        if small:
+            for rr in range(nq):
+                q1[rr] = qbase[rr]
+                for j in range(n):
+                    q1[rr] += A[rr, j] * dx[j]
+            law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
             counters[C_LAW_CALLS] += 1
+            scatter(A, f1, gf1)
             return OK, solves
     return NOT_CONVERGED, solves
 
 
 @njit(cache=True)
-def _piecewise_linear(sys, fpar, ipar, ws, nominal, counters):
-    """Postulate S = S_n, solve the linear step, check compatibility, re-solve on a
-    transition (paper Appendix A.4 / B). Returns (status, solves)."""
-    n = ws.x.shape[0]
-    nd = ws.state.shape[0]
-    af = fpar[ALPHA_F] if ipar[INERTIA] == 1 else 0.0
-    for d in range(nd):
-        ws.state1[d] = ws.state[d]
-    solves = 0
-    counters[C_N_VISITED] = 0
-    for it in range(ipar[MAX_STATE_ITER]):
-        for d in range(nd):
-            ws.visited[it, d] = ws.state1[d]
-        counters[C_N_VISITED] = it + 1
-        slot, ok = _factor(sys, fpar, ipar, ws, ws.state1, nominal, counters)
-        if not ok:
-            return SINGULAR, solves
-        linear_law(sys, ws.state1, ws.qbase, ws.w, ws.f1, ws.w1)
-        generalised_force(sys, ws.f1, ws.gf1)
-        for i in range(n):
-            ws.r[i] = ws.r0[i] - (1.0 - af) * ws.gf1[i]
-        lu_solve(ws.cache_lu[slot], ws.cache_piv[slot], ws.r, ws.dx)
-        solves += 1
-        for i in range(n):
-            if not np.isfinite(ws.dx[i]):
-                return NON_FINITE, solves
-        _update_q(sys, ws)
-        if is_compatible(sys, ws.state1, ws.q1, ws.w, fpar[STATE_RTOL]):
-            linear_law(sys, ws.state1, ws.q1, ws.w, ws.f1, ws.w1)
-            return OK, solves
-        contact_law(sys, ws.q1, ws.w, ws.f1, ws.w1, ws.state1)
-        counters[C_LAW_CALLS] += 1
-    return STATE_CYCLING, solves
-
-
-@njit(cache=True)
-def solve_step(sys, fpar, ipar, ws, t1, dt, load_factor, nominal, counters):
-    """Solve one step from (x, v, a, w, S)_n to t1 into the '1' fields. Returns (status, solves)."""
-    if ws.lin_dt[0] != dt:
-        _build_lin(sys, fpar, ipar, ws, dt)
-    _residual_base(sys, fpar, ipar, ws, t1, dt, load_factor)
-    solver = ipar[SOLVER]
-    if solver == PIECEWISE_LINEAR:
-        status, solves = _piecewise_linear(sys, fpar, ipar, ws, nominal, counters)
-        if status != OK and status != NON_FINITE and ipar[FALLBACK] == 1:
-            counters[C_FALLBACKS] += 1
-            status, more = _newton(sys, fpar, ipar, ws, nominal, False, counters)
-            solves += more
-    else:
-        status, solves = _newton(sys, fpar, ipar, ws, nominal, solver == FULL_NEWTON, counters)
-    counters[C_SOLVES] += solves
-    if status != OK:
-        return status, solves
-    n = ws.x.shape[0]
-    generalised_force(sys, ws.f1, ws.gf1)
-    if ipar[INERTIA] == 1:
-        a0, a1, a2, a3, b1, b2 = _newmark_coefficients(fpar, dt)
-        for i in range(n):
-            ws.x1[i] = ws.x[i] + ws.dx[i]
-            ws.a1[i] = a0 * ws.dx[i] - a2 * ws.v[i] - a3 * ws.a[i]
-            ws.v1[i] = a1 * ws.dx[i] + b1 * ws.v[i] + b2 * ws.a[i]
-    else:
-        for i in range(n):
-            ws.x1[i] = ws.x[i] + ws.dx[i]
-            ws.v1[i] = 0.0
-            ws.a1[i] = 0.0
-    return OK, solves
-
-
-@njit(cache=True)
-def state_step_limit(sys, fpar, ws, state):
-    """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state."""
-    slot, found = find_slot(ws.tmin_keys, ws.tmin_used, state)
+def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+                      step_factor, dt_max):
+    """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
+    T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
+    slot, found = find_slot(tkeys, tused, state)
     if not found:
-        n = ws.x.shape[0]
-        Keff = sys.K.copy()
-        add_contact_stiffness(sys, state, 1.0, Keff)
-        D = np.dot(ws.Minv, Keff).astype(np.complex128)
-        ev = np.linalg.eigvals(D)
+        Keff = Kst.copy()
+        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, 1.0, Keff)
+        ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
         wmax2 = 0.0
-        for i in range(n):
+        for i in range(ev.shape[0]):
             if abs(ev[i]) > wmax2:
                 wmax2 = abs(ev[i])
-        ws.tmin_value[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
-    return min(fpar[STEP_FACTOR] * ws.tmin_value[slot], fpar[DT_MAX])
-
-
-@njit(cache=True)
-def _store(ws, out, k, t, dt, solves):
-    out.t[k] = t
-    out.dt[k] = dt
-    out.solves[k] = solves
-    for i in range(ws.x.shape[0]):
-        out.x[k, i] = ws.x[i]
-        out.v[k, i] = ws.v[i]
-        out.a[k, i] = ws.a[i]
-    for d in range(ws.w.shape[0]):
-        out.w[k, d] = ws.w[d]
-        out.state[k, d] = ws.state[d]
-
-
-@njit(cache=True)
-def _accept(ws):
-    """Copy the '1' fields (step n+1) onto the carried state; return True if S changed."""
-    changed = False
-    for i in range(ws.x.shape[0]):
-        ws.x[i] = ws.x1[i]
-        ws.v[i] = ws.v1[i]
-        ws.a[i] = ws.a1[i]
-        ws.fe[i] = ws.fe1[i]
-        ws.gf[i] = ws.gf1[i]
-    for d in range(ws.w.shape[0]):
-        ws.w[d] = ws.w1[d]
-        if ws.state[d] != ws.state1[d]:
-            changed = True
-        ws.state[d] = ws.state1[d]
-    return changed
+        tvalue[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
+    return min(step_factor * tvalue[slot], dt_max)
 
 
 @njit(cache=True)
 def march(sys, fpar, ipar, ws, out, q0, f0):
-    """March from t_start to t_end, writing step k into out[k] (k = 0 is the initial state,
-    whose local q0 and f0 are given). Returns the status; out.counters[C_STEPS] steps done."""
+    """March from t_start to t_end, writing step k into out[k] (k = 0: the initial state,
+    whose local q0 and f0 are given). Returns the status; out.counters[C_STEPS] steps done.
+
+    Preload mode (ipar[PRELOAD] = N > 0): N quasi-static increments at t = 0 with the
+    constant loads scaled by k/N and p = 0 (set INERTIA = 0 and SIGNALS = 0)."""
+    # ---- unpack once: the loop below only touches local arrays ----
+    M = sys.M
+    Cd = sys.C
+    Kst = sys.K
+    A = sys.A
+    B = sys.B
+    g = sys.g
+    nrow = sys.normal_row
+    kn = sys.kn
+    mu = sys.mu
+    fdir = sys.first_direction
+    ndir = sys.n_directions
+    trow = sys.tangential_row
+    kt = sys.kt
+    f_const = sys.constant_force
+    length_scale = sys.length_scale
+    x, v, a, fe, gf, w, state = ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state
+    fe1, gf1, f1, q1, w1, state1 = ws.fe1, ws.gf1, ws.f1, ws.q1, ws.w1, ws.state1
+    dx, delta, r0, r, p, qbase = ws.dx, ws.delta, ws.r0, ws.r, ws.p, ws.qbase
+    Lin, J, Minv, key, dt_state, stick = ws.Lin, ws.J, ws.Minv, ws.key, ws.dt_state, ws.stick
+    keys, used, ok_flags, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_ok, ws.cache_lu, ws.cache_piv
+    tkeys, tused, tvalue, visited = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.visited
     counters = out.counters
+    n = x.shape[0]
+    nq = A.shape[0]
+    nd = state.shape[0]
+    beta, gamma, am, af = fpar[BETA], fpar[GAMMA], fpar[ALPHA_M], fpar[ALPHA_F]
+    tol_abs = fpar[TOL] * length_scale
+    state_rtol = fpar[STATE_RTOL]
+    singular_rtol = fpar[SINGULAR_RTOL]
+    solver = ipar[SOLVER]
+    adaptive = ipar[ADAPTIVE] == 1 and ipar[PRELOAD] == 0
+    inertia = ipar[INERTIA] == 1
+    signals = ipar[SIGNALS] == 1
+    n_preload = ipar[PRELOAD]
+    max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
+    kfac = (1.0 - af) if inertia else 1.0
     cap = out.t.shape[0] - 1
-    for r in range(q0.shape[0]):
-        out.q[0, r] = q0[r]
-        out.f[0, r] = f0[r]
+    # ---- initial point ----
+    for rr in range(nq):
+        out.q[0, rr] = q0[rr]
+        out.f[0, rr] = f0[rr]
     t = fpar[T_START]
     t_end = fpar[T_END]
-    _store(ws, out, 0, t, 0.0, 0)
-    k = 0
-    nd = ws.state.shape[0]
-    adaptive = ipar[ADAPTIVE] == 1
+    o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (out.t, out.dt, out.x, out.v, out.a, out.q, out.f,
+                                                                  out.w, out.state, out.solves)
+    _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, 0, t, 0.0, 0)
     for d in range(nd):
-        ws.dt_state[d] = 0
+        dt_state[d] = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
     status = OK
-    while t < t_end - tiny:
+    k = 0
+    last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
+    while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
         if k >= cap:
             status = CAPACITY
             break
-        if adaptive:
+        # ---- step size (fixed, or by contact state) ----
+        if n_preload > 0:
+            dt_nominal = 1.0
+        elif adaptive:
             for d in range(nd):
-                ws.dt_state[d] = ws.state[d]
-            dt_nominal = state_step_limit(sys, fpar, ws, ws.state)
+                dt_state[d] = state[d]
+            dt_nominal = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state,
+                                           tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt_nominal = fpar[DT]
         dt = dt_nominal
-        if t + dt > t_end - tiny:
+        if n_preload == 0 and t + dt > t_end - tiny:
             dt = t_end - t
         nominal = abs(dt - dt_nominal) <= 1e-12 * dt_nominal
-        status, solves = solve_step(sys, fpar, ipar, ws, t + dt, dt, 1.0, nominal, counters)
-        if adaptive and status == OK:
-            for redo in range(ipar[MAX_REDO]):
-                limit = state_step_limit(sys, fpar, ws, ws.state1)
-                if limit >= dt * (1.0 - 1e-9):
-                    break
-                counters[C_REDOS] += 1
+        load_factor = (k + 1.0) / n_preload if n_preload > 0 else 1.0
+        solves = 0
+        for attempt in range(max_redo + 1):
+            t1 = t + dt if n_preload == 0 else t
+            # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K ----
+            a0 = 1.0 / (beta * dt * dt)
+            c1 = gamma / (beta * dt)
+            a2 = 1.0 / (beta * dt)
+            a3 = 1.0 / (2.0 * beta) - 1.0
+            b1 = 1.0 - gamma / beta
+            b2 = dt * (1.0 - gamma / (2.0 * beta))
+            if ws.lin_dt[0] != dt:
+                last_slot = -1
+                for i in range(n):
+                    for j in range(n):
+                        if inertia:
+                            Lin[i, j] = (1.0 - am) * a0 * M[i, j] + (1.0 - af) * c1 * Cd[i, j] + (1.0 - af) * Kst[i, j]
+                        else:
+                            Lin[i, j] = Kst[i, j]
+                ws.lin_dt[0] = dt
+            # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
+            if signals:
+                evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                                sys.force_table_value, sys.force_ramp, fe1)
+                evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                                sys.motion_table_value, sys.motion_ramp, p)
+            else:
+                for i in range(n):
+                    fe1[i] = 0.0
+                for i in range(p.shape[0]):
+                    p[i] = 0.0
+            for i in range(n):
+                fe1[i] += load_factor * f_const[i]
+            gather(A, B, g, x, p, qbase)
+            if inertia:
+                for i in range(n):
+                    s = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i])
+                    for j in range(n):
+                        acc = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
+                        vel = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
+                        s -= M[i, j] * acc + Cd[i, j] * vel + Kst[i, j] * x[j]
+                    r0[i] = s
+            else:
+                for i in range(n):
+                    s = fe1[i]
+                    for j in range(n):
+                        s -= Kst[i, j] * x[j]
+                    r0[i] = s
+            # ---- the step solver ----
+            status = STATE_CYCLING
+            if solver == PIECEWISE_LINEAR:
                 for d in range(nd):
-                    ws.dt_state[d] = ws.state1[d]
-                dt = limit
-                status, more = solve_step(sys, fpar, ipar, ws, t + dt, dt, 1.0, True, counters)
+                    state1[d] = state[d]
+                counters[C_N_VISITED] = 0
+                for it in range(max_state_iter):
+                    for d in range(nd):
+                        visited[it, d] = state1[d]
+                    counters[C_N_VISITED] = it + 1
+                    same = nominal and last_slot >= 0
+                    if same:
+                        for d in range(nd):
+                            if keys[last_slot, d] != state1[d] or keys[last_slot, nd + d] != dt_state[d]:
+                                same = False
+                                break
+                    if same:
+                        slot, ok = last_slot, ok_flags[last_slot]
+                    else:
+                        _set_key(key, state1, dt_state)
+                        slot, ok = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, key,
+                                              keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
+                        last_slot = slot if nominal else -1
+                    if not ok:
+                        status = SINGULAR
+                        break
+                    piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
+                    scatter(A, f1, gf1)
+                    for i in range(n):
+                        r[i] = r0[i] - kfac * gf1[i]
+                    lu_solve(lus[slot], pivs[slot], r, dx)
+                    solves += 1
+                    finite = True
+                    for i in range(n):
+                        if not np.isfinite(dx[i]):
+                            finite = False
+                    if not finite:
+                        status = NON_FINITE
+                        break
+                    for rr in range(nq):
+                        s = qbase[rr]
+                        for j in range(n):
+                            s += A[rr, j] * dx[j]
+                        q1[rr] = s
+                    if compatible(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
+                        piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
+                        scatter(A, f1, gf1)
+                        status = OK
+                        break
+                    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+                    counters[C_LAW_CALLS] += 1
+                if status != OK and status != NON_FINITE and fallback == 1:
+                    counters[C_FALLBACKS] += 1
+                    status, more = _newton(False, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+                                           dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                                           keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
+                                           singular_rtol, counters)
+                    solves += more
+            else:
+                status, more = _newton(solver == FULL_NEWTON, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                                       r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                                       keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
+                                       singular_rtol, counters)
                 solves += more
-                if status != OK:
-                    break
+            if status != OK or not adaptive or attempt == max_redo:
+                break
+            # ---- redo rule (paper 4.2): the new state needs a smaller step ----
+            limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1,
+                                      tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+            if limit >= dt * (1.0 - 1e-9):
+                break
+            counters[C_REDOS] += 1
+            for d in range(nd):
+                dt_state[d] = state1[d]
+            dt = limit
+            nominal = True
+        counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
-            out.t[k + 1] = t + dt
+            out.t[k + 1] = t + dt if n_preload == 0 else t
             break
-        if _accept(ws):
+        # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
+        changed = False
+        for i in range(n):
+            if inertia:
+                a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
+                v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
+                a[i] = a_new
+            x[i] += dx[i]
+            fe[i] = fe1[i]
+            gf[i] = gf1[i]
+        for d in range(nd):
+            w[d] = w1[d]
+            if state[d] != state1[d]:
+                changed = True
+            state[d] = state1[d]
+        if changed:
             counters[C_STATE_CHANGES] += 1
-        t += dt
+        if n_preload == 0:
+            t += dt
         k += 1
-        _store(ws, out, k, t, dt, solves)
-        for r in range(ws.q1.shape[0]):
-            out.q[k, r] = ws.q1[r]
-            out.f[k, r] = ws.f1[r]
+        _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves)
+        for rr in range(nq):
+            o_q[k, rr] = q1[rr]
+            o_f[k, rr] = f1[rr]
     counters[C_STEPS] = k
     return status
 
 
-@njit(cache=True)
-def preload(sys, fpar, ipar, ws, n_increments, q_out, f_out, counters):
-    """Static preload: ramp the constant loads in n_increments quasi-static steps (p = 0).
-    The caller sets ipar[INERTIA] = 0, ipar[SIGNALS] = 0 and the initial postulate in ws.state.
-    Leaves the equilibrium in ws (x, w, S, gf) and q, f in q_out, f_out. Returns the status."""
-    for k in range(1, n_increments + 1):
-        status, solves = solve_step(sys, fpar, ipar, ws, 0.0, 1.0, k / n_increments, True, counters)
-        if status != OK:
-            counters[C_FAIL_STEP] = k
-            return status
-        _accept(ws)
-        for r in range(ws.q1.shape[0]):
-            q_out[r] = ws.q1[r]
-            f_out[r] = ws.f1[r]
-    return OK
+@njit(cache=True, inline="always")
+def _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves):
+    """Write the carried state as output point k."""
+    o_t[k] = t
+    o_dt[k] = dt
+    o_solves[k] = solves
+    for i in range(x.shape[0]):
+        o_x[k, i] = x[i]
+        o_v[k, i] = v[i]
+        o_a[k, i] = a[i]
+    for d in range(w.shape[0]):
+        o_w[k, d] = w[d]
+        o_state[k, d] = state[d]

@@ -1,6 +1,6 @@
 """Compiled evaluation of a signal (see slipstep.model.excitation):
 
-    y_c(t) = ramp(t) * [ sum_h (S_ch sin(2 pi f_h t) + C_ch cos(2 pi f_h t)) + interp(t; t_k, Y_ck) ]
+    y_c(t) = ramp(t) * [ sum_h (S_ch sin(2 pi f_h t) + C_ch cos(2 pi f_h t)) + interp(t; t_k, Y_ck) ]   (no table: nt = 0)
     ramp(t) = (1 - cos(pi t / t_r)) / 2 for 0 <= t < t_r, else 1
 """
 
@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def evaluate_signal(t, freq, sin_c, cos_c, tab_t, tab_v, ramp_time, out):
     nc = out.shape[0]
     for c in range(nc):
@@ -20,7 +20,9 @@ def evaluate_signal(t, freq, sin_c, cos_c, tab_t, tab_v, ramp_time, out):
         for c in range(nc):
             out[c] += sin_c[c, h] * s + cos_c[c, h] * co
     nt = tab_t.shape[0]
-    if t <= tab_t[0]:
+    if nt == 0:
+        pass
+    elif t <= tab_t[0]:
         for c in range(nc):
             out[c] += tab_v[c, 0]
     elif t >= tab_t[nt - 1]:

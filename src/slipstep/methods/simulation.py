@@ -38,6 +38,7 @@ class RunOptions:
     tolerance: Newton stop, max |A delta| <= tolerance * length scale.
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
     max_step: cap of the adaptive step [s] (default: period / 50).
+    dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     """
 
     periods: float = 3.0
@@ -54,6 +55,7 @@ class RunOptions:
     max_step: float | None = None
     preload_increments: int = 45
     fallback: bool = True
+    dt: float | None = None
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -73,6 +75,8 @@ class RunOptions:
                 raise InputError(name, f"is {value}", "give a small relative tolerance (e.g. 1e-6)")
         if self.max_step is not None:
             positive("max_step", self.max_step)
+        if self.dt is not None:
+            positive("dt", self.dt)
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
@@ -117,7 +121,9 @@ class Simulation:
         self.period, self.t_end = period, t_end
         scheme = opt.scheme
         self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
-        if self.method.quasi_static:
+        if opt.dt is not None:
+            dt = opt.dt
+        elif self.method.quasi_static:
             base = period if period is not None else t_end
             dt = base / opt.steps_per_period
         elif not math.isfinite(self.dt_limit):
@@ -157,6 +163,7 @@ class Simulation:
         self.ipar[K.MAX_REDO] = opt.max_redo
         self.ipar[K.FALLBACK] = int(opt.fallback)
         self.ipar[K.SIGNALS] = 1
+        self.ipar[K.PRELOAD] = 0
         self.ws = _allocate_workspace(cs, opt.max_state_iterations)
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
@@ -173,18 +180,21 @@ class Simulation:
         _reset_cache(ws)
         ipar = self.ipar.copy()
         ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK]] = 0, 0, K.PIECEWISE_LINEAR, 0, 1
+        ipar[K.PRELOAD] = self.options.preload_increments
         nq = cs.A.shape[0]
         q, f = np.zeros(nq), np.zeros(nq)
-        counters = np.zeros(K.N_COUNTERS, np.int64)
+        ramp = _allocate_outputs(cs, self.options.preload_increments)
         if np.any(cs.constant_force != 0):
-            status = K.preload(cs, self.fpar, ipar, ws, self.options.preload_increments, q, f, counters)
+            status = K.march(cs, self.fpar, ipar, ws, ramp, q, f)
+            counters = ramp.counters
+            q[:], f[:] = ramp.q[counters[K.C_STEPS]], ramp.f[counters[K.C_STEPS]]
         else:
             status = K.OK
             local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
             contact_law(cs, q, ws.w.copy(), f, ws.w, ws.state)
         if status != K.OK:
             states = ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(self.system.direction_names(), ws.state1))
-            raise SolverError(f"static preload failed at increment {counters[K.C_FAIL_STEP]} of "
+            raise SolverError(f"static preload failed at increment {ramp.counters[K.C_FAIL_STEP]} of "
                               f"{self.options.preload_increments}: {Status(status).message} (states: {states})")
         # initial point of the march: p(0), f_e(0), consistent acceleration
         p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
@@ -297,8 +307,9 @@ def _force_signal(cs: CompiledSystem) -> CompiledSignal:
 
 
 def _reset_cache(ws: K.Workspace) -> None:
+    """Forget the factorisations (every march pays for its own). T_min per state is a property
+    of the system and is kept for the life of the Simulation (cleared at allocation)."""
     ws.cache_used[:] = False
-    ws.tmin_used[:] = False
     ws.lin_dt[0] = np.nan
 
 
@@ -309,8 +320,8 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int) -> K.Workspace:
     i8 = lambda *shape: np.zeros(shape, np.int8)
     return K.Workspace(
         x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
-        x1=z(n), v1=z(n), a1=z(n), fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
-        dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq), Adelta=z(nq),
+        fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
+        dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
         Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
         cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),

@@ -56,18 +56,22 @@ class ContactElement:
             positive(f"{where}.tangential_stiffness", k)
         kn = positive(f"{where}.normal_stiffness", self.normal_stiffness)
         mu = positive(f"{where}.friction_coefficient", self.friction_coefficient, allow_zero=True)
-        if np.all(A[-1] == 0):
-            raise InputError(f"{where}.dof_gather", "has an all-zero normal row and no DOF moves the contact",
-                             "put the normal direction of the contact in the last row")
         B = None
         if self.motion_gather is not None:
             B = float_array(f"{where}.motion_gather", self.motion_gather, ndim=2, shape=(A.shape[0], None))
+        offset = finite(f"{where}.normal_offset", self.normal_offset)
+        fixed_normal = np.all(A[-1] == 0) and (B is None or np.all(B[-1] == 0))
+        if fixed_normal and offset <= 0:
+            raise InputError(f"{where}.dof_gather", "has an all-zero normal row, no motion and no interference: "
+                             "the contact can never close",
+                             "put the normal direction in the last row, or give normal_offset > 0 for a constant "
+                             "normal load N = k_n * normal_offset (a Jenkins element)")
         object.__setattr__(self, "dof_gather", A)
         object.__setattr__(self, "motion_gather", B)
         object.__setattr__(self, "tangential_stiffness", tuple(float(k) for k in kt))
         object.__setattr__(self, "normal_stiffness", kn)
         object.__setattr__(self, "friction_coefficient", mu)
-        object.__setattr__(self, "normal_offset", finite(f"{where}.normal_offset", self.normal_offset))
+        object.__setattr__(self, "normal_offset", offset)
 
     @property
     def n_tangential(self) -> int:

@@ -122,7 +122,7 @@ class CompiledSignal(NamedTuple):
     frequency: np.ndarray  # (nh,) Hz
     sin_coefficient: np.ndarray  # (nc, nh)
     cos_coefficient: np.ndarray  # (nc, nh)
-    table_time: np.ndarray  # (nt,) s, nt >= 2 (a zero table when there is none)
+    table_time: np.ndarray  # (nt,) s, nt = 0 when there is no table
     table_value: np.ndarray  # (nc, nt)
     ramp_time: float
 
@@ -131,7 +131,7 @@ def compile_signal(signal: Signal | None, n_components: int = 0) -> CompiledSign
     """Turn a :class:`Signal` into arrays: a sin(wt+phi) = a cos(phi) sin(wt) + a sin(phi) cos(wt)."""
     if signal is None:
         return CompiledSignal(np.zeros(0), np.zeros((n_components, 0)), np.zeros((n_components, 0)),
-                              np.array([0.0, 1.0]), np.zeros((n_components, 2)), 0.0)
+                              np.zeros(0), np.zeros((n_components, 0)), 0.0)
     nc = len(signal.components)
     freqs = np.array([h.frequency for h in signal.harmonics], dtype=float)
     sin_c = np.array([h.amplitude * np.cos(h.phase) for h in signal.harmonics], dtype=float).reshape(-1, nc).T.copy()
@@ -143,7 +143,7 @@ def compile_signal(signal: Signal | None, n_components: int = 0) -> CompiledSign
             for c in range(nc):
                 values[c] += np.interp(grid, tab.times, tab.values[:, c])
     else:
-        grid, values = np.array([0.0, 1.0]), np.zeros((nc, 2))
+        grid, values = np.zeros(0), np.zeros((nc, 0))
     return CompiledSignal(freqs, sin_c, cos_c, grid, np.ascontiguousarray(values), float(signal.ramp_time))
 
 
@@ -151,8 +151,9 @@ def evaluate_compiled(sig: CompiledSignal, t: np.ndarray) -> np.ndarray:
     """Vectorised NumPy evaluation of a compiled signal, shape (len(t), nc)."""
     w = 2 * np.pi * sig.frequency
     out = np.sin(np.outer(t, w)) @ sig.sin_coefficient.T + np.cos(np.outer(t, w)) @ sig.cos_coefficient.T
-    for c in range(sig.table_value.shape[0]):
-        out[:, c] += np.interp(t, sig.table_time, sig.table_value[c])
+    if sig.table_time.size:
+        for c in range(sig.table_value.shape[0]):
+            out[:, c] += np.interp(t, sig.table_time, sig.table_value[c])
     if sig.ramp_time > 0:
         ramp = np.where(t < sig.ramp_time, 0.5 * (1 - np.cos(np.pi * np.clip(t, 0, None) / sig.ramp_time)), 1.0)
         out *= ramp[:, None]
