@@ -172,7 +172,9 @@ class Simulation:
 
     # -- set-up ---------------------------------------------------------------------------
     def _preload(self):
-        """Ramp the constant loads quasi-statically from x = 0, w = 0, postulating full stick."""
+        """Static equilibrium under the constant loads and contact offsets: ramp the loads
+        quasi-statically from x = 0, w = 0 (offsets applied from the first increment),
+        postulating full stick. Without loads or offsets x = 0 is the equilibrium."""
         cs, ws = self.compiled, self.ws
         for arr in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w):
             arr[:] = 0.0
@@ -184,7 +186,7 @@ class Simulation:
         nq = cs.A.shape[0]
         q, f = np.zeros(nq), np.zeros(nq)
         ramp = _allocate_outputs(cs, self.options.preload_increments)
-        if np.any(cs.constant_force != 0):
+        if np.any(cs.constant_force != 0) or np.any(cs.g != 0):
             status = K.march(cs, self.fpar, ipar, ws, ramp, q, f)
             counters = ramp.counters
             q[:], f[:] = ramp.q[counters[K.C_STEPS]], ramp.f[counters[K.C_STEPS]]
