@@ -41,7 +41,8 @@ CASES_DIR = Path(__file__).parent / "cases"
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # strict: no silent coercion (``mass_kg = true`` or ``= "0.012"`` is an error, not 1.0 / 0.012)
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class PlatformSpec(_Strict):
@@ -217,6 +218,11 @@ def read_toml(path: Path) -> dict:
                          f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError("case", f"{path} is not valid TOML ({exc})", "fix the TOML syntax") from None
+    except UnicodeDecodeError:
+        raise InputError("case", f"{path} is not UTF-8 text", "give a TOML text file (UTF-8)") from None
+    except OSError as exc:  # a directory, no permission, ...
+        raise InputError("case", f"{str(path)!r} cannot be read ({exc.strerror})",
+                         "give a readable TOML file or a built-in case name") from None
 
 
 def builtin_cases() -> list[str]:

@@ -402,11 +402,14 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     counters[C_LAW_CALLS] += 1
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
+                    pl_status = status
                     status, more = _newton(False, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
                                            dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                            keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
                                            singular_rtol, counters)
                     solves += more
+                    if status != OK:
+                        status = pl_status  # the more telling reason: singular state or cycling
             else:
                 status, more = _newton(solver == FULL_NEWTON, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
                                        r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,

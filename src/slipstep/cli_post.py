@@ -1,0 +1,128 @@
+"""Post-processing commands of the ``slipstep`` CLI: ``plot``, ``report``, ``advise``.
+
+Registered on the main Typer app by :func:`register` (slipstep.cli calls it). No numerics
+here: the commands call slipstep.plots, slipstep.report and slipstep.advise. Bad input
+(InputError, a missing file) prints one red line on stderr and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import warnings
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+
+from slipstep.errors import InputError, SolverError
+
+_out = Console()
+_err = Console(stderr=True)
+
+
+@contextlib.contextmanager
+def _user_errors():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except (InputError, SolverError, FileNotFoundError) as exc:
+            kind = "solver error" if isinstance(exc, SolverError) else "input error"
+            _err.print(f"{kind}: {' '.join(str(exc).split())}", style="bold red", markup=False, highlight=False,
+                       soft_wrap=True)
+            raise typer.Exit(2) from None
+        finally:
+            for w in caught:
+                _err.print(f"warning: {' '.join(str(w.message).split())}", style="yellow", markup=False,
+                           highlight=False, soft_wrap=True)
+
+
+def _load_case(case: str):
+    from slipstep.config import load_system
+
+    return load_system(case)
+
+
+def plot(result: Path = typer.Argument(..., help="a result file written by `slipstep run` (.nc)"),
+         output_dir: Path = typer.Option(Path("figures"), "--output-dir", "-o", help="folder for the PNG files"),
+         case: Optional[str] = typer.Option(None, "--case", help="the case of the result, to filter the loops "
+                                            "(default: the case named in the result, if it is a built-in one)")):
+    """Write the figures of a result (time histories, loops, step size, iterations, states) as PNG."""
+    with _user_errors():
+        from slipstep import plots
+        from slipstep.config import builtin_cases
+        from slipstep.results import load
+
+        if not result.exists():
+            raise InputError("RESULT", f"file {str(result)!r} does not exist", "give the path of a .nc result file")
+        try:
+            ds = load(result)
+        except (OSError, ValueError) as exc:
+            raise InputError("RESULT", f"{str(result)!r} is not a readable result ({exc})",
+                             "give a .nc file written by `slipstep run`") from None
+        name = case or ds.attrs.get("case")
+        system = _load_case(name) if name and (case or name in builtin_cases()) else None
+        paths = plots.write_figures(ds, output_dir, system=system, prefix=f"{result.stem}_")
+        for p in paths:
+            _out.print(str(p), markup=False, highlight=False)
+
+
+def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
+           output: Optional[Path] = typer.Option(None, "--output", "-o", help="HTML file (default CASE_report.html)"),
+           periods: float = typer.Option(3.0, help="excitation periods to simulate"),
+           rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] for the Eq. 9 check"),
+           radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
+           displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]")):
+    """Run CASE (quasi-static + Method 3) and write one self-contained HTML report."""
+    with _user_errors():
+        from slipstep.report import write_report
+
+        system = _load_case(case)
+        stem = Path(case).stem if Path(case).suffix else case
+        path = output or Path(f"{stem}_report.html")
+        xd = None if displacement_um is None else displacement_um * 1e-6
+        write_report(system, path, periods=periods, rotor_speed_rpm=rotor_speed_rpm, radius_m=radius_m,
+                     displacement_amplitude_m=xd)
+        _out.print(str(path), markup=False, highlight=False)
+
+
+def advise(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
+           rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] (paper Eq. 9)"),
+           radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
+           displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]"),
+           as_json: bool = typer.Option(False, "--json", help="print the findings as JSON")):
+    """Which method suits CASE and why: Eq. 9 inertia ratio, T_min per state, flutter, steps."""
+    with _user_errors():
+        from slipstep.advise import advise as _advise
+
+        system = _load_case(case)
+        xd = None if displacement_um is None else displacement_um * 1e-6
+        result = _advise(system, rotor_speed_rpm, radius_m, xd)
+        if as_json:
+            print(json.dumps(_jsonable(result.to_dict())))
+        else:
+            _out.print(result.text(), markup=False, highlight=False, soft_wrap=True)
+
+
+def _jsonable(value):
+    import math
+
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if hasattr(value, "item"):
+        return _jsonable(value.item())
+    return value
+
+
+def register(app: typer.Typer) -> None:
+    """Add the plot, report and advise commands to ``app`` (once)."""
+    existing = {c.name or (c.callback.__name__ if c.callback else None) for c in app.registered_commands}
+    for func in (plot, report, advise):
+        if func.__name__ not in existing:
+            app.command(name=func.__name__)(func)

@@ -1,0 +1,306 @@
+"""Side-by-side comparison of the paper's methods on one case (paper Section 6, Figs. 5 and 8).
+
+For each method the same System is marched with the same options. The table reports:
+
+* kernel wall time: median over ``repeats`` calls of :meth:`Simulation.march` after a
+  warm-up run (which also JIT-compiles the kernels), and its ratio to Method 1;
+* counts: steps, linear solves, mean solves per step, the share of steps that needed a
+  single solve, state changes (raw over the run, and over the last period);
+* accuracy against Method 1 (``newmark``) over the LAST period: the largest difference of
+  the translational DOF displacements [um] and of the contact forces (tangential and
+  normal) as a percentage of CF = |constant_force| [N]. Results on another time grid
+  (adaptive, quasi-static) are linearly interpolated onto Method 1's grid. The same
+  differences are also given after a zero-phase low-pass filter that removes the damper's
+  ringing at its internal frequencies (paper 5.1): :func:`slipstep.post.filtering.lowpass`
+  (zero-phase Butterworth) on a uniform grid of Method 1's step, cut-off 5 x the excitation
+  frequency by default.
+
+Writers: :func:`write_csv`, :func:`write_json`, :func:`plot_time_ratios` (Figure 8) and
+:func:`plot_solves_histogram` (Figure 5).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import warnings
+from pathlib import Path
+from statistics import median
+
+import numpy as np
+import xarray as xr
+
+from slipstep.errors import InputError
+from slipstep.methods.registry import PAPER_METHODS, get_method
+from slipstep.methods.simulation import Simulation, state_t_min
+from slipstep.post.filtering import lowpass, samples_per_period
+from slipstep.system import System
+
+REFERENCE = "newmark"
+
+#: Columns of the comparison table, in order (all keys of a row).
+COLUMNS = (
+    "method", "paper_method", "status", "steps", "solves", "mean_solves_per_step", "single_solve_share",
+    "state_changes", "state_changes_last_period", "kernel_time_s", "time_ratio", "dt_min_s", "dt_max_s",
+    "max_disp_diff_um", "max_force_diff_pct_cf", "max_disp_diff_filtered_um", "max_force_diff_filtered_pct_cf",
+)
+
+
+def compare(system: System, methods=PAPER_METHODS, periods: float = 3, repeats: int = 5,
+            cutoff_factor: float = 5.0, datasets: dict | None = None, **options) -> list[dict]:
+    """Run ``methods`` on ``system`` and return one row (dict, keys :data:`COLUMNS` plus
+    ``force_scale_N`` and ``filter_cutoff_Hz``) per method, Method 1 first.
+
+    ``cutoff_factor``: low-pass cut-off = cutoff_factor x excitation frequency.
+    ``datasets``: if a dict is given it receives the result Dataset of every method.
+    ``options``: further :class:`~slipstep.methods.simulation.RunOptions` for every method.
+    """
+    names = _method_names(methods)
+    if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
+        raise InputError("repeats", f"is {repeats!r}", "give a whole number >= 1")
+    if not (isinstance(cutoff_factor, (int, float)) and math.isfinite(cutoff_factor) and cutoff_factor > 1):
+        raise InputError("cutoff_factor", f"is {cutoff_factor!r}", "give a number > 1 (e.g. 5)")
+    results, times = {}, {}
+    for name in names:
+        sim = Simulation(system, name, periods=periods, **options)
+        results[name] = sim.run()  # warm-up (JIT compile) and the result
+        samples = []
+        for _ in range(repeats):
+            sim.march()
+            samples.append(sim.kernel_time)
+        times[name] = median(samples)
+    if datasets is not None:
+        datasets.update(results)
+    ref = results[REFERENCE]
+    force_scale = _force_scale(system, ref)
+    cutoff = _cutoff(system, cutoff_factor, ref)
+    filtered_ref = _lowpass_dataset(ref, ref, cutoff)
+    rows = []
+    for name in names:
+        ds = results[name]
+        rows.append(_row(ds, ref, filtered_ref, times[name], times[REFERENCE], force_scale, cutoff))
+    return rows
+
+
+def _method_names(methods) -> list[str]:
+    if isinstance(methods, str):
+        methods = [m for m in methods.split(",") if m.strip()]
+    names = []
+    for m in methods:
+        name = get_method(m).name
+        if name not in names:
+            names.append(name)
+    if not names:
+        raise InputError("methods", "is empty", f"give method names, e.g. {','.join(PAPER_METHODS)}")
+    if REFERENCE in names:
+        names.remove(REFERENCE)
+    return [REFERENCE] + names  # the reference (Method 1) always runs, first
+
+
+def _force_scale(system: System, ref: xr.Dataset) -> float:
+    """CF = |constant force| [N]; without a constant load, the largest reference contact force."""
+    f0 = system.excitation.constant_force
+    cf = float(np.linalg.norm(f0)) if f0 is not None else 0.0
+    if cf > 0:
+        return cf
+    peak = max(float(np.abs(ref.tangential_force).max(initial=0.0)), float(np.abs(ref.normal_force).max(initial=0.0)))
+    return peak if peak > 0 else 1.0
+
+
+def _cutoff(system: System, factor: float, ref: xr.Dataset) -> float:
+    """Low-pass cut-off [Hz]: factor x excitation frequency, kept below Nyquist; warns when the
+    lowest full-stick frequency is not well above it (paper Remark 3: filtering not safe)."""
+    period = float(ref.attrs["period_s"]) if "period_s" in ref.attrs else float(ref.attrs["t_end_s"])
+    f_exc = 1.0 / period
+    dt = float(ref.attrs["dt_s"])
+    cutoff = min(factor * f_exc, 0.4 / dt)
+    cs = system.compile()
+    stick = np.ones(cs.kt.shape[0], np.int8)
+    _, ev = state_t_min(cs, stick)
+    positive = np.abs(ev[np.abs(ev) > 0])
+    if positive.size:
+        f_low = math.sqrt(positive.min()) / (2 * math.pi)
+        if f_low < 2 * cutoff:
+            warnings.warn(f"the lowest full-stick frequency ({f_low:.4g} Hz) is within a factor 2 of the "
+                          f"low-pass cut-off ({cutoff:.4g} Hz): the filtered differences may remove real "
+                          "response (paper Remark 3)", stacklevel=3)
+    return cutoff
+
+
+def _last_period(ref: xr.Dataset) -> np.ndarray:
+    t = ref.time.values
+    period = float(ref.attrs.get("period_s", t[-1]))
+    return t >= t[-1] - period * (1 + 1e-9)
+
+
+def _on_grid(ds: xr.Dataset, name: str, t: np.ndarray) -> np.ndarray:
+    """Variable ``name`` (time, k) linearly interpolated onto times ``t`` -> (len(t), k)."""
+    tt, values = ds.time.values, np.asarray(ds[name].values, float)
+    return np.column_stack([np.interp(t, tt, values[:, j]) for j in range(values.shape[1])])
+
+
+def _translational(ds: xr.Dataset) -> np.ndarray:
+    units = np.asarray(ds.dof_unit.values).astype(str)
+    return units == "m"
+
+
+def _differences(a: dict, b: dict, mask: np.ndarray, force_scale: float) -> tuple[float, float]:
+    disp = np.abs(a["displacement"][mask] - b["displacement"][mask])
+    force = np.concatenate([np.abs(a[k][mask] - b[k][mask]).ravel() for k in ("tangential_force", "normal_force")])
+    return float(disp.max(initial=0.0)) * 1e6, float(force.max(initial=0.0)) / force_scale * 100.0
+
+
+def _signals(ds: xr.Dataset, t: np.ndarray, translational: np.ndarray) -> dict:
+    out = {k: _on_grid(ds, k, t) for k in ("displacement", "tangential_force", "normal_force")}
+    out["displacement"] = out["displacement"][:, translational]
+    return out
+
+
+def _uniform_grid(ref: xr.Dataset) -> np.ndarray:
+    t = ref.time.values
+    dt = float(ref.attrs["dt_s"])
+    n = max(int(round((t[-1] - t[0]) / dt)), 1)
+    return np.linspace(t[0], t[-1], n + 1)
+
+
+def _lowpass_dataset(ds: xr.Dataset, ref: xr.Dataset, cutoff: float) -> dict:
+    """The compared signals of ``ds`` resampled on the reference's uniform grid and low-pass filtered."""
+    grid = _uniform_grid(ref)
+    sig = _signals(ds, grid, _translational(ref))
+    dt = grid[1] - grid[0]
+    per = samples_per_period(grid, ref.attrs.get("period_s"))
+    out = {k: lowpass(v, dt, cutoff, period_samples=per) for k, v in sig.items()}
+    out["time"] = grid
+    return out
+
+
+def _row(ds, ref, filtered_ref, kernel_time, ref_time, force_scale, cutoff) -> dict:
+    a = ds.attrs
+    solves = ds.solves.values[1:]
+    steps = int(a["steps"])
+    last = _last_period(ref)
+    t_ref = ref.time.values
+    trans = _translational(ref)
+    d_um, f_pct = _differences(_signals(ds, t_ref, trans), _signals(ref, t_ref, trans), last, force_scale)
+    filt = _lowpass_dataset(ds, ref, cutoff)
+    fd_um, ff_pct = _differences(filt, filtered_ref, _grid_last(filt["time"], ref), force_scale)
+    states = ds.contact_state.values
+    changed = np.any(states[1:] != states[:-1], axis=1)
+    t = ds.time.values
+    period = float(a.get("period_s", t[-1]))
+    in_last = t[1:] > t[-1] - period * (1 + 1e-9)
+    steps_dt = ds.step_size.values[1:]
+    return {
+        "method": a["method"],
+        "paper_method": a["paper_method"],
+        "status": a["status"],
+        "steps": steps,
+        "solves": int(a["solves"]),
+        "mean_solves_per_step": float(a["mean_solves_per_step"]),
+        "single_solve_share": float(np.mean(solves == 1)) if solves.size else math.nan,
+        "state_changes": int(a["state_changes"]),
+        "state_changes_last_period": int(np.count_nonzero(changed & in_last)),
+        "kernel_time_s": float(kernel_time),
+        "time_ratio": float(kernel_time / ref_time) if ref_time > 0 else math.nan,
+        "dt_min_s": float(steps_dt.min()) if steps_dt.size else math.nan,
+        "dt_max_s": float(steps_dt.max()) if steps_dt.size else math.nan,
+        "max_disp_diff_um": d_um,
+        "max_force_diff_pct_cf": f_pct,
+        "max_disp_diff_filtered_um": fd_um,
+        "max_force_diff_filtered_pct_cf": ff_pct,
+        "force_scale_N": force_scale,
+        "filter_cutoff_Hz": cutoff,
+    }
+
+
+def _grid_last(grid: np.ndarray, ref: xr.Dataset) -> np.ndarray:
+    period = float(ref.attrs.get("period_s", grid[-1]))
+    return grid >= grid[-1] - period * (1 + 1e-9)
+
+
+# -- writers ------------------------------------------------------------------------------------
+
+def write_csv(rows: list[dict], path) -> Path:
+    """The table as CSV (one line per method, header = keys of the first row)."""
+    path = Path(path)
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def write_json(rows: list[dict], path) -> Path:
+    """The table as a JSON list of objects."""
+    path = Path(path)
+    path.write_text(json.dumps(rows, indent=2, default=_jsonable) + "\n")
+    return path
+
+
+def _jsonable(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {value!r}")
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_time_ratios(rows: list[dict], path, title: str = "") -> Path:
+    """Figure 8 of the paper: kernel CPU time of each method relative to Method 1."""
+    plt = _pyplot()
+    labels = [f"{r['paper_method']}\n{r['method']}" for r in rows]
+    ratios = [r["time_ratio"] for r in rows]
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.6 * len(rows)), 4.2))
+    bars = ax.bar(range(len(rows)), ratios, color="tab:blue")
+    for bar, r in zip(bars, rows):
+        ax.annotate(f"{r['time_ratio']:.3g}\n({r['kernel_time_s'] * 1e3:.3g} ms)",
+                    (bar.get_x() + bar.get_width() / 2, bar.get_height()), ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(range(len(rows)), labels, fontsize=8)
+    ax.set_ylabel("kernel time / Method 1 kernel time [-]")
+    ax.set_ylim(0, max(1.0, max(ratios)) * 1.25)
+    ax.axhline(1.0, color="grey", lw=0.8, ls="--")
+    ax.set_title(title or "Computational time relative to standard Newmark (paper Fig. 8)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_solves_histogram(datasets: dict, path, methods=(REFERENCE, "piecewise-linear")) -> Path:
+    """Figure 5 of the paper: histograms of linear solves (iterations) per time step."""
+    plt = _pyplot()
+    shown = [m for m in methods if m in datasets]
+    fig, axes = plt.subplots(1, max(len(shown), 1), figsize=(5.0 * max(len(shown), 1), 3.8), squeeze=False)
+    for ax, name in zip(axes[0], shown):
+        ds = datasets[name]
+        solves = ds.solves.values[1:]
+        edges = np.arange(0.5, max(int(solves.max(initial=1)), 1) + 1.5)
+        ax.hist(solves, bins=edges, color="tab:orange", edgecolor="black")
+        ax.set_xlabel("linear solves (iterations) per time step [-]")
+        ax.set_ylabel("number of time steps [-]")
+        ax.set_title(f"{ds.attrs['paper_method']} ({name}): mean {solves.mean():.2f}", fontsize=10)
+    fig.suptitle("Iterations per time step (paper Fig. 5)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def write_outputs(rows: list[dict], datasets: dict, output_dir, title: str = "") -> dict[str, Path]:
+    """Write comparison.csv, comparison.json, fig8_time_ratios.png and fig5_iterations.png."""
+    out = Path(output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return {
+        "csv": write_csv(rows, out / "comparison.csv"),
+        "json": write_json(rows, out / "comparison.json"),
+        "fig8": plot_time_ratios(rows, out / "fig8_time_ratios.png", title),
+        "fig5": plot_solves_histogram(datasets, out / "fig5_iterations.png"),
+    }

@@ -1,0 +1,96 @@
+"""Direct time-integration schemes (paper Appendix A) behind one entry point.
+
+    ds = simulate(system, "hht(0.1)", variant="both", periods=2)
+    rows = compare_schemes(system, schemes="all", periods=2)
+
+Registry: one line per scheme. To add a scheme, write one module with an
+:class:`~slipstep.integrators.base.Integrator` subclass (the contract is in its docstring)
+and add its line here.
+"""
+
+from __future__ import annotations
+
+import re
+from fractions import Fraction
+
+from slipstep.errors import InputError
+from slipstep.integrators.base import VARIANTS, ExplicitIntegrator, ImplicitIntegrator, Integrator
+from slipstep.integrators.central_difference import CentralDifference
+from slipstep.integrators.generalized_alpha import GeneralizedAlpha
+from slipstep.integrators.hht import HHT
+from slipstep.integrators.newmark import LinearAcceleration, Newmark
+from slipstep.integrators.rk4 import RK4
+
+INTEGRATORS: dict[str, type[Integrator]] = {
+    "newmark": Newmark,                         # beta, gamma (default 1/4, 1/2: average acceleration)
+    "linear-acceleration": LinearAcceleration,  # Newmark beta = 1/6, gamma = 1/2
+    "hht": HHT,                                 # alpha in [0, 1/3]
+    "generalized-alpha": GeneralizedAlpha,      # rho_inf in [0, 1]
+    "central-difference": CentralDifference,    # explicit, dt <= T_min / pi
+    "rk4": RK4,                                 # explicit, first-order form, dt <= 2.785 / omega_max
+}
+
+ALIASES = {"generalised-alpha": "generalized-alpha", "gen-alpha": "generalized-alpha", "alpha": "generalized-alpha",
+           "hht-alpha": "hht", "cd": "central-difference", "central": "central-difference",
+           "runge-kutta": "rk4", "runge-kutta-4": "rk4", "average-acceleration": "newmark"}
+
+_CALL = re.compile(r"^\s*([A-Za-z0-9_\- ]+?)\s*(?:\((.*)\))?\s*$")
+
+
+def _number(field: str, text: str) -> float:
+    try:
+        return float(Fraction(text.strip()))
+    except (ValueError, ZeroDivisionError):
+        raise InputError(field, f"{text!r} is not a number", "give a number or a fraction such as 1/6") from None
+
+
+def parse_scheme(spec: str) -> tuple[str, list[float], dict[str, float]]:
+    """'hht(0.1)' -> ('hht', [0.1], {}); 'newmark(beta=1/6, gamma=1/2)' -> ('newmark', [], {...})."""
+    m = _CALL.match(str(spec))
+    if not m:
+        raise InputError("scheme", f"cannot read {spec!r}", "write name or name(p1, p2) e.g. newmark(1/6, 1/2)")
+    name = m.group(1).strip().lower().replace("_", "-").replace(" ", "-")
+    name = ALIASES.get(name, name)
+    args, kwargs = [], {}
+    if m.group(2) and m.group(2).strip():
+        for part in m.group(2).split(","):
+            if "=" in part:
+                key, value = part.split("=", 1)
+                kwargs[key.strip()] = _number(f"scheme.{key.strip()}", value)
+            else:
+                args.append(_number("scheme", part))
+    return name, args, kwargs
+
+
+def get_integrator(name: str | Integrator, *args, **params) -> Integrator:
+    """An :class:`Integrator` from a registry name (optionally with parameters in
+    parentheses, e.g. ``'newmark(1/6, 1/2)'``) and/or keyword parameters."""
+    if isinstance(name, Integrator):
+        return name
+    key, pargs, kwargs = parse_scheme(name)
+    if key not in INTEGRATORS:
+        raise InputError("scheme", f"unknown scheme {name!r}", f"use one of {', '.join(INTEGRATORS)}")
+    kwargs.update(params)
+    try:
+        return INTEGRATORS[key](*pargs, *args, **kwargs)
+    except TypeError as exc:
+        raise InputError(f"scheme {key}", f"bad parameters ({exc})",
+                         f"see help(slipstep.integrators.{INTEGRATORS[key].__name__})") from None
+
+
+def simulate(system, scheme: str | Integrator = "newmark", variant: str = "fixed", **options):
+    """Simulate ``system`` with a scheme of :data:`INTEGRATORS` in one of its variants
+    ('fixed', 'adaptive', 'piecewise-linear', 'both') and return the result Dataset.
+
+    Options: those of :class:`slipstep.methods.simulation.RunOptions` (periods, duration,
+    step_ratio, ...; ``scheme`` is given here instead)."""
+    if "scheme" in options:
+        raise InputError("scheme", "given twice", "pass the scheme as the second argument")
+    return get_integrator(scheme).run(system, variant, **options)
+
+
+from slipstep.integrators.compare import compare_schemes, format_table  # noqa: E402
+
+__all__ = ["INTEGRATORS", "VARIANTS", "CentralDifference", "ExplicitIntegrator", "GeneralizedAlpha", "HHT",
+           "ImplicitIntegrator", "Integrator", "LinearAcceleration", "Newmark", "RK4", "compare_schemes",
+           "format_table", "get_integrator", "parse_scheme", "simulate"]

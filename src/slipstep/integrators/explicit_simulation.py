@@ -1,0 +1,175 @@
+"""The Python face of an explicit march (central difference, RK4): options, preload,
+step size, kernel call, Dataset. Mirrors :class:`slipstep.methods.simulation.Simulation`
+and reuses its preload and allocation helpers, so the result has the standard schema.
+
+    sim = ExplicitSimulation(system, get_integrator("rk4"), adaptive=True, periods=2)
+    ds = sim.run()
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.kernels import explicit as E
+from slipstep.kernels import march as K
+from slipstep.methods.simulation import RunOptions, Simulation, _allocate_outputs, _motion_signal
+from slipstep.model.excitation import evaluate_compiled
+from slipstep.model.validate import positive
+from slipstep.results import build_dataset
+from slipstep.system import System
+
+#: options an explicit run understands (the rest of RunOptions is for implicit solvers)
+EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo", "preload_increments",
+                    "singular_tolerance", "state_tolerance", "tolerance")
+
+
+class ExplicitSimulation:
+    """One system marched by an explicit integrator, fixed or contact-state adaptive step.
+
+    dt (fixed) = period / ceil(period / (step_ratio * factor * T_min(all stick))), with
+    ``factor = integrator.step_limit_factor`` (the stability limit, see the integrator).
+    Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
+    """
+
+    def __init__(self, system: System, integrator, adaptive: bool = False, **options):
+        if not isinstance(system, System):
+            raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+        unknown = set(options) - set(EXPLICIT_OPTIONS)
+        if unknown:
+            raise InputError("options", f"unknown option(s) {sorted(unknown)} for the explicit scheme "
+                             f"{integrator.name}", f"use only {sorted(EXPLICIT_OPTIONS)}")
+        if integrator.kind != "explicit" or integrator.kernel_kind is None:
+            raise InputError("scheme", f"{integrator.name} is not an explicit scheme", "use central-difference or rk4")
+        self.system, self.integrator, self.adaptive = system, integrator, bool(adaptive)
+        ratio = positive("step_ratio", options.get("step_ratio", 1.0))
+        if ratio > 1.0:
+            raise InputError("step_ratio", f"is {ratio}: an explicit scheme is unstable above its stability limit",
+                             "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)")
+        # preload (and validation of the common options) by the implicit set-up, quasi-static loads ramp
+        pre = Simulation(system, "newmark", **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
+        self.options = pre.options
+        self.compiled = cs = pre.compiled
+        self.preload_state = pre.preload_state
+        self.q0, self.f0 = pre.q0, pre.f0
+        self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end
+        factor = ratio * integrator.step_limit_factor
+        self.dt_limit = factor * self.t_min_stick
+        period, t_end = self.period, self.t_end
+        dt = period / math.ceil(period / self.dt_limit * (1 - 1e-12)) if period is not None else self.dt_limit
+        if dt > t_end:
+            raise InputError("duration", f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
+                             "simulate longer or use a smaller step")
+        self.dt = dt
+        opt = self.options
+        dt_max = opt.max_step if opt.max_step is not None else (period / 50 if period else 10 * self.dt_limit)
+        if self.adaptive:
+            capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
+        else:
+            capacity = math.ceil(t_end / dt * (1 + 1e-12)) + 1
+        if capacity > 50_000_000:
+            raise InputError("duration", f"needs {capacity} steps", "shorten the run")
+        self.fpar = np.zeros(E.N_FPAR)
+        self.fpar[E.DT] = dt
+        self.fpar[E.STEP_FACTOR] = factor
+        self.fpar[E.DT_MAX] = dt_max
+        self.fpar[E.T_START], self.fpar[E.T_END] = 0.0, t_end
+        self.fpar[E.SINGULAR_RTOL] = opt.singular_tolerance
+        self.fpar[E.DIVERGENCE] = 1e6 * cs.length_scale
+        self.ipar = np.zeros(E.N_IPAR, np.int64)
+        self.ipar[E.KIND] = integrator.kernel_kind
+        self.ipar[E.ADAPTIVE] = int(self.adaptive)
+        self.ipar[E.MAX_REDO] = opt.max_redo
+        self.ws = _allocate_explicit_workspace(cs)
+        self.out = _allocate_outputs(cs, capacity)
+        self.status = None
+        self.kernel_time = math.nan
+
+    def march(self) -> Status:
+        """Run the kernel from the preload state; returns the status (also in self.status)."""
+        ws = self.ws
+        for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
+            dst[:] = src
+        ws.tmin_used[:] = False
+        ws.lu_dt[0] = np.nan
+        self.out.counters[:] = 0
+        start = time.perf_counter()
+        status = E.explicit_march(self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        self.kernel_time = time.perf_counter() - start
+        self.status = Status(status)
+        return self.status
+
+    def run(self, raise_on_failure: bool = False):
+        start = time.perf_counter()
+        self.march()
+        ds = self.dataset()
+        ds.attrs["wall_time_s"] = time.perf_counter() - start
+        if raise_on_failure and self.status != Status.OK:
+            raise SolverError(ds.attrs["status_message"], ds)
+        return ds
+
+    def dataset(self):
+        if self.status is None:
+            raise RuntimeError("call march() first")
+        c = self.out.counters
+        n_steps = int(c[K.C_STEPS])
+        t = self.out.t[: n_steps + 1]
+        motion = evaluate_compiled(_motion_signal(self.compiled), t)
+        message = self.status.message
+        failure = {}
+        if self.status != Status.OK:
+            step = int(c[K.C_FAIL_STEP])
+            failure = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
+            message = f"{self.status.name}: {message}; stopped at step {step}, t = {self.out.t[step]:.6g} s"
+            if self.status == Status.NON_FINITE:
+                message += (" (an explicit scheme diverges above its stability limit: lower step_ratio; "
+                            "or a fluttering slip state, physics.md 8)")
+        solves = int(self.out.solves[1: n_steps + 1].sum())
+        name = self.integrator.name
+        attrs = {
+            "title": f"slipstep result: {self.system.name}, {name}",
+            "case": self.system.name,
+            "method": f"{name}-adaptive" if self.adaptive else name,
+            "paper_method": "App. A (explicit)",
+            "solver": "explicit",
+            "adaptive_step": self.adaptive,
+            "quasi_static": False,
+            "scheme": name,
+            "status": self.status.name,
+            "status_message": message,
+            "steps": n_steps,
+            "solves": solves,
+            "iterations": solves,
+            "mean_solves_per_step": solves / max(n_steps, 1),
+            "factorisations": int(c[K.C_FACTORISATIONS]),
+            "law_calls": int(c[K.C_LAW_CALLS]),
+            "redone_steps": int(c[K.C_REDOS]),
+            "fallback_steps": 0,
+            "state_changes": int(c[K.C_STATE_CHANGES]),
+            "dt_s": self.dt,
+            "t_min_s": self.t_min_stick,
+            "t_end_s": self.t_end,
+            "period_s": self.period,
+            "step_ratio": self.options.step_ratio,
+            "kernel_time_s": self.kernel_time,
+            "length_scale_m": self.compiled.length_scale,
+        }
+        attrs.update(failure)
+        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=True, compiled=self.compiled)
+
+
+def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:
+    n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    cap = 512
+    z = lambda *shape: np.zeros(shape)
+    i8 = lambda *shape: np.zeros(shape, np.int8)
+    return E.ExplicitWorkspace(
+        x=z(n), v=z(n), a=z(n), w=z(nd), state=i8(nd),
+        x1=z(n), v1=z(n), a1=z(n), q1=z(nq), f1=z(nq), w1=z(nd), state1=i8(nd),
+        gf=z(n), fe=z(n), p=z(m), rhs=z(n), xs=z(n), vs=z(n), kx=z(4, n), kv=z(4, n),
+        fs=z(nq), ws_=z(nd), ss=i8(nd), lu=z(n, n), piv=np.zeros(n, np.int64), lu_dt=np.full(1, np.nan),
+        Minv=np.linalg.inv(cs.M), tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
+    )

@@ -1,0 +1,266 @@
+"""Bad input -> InputError naming the field (Python API), exit code 2 with one red line and no
+traceback (CLI). Every row of docs/bad_input.md is a case here, and the test
+``test_docs_table_is_exact`` checks that the documented message is the one produced.
+
+Run ``python tests/test_bad_input.py`` to print the Markdown table for docs/bad_input.md.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import slipstep as ss
+from slipstep.cli import app
+from slipstep.config import CASES_DIR
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "bad_input.md"
+PAPER = (CASES_DIR / "paper.toml").read_text()
+
+# A valid general-structure case: 2 DOFs (x tangential, y normal), one 2D contact, base motion.
+STRUCTURE = """\
+name = "two-dof"
+motion_names = ["base.x"]
+
+[structure]
+dof_names = ["x", "y"]
+mass_kg = [[1.0, 0.0], [0.0, 1.0]]
+stiffness_N_per_m = [[1.0e4, 0.0], [0.0, 0.0]]
+constant_force_N = [0.0, 10.0]
+
+[[contacts]]
+name = "C1"
+dof_gather = [[1.0, 0.0], [0.0, 1.0]]
+motion_gather = [[1.0], [0.0]]
+normal_stiffness_N_per_m = 1.0e6
+tangential_stiffness_N_per_m = 1.0e6
+friction_coefficient = 0.3
+
+[[motion]]
+component = "base.x"
+amplitude = 1.0e-5
+frequency_Hz = 50.0
+"""
+
+
+def edit(text: str, old: str, new: str) -> str:
+    """Replace the first ``old`` (which must exist) by ``new``."""
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def two_dof_contact(**changes):
+    kwargs = dict(name="C1", dof_gather=[[1.0, 0.0], [0.0, 1.0]], tangential_stiffness=1e6,
+                  normal_stiffness=1e6, friction_coefficient=0.3)
+    kwargs.update(changes)
+    return ss.ContactElement(**kwargs)
+
+
+def paper_damper(contact_platform="right", motion_component="right.x"):
+    deg = math.radians
+    return ss.rigid_damper(
+        mass=0.012, inertia=1.2e-7,
+        platforms=[ss.Platform("left", deg(45)), ss.Platform("right", deg(-45))],
+        contacts=[ss.DamperContact("P1", "left", (-3.914e-3, -0.414e-3), 13e6, 13e6, 0.4),
+                  ss.DamperContact("P3", contact_platform, (2.5e-3, 1.0e-3), 26e6, 26e6, 0.25)],
+        centrifugal_force=200.0,
+        motion=ss.Signal((motion_component,), (ss.Harmonic(200.0, [25e-6]),)))
+
+
+@dataclass(frozen=True)
+class Bad:
+    id: str
+    input: str  # what the user did, for the docs table
+    field: str  # the field the message must name
+    api: Callable[[], object] | None = None  # Python call that must raise InputError
+    toml: str | None = None  # case file text: load_case (+ Simulation) must raise, CLI `run` exits 2
+    cli: tuple[str, ...] | None = None  # CLI arguments that must exit 2
+    files: tuple[tuple[str, bytes], ...] = ()  # (name, content) written to the working directory first
+
+
+CASES = [
+    # -- Python API: model -----------------------------------------------------------------
+    Bad("negative-mass", "`Structure(mass=[[-1.0]])`", "structure.mass",
+        api=lambda: ss.Structure(mass=[[-1.0]])),
+    Bad("zero-mass", "`Structure(mass=[[1, 0], [0, 0]])` (singular M)", "structure.mass",
+        api=lambda: ss.Structure(mass=[[1.0, 0.0], [0.0, 0.0]])),
+    Bad("non-symmetric-mass", "`Structure(mass=[[1, 0.5], [0, 1]])`", "structure.mass",
+        api=lambda: ss.Structure(mass=[[1.0, 0.5], [0.0, 1.0]])),
+    Bad("nan-in-matrix", "`Structure(mass=I, stiffness=[[nan, 0], [0, 1]])`", "structure.stiffness",
+        api=lambda: ss.Structure(mass=np.eye(2), stiffness=[[np.nan, 0.0], [0.0, 1.0]])),
+    Bad("gather-columns", "2-DOF structure, contact `dof_gather` with 3 columns", "contacts[C1].dof_gather",
+        api=lambda: ss.System(ss.Structure(np.eye(2)), (two_dof_contact(dof_gather=[[1, 0, 0], [0, 1, 0]]),))),
+    Bad("gather-rows", "contact `dof_gather` with 4 rows", "contacts[C1].dof_gather",
+        api=lambda: two_dof_contact(dof_gather=np.eye(4, 2))),
+    Bad("motion-gather-columns", "`motion_gather` with 2 columns for 1 motion component",
+        "contacts[C1].motion_gather",
+        api=lambda: ss.System(ss.Structure(np.eye(2)), (two_dof_contact(motion_gather=[[1.0, 0.0], [0.0, 0.0]]),),
+                              motion_names=("base.x",))),
+    Bad("negative-friction", "`ContactElement(..., friction_coefficient=-0.1)`", "contacts[C1].friction_coefficient",
+        api=lambda: two_dof_contact(friction_coefficient=-0.1)),
+    Bad("zero-normal-stiffness", "`ContactElement(..., normal_stiffness=0)`", "contacts[C1].normal_stiffness",
+        api=lambda: two_dof_contact(normal_stiffness=0.0)),
+    Bad("unknown-motion-component", "`rigid_damper(..., motion=Signal(('right.z',), ...))`", "motion.component",
+        api=lambda: paper_damper(motion_component="right.z")),
+    Bad("unknown-platform", "`DamperContact('P3', 'middle', ...)` with platforms left/right",
+        "damper.contacts[P3].platform", api=lambda: paper_damper(contact_platform="middle")),
+    # -- Python API: run options -----------------------------------------------------------
+    Bad("api-unknown-option", "`ss.run(system, time_step=1e-5)`", "options",
+        api=lambda: ss.run(ss.load_system("paper"), time_step=1e-5)),
+    Bad("api-unknown-method", "`ss.run(system, 'runge-kutta')`", "method",
+        api=lambda: ss.run(ss.load_system("paper"), "runge-kutta")),
+    Bad("api-negative-step-ratio", "`ss.run(system, step_ratio=-1)`", "step_ratio",
+        api=lambda: ss.run(ss.load_system("paper"), step_ratio=-1.0)),
+    Bad("api-zero-periods", "`ss.run(system, periods=0)`", "periods",
+        api=lambda: ss.run(ss.load_system("paper"), periods=0)),
+    Bad("api-not-a-system", "`ss.run('paper')` (a name, not a System)", "system",
+        api=lambda: ss.run("paper")),
+    # -- TOML case files (load_case raises; `slipstep run FILE` exits 2) --------------------
+    Bad("toml-unknown-key", "`[damper]` with `damping_ratio = 0.01`", "damper.damping_ratio",
+        toml=edit(PAPER, "mass_kg = 0.012", "mass_kg = 0.012\ndamping_ratio = 0.01")),
+    Bad("toml-missing-key", "`[damper]` without `inertia_kg_m2`", "damper.inertia_kg_m2",
+        toml=edit(PAPER, "inertia_kg_m2 = 1.2e-7", "")),
+    Bad("toml-wrong-type", "`mass_kg = \"twelve grams\"`", "damper.mass_kg",
+        toml=edit(PAPER, "mass_kg = 0.012", 'mass_kg = "twelve grams"')),
+    Bad("toml-bool-for-number", "`mass_kg = true`", "damper.mass_kg",
+        toml=edit(PAPER, "mass_kg = 0.012", "mass_kg = true")),
+    Bad("toml-negative-mass", "`mass_kg = -0.012`", "damper.mass",
+        toml=edit(PAPER, "mass_kg = 0.012", "mass_kg = -0.012")),
+    Bad("toml-nan-in-matrix", "`[structure] mass_kg = [[nan, 0.0], [0.0, 1.0]]`", "structure.mass",
+        toml=edit(STRUCTURE, "mass_kg = [[1.0, 0.0]", "mass_kg = [[nan, 0.0]")),
+    Bad("toml-zero-normal-stiffness", "`normal_stiffness_N_per_um = 0.0` at P1", "contacts[P1].normal_stiffness",
+        toml=edit(PAPER, "normal_stiffness_N_per_um = 13.0", "normal_stiffness_N_per_um = 0.0")),
+    Bad("toml-negative-friction", "`friction_coefficient = -0.25` (structure case)", "contacts[C1].friction_coefficient",
+        toml=edit(STRUCTURE, "friction_coefficient = 0.3", "friction_coefficient = -0.25")),
+    Bad("toml-gather-columns", "`dof_gather = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]` for 2 DOFs",
+        "contacts[C1].dof_gather",
+        toml=edit(STRUCTURE, "dof_gather = [[1.0, 0.0], [0.0, 1.0]]", "dof_gather = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]")),
+    Bad("toml-unknown-motion-component", "`[[motion]] component = \"right.z\"`", "motion.component",
+        toml=edit(PAPER, 'component = "right.x"', 'component = "right.z"')),
+    Bad("toml-unknown-platform", "`platform = \"middle\"` at P3", "damper.contacts[P3].platform",
+        toml=edit(PAPER, 'name = "P3"\nplatform = "right"', 'name = "P3"\nplatform = "middle"')),
+    Bad("toml-invalid-syntax", "`mass_kg = = 0.012`", "case",
+        toml=edit(PAPER, "mass_kg = 0.012", "mass_kg = = 0.012")),
+    Bad("toml-run-unknown-method", "`[run] method = \"rk4\"`", "method",
+        toml=edit(PAPER, "periods = 3", 'periods = 3\nmethod = "rk4"')),
+    Bad("toml-run-zero-periods", "`[run] periods = 0`", "periods",
+        toml=edit(PAPER, "periods = 3", "periods = 0")),
+    # -- command line ----------------------------------------------------------------------
+    Bad("cli-missing-file", "`slipstep run no_such_case.toml`", "case", cli=("run", "no_such_case.toml")),
+    Bad("cli-case-is-directory", "`slipstep run .` (a directory)", "case", cli=("run", ".")),
+    Bad("cli-case-not-text", "`slipstep run binary.toml` (not UTF-8)", "case", cli=("run", "binary.toml"),
+        files=(("binary.toml", bytes(range(128, 256))),)),
+    Bad("cli-output-dir-is-file", "`slipstep run paper --output-dir notes.txt` (an existing file)", "output_dir",
+        cli=("run", "paper", "--output-dir", "notes.txt"), files=(("notes.txt", b"x"),)),
+    Bad("cli-unknown-method", "`slipstep run paper --method rk4`", "method", cli=("run", "paper", "--method", "rk4")),
+    Bad("cli-zero-step-ratio", "`slipstep run paper --step-ratio 0`", "step_ratio",
+        cli=("run", "paper", "--step-ratio", "0")),
+    Bad("cli-negative-step-ratio", "`slipstep run paper --step-ratio -2`", "step_ratio",
+        cli=("run", "paper", "--step-ratio", "-2")),
+    Bad("cli-zero-periods", "`slipstep run paper --periods 0`", "periods", cli=("run", "paper", "--periods", "0")),
+    Bad("cli-zero-steps-per-period", "`slipstep run paper -m 4 --steps-per-period 0`", "steps_per_period",
+        cli=("run", "paper", "-m", "4", "--steps-per-period", "0")),
+    Bad("cli-compare-unknown-method", "`slipstep compare paper --methods 1,9`", "method",
+        cli=("compare", "paper", "--methods", "1,9")),
+    Bad("cli-compare-zero-repeats", "`slipstep compare paper --repeats 0`", "repeats",
+        cli=("compare", "paper", "--repeats", "0")),
+]
+
+CASE_FILE = "bad_case.toml"
+
+
+def api_message(case: Bad, directory: Path) -> str:
+    """The InputError message of a case's Python call (TOML cases: load the file and build the run)."""
+    with pytest.raises(ss.InputError) as info:
+        if case.api is not None:
+            case.api()
+        else:
+            path = directory / CASE_FILE
+            path.write_text(case.toml)
+            system, spec = ss.load_case(path)
+            options = {k: v for k, v in (("periods", spec.periods), ("step_ratio", spec.step_ratio)) if v is not None}
+            ss.Simulation(system, spec.method or "newmark", **options)
+    return str(info.value)
+
+
+def cli_result(case: Bad, directory: Path):
+    for name, content in case.files:
+        (directory / name).write_bytes(content)
+    args = list(case.cli)
+    if "--output-dir" not in args:
+        args += ["--output-dir", str(directory / "out")]
+    return CliRunner().invoke(app, args)
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c.cli is None], ids=lambda c: c.id)
+def test_api_raises_input_error_naming_field(case, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    message = api_message(case, Path("."))
+    assert message.startswith(case.field + ":"), message
+    assert "Fix:" in message and "\n" not in message
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c.cli is not None or c.toml is not None], ids=lambda c: c.id)
+def test_cli_exit_2_one_line_no_traceback(case, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    if case.cli is None:
+        Path(CASE_FILE).write_text(case.toml)
+        case = Bad(case.id, case.input, case.field, cli=("run", CASE_FILE))
+    result = cli_result(case, Path("."))
+    text = result.output
+    assert result.exit_code == 2, text
+    assert "Traceback" not in text and not isinstance(result.exception, Exception)
+    lines = [line for line in text.splitlines() if line.strip()]
+    assert len(lines) == 1, text
+    assert lines[0].startswith(f"input error: {case.field}:"), text
+    assert not Path("out").exists() or not any(Path("out").glob("*.nc"))
+
+
+def produced_message(case: Bad, directory: Path) -> str:
+    if case.cli is None:
+        return api_message(case, directory)
+    text = cli_result(case, directory).output.strip()
+    return text.removeprefix("input error: ")
+
+
+def markdown_table(directory: Path) -> str:
+    lines = ["| # | input | field | message |", "|---|---|---|---|"]
+    for i, case in enumerate(CASES, 1):
+        message = produced_message(case, directory).replace("|", "\\|")
+        lines.append(f"| {i} | {case.input} | `{case.field}` | {message} |")
+    return "\n".join(lines)
+
+
+def documented_messages() -> dict[str, str]:
+    rows = {}
+    for line in DOCS.read_text().splitlines():
+        match = re.match(r"\| (\d+) \| .* \| `([^`]*)` \| (.*) \|$", line)
+        if match:
+            rows[int(match.group(1))] = match.group(3).replace("\\|", "|")
+    return rows
+
+
+def test_docs_table_is_exact(tmp_path, monkeypatch):
+    """docs/bad_input.md lists every case, in order, with the message actually produced."""
+    monkeypatch.chdir(tmp_path)
+    documented = documented_messages()
+    assert len(documented) == len(CASES) >= 15
+    for i, case in enumerate(CASES, 1):
+        assert documented[i] == produced_message(case, Path(".")), case.id
+
+
+if __name__ == "__main__":  # print the table for docs/bad_input.md (run from a scratch directory)
+    import os
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        os.chdir(tmp)
+        with pytest.MonkeyPatch.context():
+            print(markdown_table(Path(".")))
