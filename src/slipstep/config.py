@@ -14,6 +14,7 @@ time series, and a ``[run]`` table of default run options (see slipstep.methods.
 from __future__ import annotations
 
 import math
+import re
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -171,8 +172,45 @@ def _signal(harmonics: list[HarmonicSpec], tables: list[TableSpec], components: 
     return Signal(components, harms, tuple(tabs), ramp)
 
 
+# model field -> TOML key, so that a case-file user reads the key they wrote
+_TOML_KEYS = {
+    "damper": [
+        (r"^damper\.mass\b", "damper.mass_kg"), (r"^damper\.inertia\b", "damper.inertia_kg_m2"),
+        (r"^damper\.centrifugal_force\b", "damper.centrifugal_force_N"),
+        (r"^damper\.platforms\[(.*)\]\.angle$", r"damper.platforms[\1].angle_deg"),
+        (r"^damper\.contacts\[(.*)\]\.position$", r"damper.contacts[\1].position_mm"),
+        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", r"damper.contacts[\1].\2_stiffness_N_per_um"),
+        (r"^contacts\[(.*)\]\.friction_coefficient$", r"damper.contacts[\1].friction_coefficient"),
+    ],
+    "structure": [
+        (r"^structure\.mass$", "structure.mass_kg"), (r"^structure\.damping$", "structure.damping_N_s_per_m"),
+        (r"^structure\.stiffness$", "structure.stiffness_N_per_m"),
+        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", r"contacts[\1].\2_stiffness_N_per_m"),
+        (r"^contacts\[(.*)\]\.normal_offset$", r"contacts[\1].normal_offset_m"),
+        (r"^excitation\.constant_force$", "structure.constant_force_N"),
+    ],
+    "any": [(r"^harmonic\.frequency$", "motion/force.frequency_Hz"), (r"^table\.times$", "motion_table/force_table.times_s"),
+            (r"^ramp_time$", "run.ramp_time_s")],
+}
+
+
 def build_system(spec: CaseSpec) -> System:
-    """Build the System a case describes (SI inside)."""
+    """Build the System a case describes (SI inside); errors name the TOML keys."""
+    kind = "damper" if spec.damper is not None else "structure"
+    try:
+        return _build_system(spec)
+    except InputError as exc:
+        field = exc.field
+        for pattern, key in _TOML_KEYS.get(kind, []) + _TOML_KEYS["any"]:
+            if re.search(pattern, field):
+                field = re.sub(pattern, key, field)
+                break
+        if field == exc.field:
+            raise
+        raise InputError(field, exc.problem, exc.fix) from None
+
+
+def _build_system(spec: CaseSpec) -> System:
     ramp = spec.run.ramp_time_s or 0.0
     if (spec.damper is None) == (spec.structure is None):
         raise InputError("case", "must contain exactly one of [damper] or [structure]",

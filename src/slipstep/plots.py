@@ -109,29 +109,40 @@ def plot_time_histories(datasets, last_periods: float | None = 1.0):
     return fig
 
 
-def plot_loops(ds: xr.Dataset, filtered: xr.Dataset | None = None, period: float | None = None):
-    """Hysteresis loops T vs u over the last period, one panel per direction; the raw
-    result and (if given) the filtered one superposed (paper Fig. 6)."""
+def plot_loops(ds: xr.Dataset, filtered: xr.Dataset | None = None, period: float | None = None, interfaces=None):
+    """Hysteresis loops T vs u over the last period, one panel per direction, or per
+    interface when ``interfaces`` is given (a dict {name: [contacts]} or a System: T summed,
+    u averaged, see slipstep.post.loops); the raw result and (if given) the filtered one
+    superposed (paper Fig. 6)."""
+    from slipstep.post.loops import interface_loops
     from slipstep.post.periodic import last_period
 
-    lp = last_period(ds, period)
-    lf = last_period(filtered, period) if filtered is not None else None
-    nd = lp.sizes["direction"]
-    fig, axes = plt.subplots(1, nd, figsize=(4.2 * nd, 3.8), squeeze=False)
+    def loops_of(d):
+        if d is None:
+            return None
+        if interfaces is not None:
+            il = interface_loops(d, interfaces, period)
+            return il, list(il["interface"].values)
+        lp = last_period(d, period)
+        return lp, [f"contact {n}" for n in lp["direction"].values]
+
+    (lp, names), lf = loops_of(ds), loops_of(filtered)
+    n = len(names)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 0.4, 3.8), squeeze=False)
     fu, uu = _unit(lp["tangential_displacement"].attrs.get("units"))
     ft, ut = _unit(lp["tangential_force"].attrs.get("units"))
-    for d, name in enumerate(lp["direction"].values):
+    for d, name in enumerate(names):
         ax = axes[0, d]
         ax.plot(lp["tangential_displacement"].values[:, d] * fu, lp["tangential_force"].values[:, d] * ft,
                 lw=0.9, color="#999999" if lf is not None else "C0", label="raw")
         if lf is not None:
             fc = filtered.attrs.get("filter_cutoff_Hz")
             lab = f"filtered ({fc / 1e3:.2g} kHz low-pass)" if fc else "filtered"
-            ax.plot(lf["tangential_displacement"].values[:, d] * fu, lf["tangential_force"].values[:, d] * ft,
+            ax.plot(lf[0]["tangential_displacement"].values[:, d] * fu, lf[0]["tangential_force"].values[:, d] * ft,
                     lw=1.6, color="C3", label=lab)
-        ax.set_title(f"contact {name}")
-        ax.set_xlabel(f"tangential displacement u [{uu}]")
-        ax.set_ylabel(f"tangential force T [{ut}]")
+        ax.set_title(name if interfaces is None else f"interface {name}")
+        ax.set_xlabel(f"tangential displacement u [{uu}]" if interfaces is None else f"mean tangential displacement [{uu}]")
+        ax.set_ylabel(f"tangential force T [{ut}]" if interfaces is None else f"total tangential force [{ut}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best")
     fig.suptitle(f"Hysteresis loops, last period - {_label(ds)}")
@@ -153,8 +164,8 @@ def _state_strip(ax, ds: xr.Dataset):
     ax.set_yticks(range(len(names)), names)
     ax.set_ylim(-0.6, len(names) - 0.4)
     ax.invert_yaxis()
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(STATE_COLORS, STATE_NAMES)], loc="upper center",
-              bbox_to_anchor=(0.5, -0.45), ncol=4, frameon=False)
+    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(STATE_COLORS, STATE_NAMES)], loc="lower center",
+              bbox_to_anchor=(0.5, 1.0), ncol=4, frameon=False, fontsize=9)
 
 
 def plot_step_size(ds: xr.Dataset):
@@ -221,7 +232,7 @@ def plot_state_timeline(ds: xr.Dataset):
     fig, ax = plt.subplots(figsize=(9, 0.55 * ds.sizes["direction"] + 1.9))
     _state_strip(ax, ds)
     ax.set_xlabel("time [ms]")
-    ax.set_title(f"Contact states - {_label(ds)}")
+    ax.set_title(f"Contact states - {_label(ds)}", pad=24)
     fig.tight_layout()
     return fig
 
@@ -247,6 +258,8 @@ def write_figures(ds: xr.Dataset, output_dir, reference: xr.Dataset | None = Non
             filtered = filter_dataset(ds, system)
     if ds.attrs.get("period_s"):
         paths.append(save_figure(plot_loops(ds, filtered), out / f"{prefix}loops.png"))
+        if system is not None:
+            paths.append(save_figure(plot_loops(ds, filtered, interfaces=system), out / f"{prefix}interface_loops.png"))
     paths.append(save_figure(plot_step_size(ds), out / f"{prefix}step_size.png"))
     paths.append(save_figure(plot_iterations(sets), out / f"{prefix}iterations.png"))
     paths.append(save_figure(plot_state_timeline(ds), out / f"{prefix}states.png"))

@@ -126,7 +126,8 @@ def write_report(system, path, periods: float = 3.0, rotor_speed_rpm: float | No
 
     figs = [("Time histories, quasi-static and dynamic superposed (paper Fig. 7)",
              plots.plot_time_histories([qs, dyn])),
-            ("Hysteresis loops, raw and filtered (paper Fig. 6)", plots.plot_loops(dyn, filt)),
+            ("Hysteresis loops per contact, raw and filtered (paper Fig. 6)", plots.plot_loops(dyn, filt)),
+            ("Hysteresis loops per interface (platform), raw and filtered", plots.plot_loops(dyn, filt, interfaces=groups)),
             ("Quasi-static hysteresis loops", plots.plot_loops(qs)),
             ("Step size and contact states (paper Fig. 4b)", plots.plot_step_size(dyn)),
             ("Iterations per step (paper Fig. 5)", plots.plot_iterations([qs, dyn])),

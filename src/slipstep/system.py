@@ -148,7 +148,7 @@ class System:
         f0 = np.zeros(n) if exc.constant_force is None else np.asarray(exc.constant_force, float)
         fs = compile_signal(exc.force, n)
         ms = compile_signal(exc.motion, m)
-        scale = _length_scale(f0, fs, ms, np.array(kn, float))
+        scale = _length_scale(f0, fs, ms, np.concatenate([np.array(kn, float), np.diag(s.stiffness)]))
         as_i = lambda v: np.asarray(v, dtype=np.int64)
         as_f = lambda v: np.ascontiguousarray(np.asarray(v, dtype=np.float64))
         return CompiledSystem(
@@ -165,12 +165,13 @@ class System:
         )
 
 
-def _length_scale(f0, fs, ms, kn) -> float:
+def _length_scale(f0, fs, ms, stiffnesses) -> float:
     """A displacement scale [m] for tolerances: the larger of the motion amplitude and the
-    static deflection ``|f| / k_n`` the loads produce, never below 1 nm."""
+    static deflection ``|f| / k`` the loads produce (k the largest contact normal or structural
+    diagonal stiffness), never below 1 nm."""
     motion = max(np.abs(ms.sin_coefficient).sum(initial=0.0) + np.abs(ms.cos_coefficient).sum(initial=0.0),
                  np.abs(ms.table_value).max(initial=0.0))
     force = max(np.abs(f0).sum(), np.abs(fs.sin_coefficient).sum(initial=0.0) + np.abs(fs.cos_coefficient).sum(initial=0.0),
                 np.abs(fs.table_value).max(initial=0.0))
-    k = kn.max(initial=1.0)
-    return float(max(motion, force / k, 1e-9))
+    k = stiffnesses.max(initial=0.0)
+    return float(max(motion, force / k if k > 0 else 0.0, 1e-9))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 from slipstep.errors import InputError
 
@@ -36,7 +37,7 @@ def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:
     if not (beta > 0 and gamma >= 0.5):
         raise InputError("scheme.beta/gamma", f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
                          "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)")
-    name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={beta:g},gamma={gamma:g})"
+    name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
     return Scheme(name, beta, gamma)
 
 
@@ -51,4 +52,10 @@ def generalized_alpha(rho_inf: float = 0.9) -> Scheme:
         raise InputError("scheme.rho_inf", f"is {rho_inf}", "give 0 <= rho_inf <= 1")
     am = (2 * rho_inf - 1) / (rho_inf + 1)
     af = rho_inf / (rho_inf + 1)
-    return Scheme(f"generalized-alpha(rho={rho_inf:g})", (1 - am + af) ** 2 / 4, 0.5 - am + af, am, af)
+    return Scheme(f"generalized-alpha(rho_inf={rho_inf:g})", (1 - am + af) ** 2 / 4, 0.5 - am + af, am, af)
+
+
+def _exact(x: float) -> str:
+    """1/6 rather than 0.166667 when x is a simple fraction."""
+    frac = Fraction(x).limit_denominator(100)
+    return str(frac) if abs(float(frac) - x) < 1e-12 * max(abs(x), 1.0) else f"{x:.12g}"

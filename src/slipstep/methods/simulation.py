@@ -133,8 +133,9 @@ class Simulation:
             dt = period / math.ceil(period / self.dt_limit * (1 - 1e-12))
         else:
             dt = self.dt_limit
-        if dt > t_end:
-            raise InputError("duration", f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
+        if dt > t_end * (1 + 1e-12):
+            field_name = "duration" if opt.duration is not None else "periods"
+            raise InputError(field_name, f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
                              "simulate longer or use a smaller step")
         self.dt = dt
         dt_max = opt.max_step if opt.max_step is not None else (period / 50 if period else 10 * self.dt_limit)

@@ -15,8 +15,9 @@ A Jenkins element (spring k_t in series with a slider of limit mu N) driven on
 u = x_a sin(...) gives E_diss = 4 mu N (x_a - mu N / k_t), k_eq = mu N / x_a.
 
 Interfaces: contacts are grouped (e.g. the two points of a flat damper face on one
-platform). An interface loop plots T_I = sum T_i against u_I = mean u_i; its energy is the
-exact sum of its contacts' energies, its k_eq and zeta_eq are those of the (u_I, T_I) loop.
+platform). An interface loop plots T_I = sum T_i against u_I = mean u_i; its energy E_I is
+the exact sum of its contacts' loop energies, k_eq is the secant stiffness of the
+(u_I, T_I) loop and zeta_eq = E_I / (4 pi E_el(u_I, T_I)).
 """
 
 from __future__ import annotations

@@ -78,6 +78,26 @@ def states_from_forces(ds: xr.Dataset, eps: float = 0.02) -> np.ndarray:
     return S
 
 
+def debounce(ds: xr.Dataset, states: np.ndarray, min_duration: float) -> np.ndarray:
+    """States with every run shorter than ``min_duration`` [s] (per direction) replaced by
+    the state before it: removes the flicker of a filtered force hovering at mu N."""
+    t = ds["time"].values
+    S = np.array(states, copy=True)
+    for d in range(S.shape[1]):
+        i = 1
+        while i < S.shape[0]:
+            if S[i, d] != S[i - 1, d]:
+                j = i
+                while j + 1 < S.shape[0] and S[j + 1, d] == S[i, d]:
+                    j += 1
+                if j + 1 < S.shape[0] and t[j] - t[i - 1] < min_duration:
+                    S[i:j + 1, d] = S[i - 1, d]
+                i = j + 1
+            else:
+                i += 1
+    return S
+
+
 def full_slip_share(ds: xr.Dataset, states: np.ndarray | None = None) -> float:
     """Share (0..1) of the record's time with every direction slipping (state 2 or 3),
     each stored state weighted by the length of the step that ends there."""
