@@ -192,3 +192,17 @@ def test_compare_rows_are_json_numbers(compared):
     for row in rows.values():
         for key in REQUIRED_COMPARE[1:]:
             assert isinstance(row[key], (int, float)) and np.isfinite(row[key]), (row["method"], key)
+
+
+def test_compare_schemes_lists_every_variant(tmp_path):
+    result = CliRunner().invoke(app, ["compare", "paper", "--schemes", "newmark,central-difference", "--periods", "1",
+                                      "--repeats", "1", "--json", "--output-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)
+    by = {(r["scheme"], r["variant"]): r for r in rows}
+    assert len(rows) == 8
+    assert by[("newmark", "piecewise-linear")]["solves"] < by[("newmark", "fixed")]["solves"] / 5
+    assert by[("newmark", "both")]["steps"] < by[("newmark", "fixed")]["steps"]
+    assert by[("central-difference", "piecewise-linear")]["status"] == "n/a"
+    assert by[("newmark", "fixed")]["time_ratio"] == 1.0
+    assert (tmp_path / "schemes.md").read_text().startswith("| scheme |")

@@ -61,7 +61,7 @@ def test_write_figures_and_plot_cli(runs, tmp_path):
     system, qs, dyn, _ = runs
     paths = plots.write_figures(dyn, tmp_path / "api", reference=qs, system=system,
                                 comparison=[{"method": "newmark", "time_ratio": 1.0}])
-    assert len(paths) == 6
+    assert len(paths) == 7  # incl. interface loops and the method bars
     for p in paths:
         _check_png(p)
     result_file = tmp_path / "m3.nc"
@@ -69,7 +69,7 @@ def test_write_figures_and_plot_cli(runs, tmp_path):
     res = CliRunner().invoke(app, ["plot", str(result_file), "--output-dir", str(tmp_path / "cli")])
     assert res.exit_code == 0, res.output
     written = sorted((tmp_path / "cli").glob("*.png"))
-    assert len(written) == 5
+    assert len(written) == 6  # the result names the built-in case: loops filtered, interfaces too
     for p in written:
         _check_png(p)
     bad = CliRunner().invoke(app, ["plot", str(tmp_path / "missing.nc")])

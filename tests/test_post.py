@@ -11,7 +11,7 @@ from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.post import (
     FilterWarning, choose_cutoff, count_state_changes, filter_dataset, friction_energy_per_period, full_slip_share,
     interfaces_from_system, is_uniform, last_period, loop_properties, loop_summary, lowpass, periodicity,
-    resample_uniform, change_times,
+    resample_uniform, change_times, debounce,
 )
 
 # ---------------------------------------------------------------- Jenkins oscillator (closed forms)
@@ -200,3 +200,15 @@ def test_filter_warns_on_a_case_driven_near_its_internal_frequency():
     with pytest.warns(FilterWarning):
         filt = filter_dataset(ds, system)
     assert filt.attrs["filter_separated"] == 0
+
+
+def test_debounce_removes_short_runs_only(paper):
+    _, qs, _ = paper
+    lp = last_period(qs)
+    S = lp["contact_state"].values.copy()
+    assert np.array_equal(debounce(lp, S, 1e-9), S)  # nothing shorter than a step
+    flicker = S.copy()
+    flicker[100, 0] = 0  # one-step lift-off blip
+    cleaned = debounce(lp, flicker, 3 * qs.attrs["dt_s"])
+    assert np.array_equal(cleaned, S)
+    assert count_state_changes(flicker) == count_state_changes(S) + 2

@@ -12,12 +12,12 @@ from slipstep.post.loops import (
 )
 from slipstep.post.periodic import Periodicity, last_period, period_of, periodicity
 from slipstep.post.timeline import (
-    change_times, count_state_changes, full_slip_share, is_uniform, resample_uniform, state_segments, state_shares,
+    change_times, count_state_changes, debounce, full_slip_share, is_uniform, resample_uniform, state_segments, state_shares,
     states_from_forces,
 )
 
 __all__ = [
-    "CutOff", "FilterWarning", "Periodicity", "change_times", "choose_cutoff", "contact_loops", "count_state_changes",
+    "CutOff", "FilterWarning", "Periodicity", "change_times", "choose_cutoff", "contact_loops", "count_state_changes", "debounce",
     "energy_balance", "excitation_frequencies", "external_force", "filter_dataset", "friction_energy_per_period",
     "full_slip_share", "interface_loops", "interfaces_from_system", "is_uniform", "last_period", "loop_energy",
     "loop_properties", "loop_summary", "lowest_internal_frequency", "lowpass", "period_of", "periodicity",
