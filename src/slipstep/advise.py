@@ -162,6 +162,7 @@ class Advice:
     reasons: list[str]
     notes: list[str] = field(default_factory=list)
     runs: dict = field(default_factory=dict)
+    rho_limit: float = 0.05
 
     @property
     def flutter_free(self) -> bool:
@@ -183,8 +184,9 @@ class Advice:
             L.append(f"Excitation: {', '.join(f'{f:g} Hz' for f in self.excitation_Hz)}"
                      + (f" (period {self.period_s * 1e3:.4g} ms)" if self.period_s else ""))
         if self.inertia_limit_Hz is not None:
+            rho = "n/a" if self.inertia_ratio is None else f"{self.inertia_ratio:.3g}"
             L.append(f"Inertia vs centrifugal load (paper Eq. 9): rho = omega^2 x_d / (Omega^2 R) = "
-                     f"{self.inertia_ratio:.3g} at the excitation; rho reaches 5 % only at "
+                     f"{rho} at the excitation; rho reaches {self.rho_limit:.0%} only at "
                      f"{self.inertia_limit_Hz / 1e3:.4g} kHz (Omega = {self.rotor_speed_rpm:g} rpm, "
                      f"R = {self.radius_m:g} m, x_d = {self.displacement_amplitude_m * 1e6:g} um).")
         else:
@@ -316,4 +318,4 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
                            "factor 5 of the excitation: the ringing cannot be filtered safely (paper Remark 3)")
     return Advice(system.name, names, fe, period, rotor_speed_rpm, radius_m, displacement_amplitude_m, rho, f5,
                   stick.t_min_s, fixed_dt, fixed_n, adaptive_n, enumerated, infos, flutter_v, flutter_nv, singular,
-                  singular_v, rec, reasons, notes, runs)
+                  singular_v, rec, reasons, notes, runs, rho_limit)

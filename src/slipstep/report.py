@@ -152,6 +152,9 @@ def write_report(system, path, periods: float = 3.0, rotor_speed_rpm: float | No
         "zeta_eq = E / (4 pi E_el), E_el = 1/2 k_eq (half range of u)^2.</p>",
         _table(["result", "interface", "E [mJ]", "k_eq [N/um]", "zeta_eq [-]", "T min [N]", "T max [N]"], loop_rows),
         "<h2>Contact states, last period</h2>",
+        "<p>Instants at which any contact changes state. The raw dynamic count includes the chatter of the "
+        "ringing; the filtered count uses states recovered from the filtered forces (slip when |T| &ge; 0.98 mu N), "
+        "where the rounded corners of the filtered loops split simultaneous quasi-static transitions.</p>",
         _table(["result", "state changes", "full slip [% of period]", "periodicity"], state_rows),
         "<h2>Timings</h2>",
         _table(["paper method", "method", "status", "steps", "solves", "solves/step", "kernel [ms]", "wall [ms]"], timing),

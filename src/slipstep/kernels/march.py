@@ -205,6 +205,24 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
     return NOT_CONVERGED, solves
 
 
+@njit(cache=True, inline="always")
+def _sub_matvec(Mat, y, out):
+    """out -= Mat y."""
+    for i in range(out.shape[0]):
+        s = 0.0
+        for j in range(y.shape[0]):
+            s += Mat[i, j] * y[j]
+        out[i] -= s
+
+
+@njit(cache=True, inline="always")
+def _same(s1, s2):
+    for d in range(s1.shape[0]):
+        if s1[d] != s2[d]:
+            return False
+    return True
+
+
 @njit(cache=True)
 def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
@@ -267,6 +285,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     n_preload = ipar[PRELOAD]
     max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
     kfac = (1.0 - af) if inertia else 1.0
+    has_damping = np.any(Cd != 0.0)
+    has_stiffness = np.any(Kst != 0.0)
+    acc_pred = np.empty(n)
+    vel_pred = np.empty(n)
     cap = out.t.shape[0] - 1
     # ---- initial point ----
     for rr in range(nq):
@@ -283,6 +305,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     status = OK
     k = 0
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
+    dt_state_limit = 0.0  # step limit of dt_state (adaptive)
+    a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
+    ws.lin_dt[0] = np.nan
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
         if k >= cap:
             status = CAPACITY
@@ -291,10 +316,12 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
         if n_preload > 0:
             dt_nominal = 1.0
         elif adaptive:
-            for d in range(nd):
-                dt_state[d] = state[d]
-            dt_nominal = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state,
-                                           tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+            if k == 0 or not _same(state, dt_state):
+                for d in range(nd):
+                    dt_state[d] = state[d]
+                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state,
+                                                   tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+            dt_nominal = dt_state_limit
         else:
             dt_nominal = fpar[DT]
         dt = dt_nominal
@@ -305,14 +332,14 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
         solves = 0
         for attempt in range(max_redo + 1):
             t1 = t + dt if n_preload == 0 else t
-            # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K ----
-            a0 = 1.0 / (beta * dt * dt)
-            c1 = gamma / (beta * dt)
-            a2 = 1.0 / (beta * dt)
-            a3 = 1.0 / (2.0 * beta) - 1.0
-            b1 = 1.0 - gamma / beta
-            b2 = dt * (1.0 - gamma / (2.0 * beta))
+            # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K (per dt) ----
             if ws.lin_dt[0] != dt:
+                a0 = 1.0 / (beta * dt * dt)
+                c1 = gamma / (beta * dt)
+                a2 = 1.0 / (beta * dt)
+                a3 = 1.0 / (2.0 * beta) - 1.0
+                b1 = 1.0 - gamma / beta
+                b2 = dt * (1.0 - gamma / (2.0 * beta))
                 last_slot = -1
                 for i in range(n):
                     for j in range(n):
@@ -335,20 +362,18 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             for i in range(n):
                 fe1[i] += load_factor * f_const[i]
             gather(A, B, g, x, p, qbase)
+            for i in range(n):
+                r0[i] = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i]) if inertia else fe1[i]
             if inertia:
-                for i in range(n):
-                    s = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i])
-                    for j in range(n):
-                        acc = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
-                        vel = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
-                        s -= M[i, j] * acc + Cd[i, j] * vel + Kst[i, j] * x[j]
-                    r0[i] = s
-            else:
-                for i in range(n):
-                    s = fe1[i]
-                    for j in range(n):
-                        s -= Kst[i, j] * x[j]
-                    r0[i] = s
+                # predictor parts of a_{n+1-am} and v_{n+1-af} (the dx terms are in Lin)
+                for j in range(n):
+                    acc_pred[j] = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
+                    vel_pred[j] = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
+                _sub_matvec(M, acc_pred, r0)
+                if has_damping:
+                    _sub_matvec(Cd, vel_pred, r0)
+            if has_stiffness:
+                _sub_matvec(Kst, x, r0)
             # ---- the step solver ----
             status = STATE_CYCLING
             if solver == PIECEWISE_LINEAR:
@@ -419,6 +444,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == max_redo:
                 break
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
+            if _same(state1, dt_state):
+                break
             limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1,
                                       tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
@@ -426,6 +453,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             counters[C_REDOS] += 1
             for d in range(nd):
                 dt_state[d] = state1[d]
+            dt_state_limit = limit
             dt = limit
             nominal = True
         counters[C_SOLVES] += solves

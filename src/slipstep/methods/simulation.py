@@ -13,6 +13,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
@@ -169,6 +170,7 @@ class Simulation:
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
         self.kernel_time = math.nan
+        self._kernel = None
         self._preload()
 
     # -- set-up ---------------------------------------------------------------------------
@@ -223,9 +225,13 @@ class Simulation:
             dst[:] = src
         _reset_cache(ws)
         self.out.counters[:] = 0
+        args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        kernel = self._kernel if self._kernel is not None else K.march
         start = time.perf_counter()
-        status = K.march(self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        status = kernel(*args)
         self.kernel_time = time.perf_counter() - start
+        if self._kernel is None:
+            self._kernel = compiled_entry(K.march, args)
         self.status = Status(status)
         return self.status
 
@@ -297,6 +303,15 @@ class Simulation:
         attrs.update(failure)
         return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not self.method.quasi_static,
                              compiled=self.compiled)
+
+
+def compiled_entry(dispatcher, args):
+    """The compiled overload of a numba dispatcher for these argument types, callable without
+    the per-call type dispatch (about 6 us for our tuples of arrays); the dispatcher itself
+    if no such overload is found."""
+    signature = tuple(numba.typeof(a) for a in args)
+    overload = dispatcher.overloads.get(signature)
+    return overload.entry_point if overload is not None else dispatcher
 
 
 def _motion_signal(cs: CompiledSystem) -> CompiledSignal:
