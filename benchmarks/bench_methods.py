@@ -21,10 +21,7 @@ import copy
 import json
 import os
 import statistics
-import sys
 import time
-
-import numpy as np
 
 import slipstep
 from slipstep.config import CASES_DIR, build_system, parse_case, read_toml

@@ -218,7 +218,7 @@ class Advice:
                      + ")")
         if self.singular_states:
             L.append(f"States without a quasi-static equilibrium (K + K_D singular): {len(self.singular_states)}"
-                     + (f", of which visited: " + "; ".join(self._label(s) for s in self.singular_visited)
+                     + (", of which visited: " + "; ".join(self._label(s) for s in self.singular_visited)
                         if self.singular_visited else ", none visited"))
         L.append(f"Recommendation: {self.recommendation}")
         L += [f"  - {r}" for r in self.reasons]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import sys
 import math
 import warnings
 from pathlib import Path
@@ -37,8 +38,9 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-out = Console()
-err = Console(stderr=True)
+# a pipe or CI log gets 140 columns rather than rich's default 80, so tables keep their labels
+out = Console(width=None if sys.stdout.isatty() else 140)
+err = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
 
 
 @contextlib.contextmanager
@@ -49,8 +51,8 @@ def user_errors():
         warnings.simplefilter("always")
         try:
             yield
-        except (InputError, SolverError) as exc:
-            kind = "input error" if isinstance(exc, InputError) else "solver error"
+        except (InputError, SolverError, FileNotFoundError) as exc:
+            kind = "solver error" if isinstance(exc, SolverError) else "input error"
             err.print(f"{kind}: {' '.join(str(exc).split())}", style="bold red", markup=False,
                       highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None

@@ -7,36 +7,15 @@ here: the commands call slipstep.plots, slipstep.report and slipstep.advise. Bad
 
 from __future__ import annotations
 
-import contextlib
 import json
-import warnings
 from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
 
-from slipstep.errors import InputError, SolverError
+from slipstep.errors import InputError
 
-_out = Console()
-_err = Console(stderr=True)
-
-
-@contextlib.contextmanager
-def _user_errors():
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            yield
-        except (InputError, SolverError, FileNotFoundError) as exc:
-            kind = "solver error" if isinstance(exc, SolverError) else "input error"
-            _err.print(f"{kind}: {' '.join(str(exc).split())}", style="bold red", markup=False, highlight=False,
-                       soft_wrap=True)
-            raise typer.Exit(2) from None
-        finally:
-            for w in caught:
-                _err.print(f"warning: {' '.join(str(w.message).split())}", style="yellow", markup=False,
-                           highlight=False, soft_wrap=True)
+from slipstep.cli import out as _out, user_errors as _user_errors  # one console setup
 
 
 def _load_case(case: str):

@@ -15,7 +15,6 @@ The state of a contact is stored per tangential direction (LIFT is shared by bot
 directions of a quasi-3D contact).
 """
 
-import numpy as np
 from numba import njit
 
 LIFT = 0

@@ -4,7 +4,6 @@ reused (numba's np.linalg.solve refactorises on every call).
     P A = L U,   solve A x = b  by  L y = P b,  U x = y.
 """
 
-import numpy as np
 from numba import njit
 
 

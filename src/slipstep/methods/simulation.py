@@ -107,7 +107,7 @@ class Simulation:
         self.method = method if isinstance(method, Method) else get_method(method)
         self.options = RunOptions(**options).validated()
         self.compiled = cs = system.compile()
-        n, nd = system.n_dofs, cs.kt.shape[0]
+        nd = cs.kt.shape[0]
         self.stick = np.full(nd, STICK, np.int8)
         self.t_min_stick, _ = state_t_min(cs, self.stick)
         period = system.period
