@@ -13,13 +13,10 @@ import time
 
 import numpy as np
 
-from slipstep.errors import InputError, SolverError, Status
+from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
-from slipstep.kernels import march as K
-from slipstep.methods.simulation import RunOptions, Simulation, _allocate_outputs, _motion_signal
-from slipstep.model.excitation import evaluate_compiled
+from slipstep.methods.simulation import RunOptions, Runner, Simulation, _allocate_outputs, compiled_entry
 from slipstep.model.validate import positive
-from slipstep.results import build_dataset
 from slipstep.system import System
 
 #: options an explicit run understands (the rest of RunOptions is for implicit solvers)
@@ -27,13 +24,16 @@ EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo",
                     "singular_tolerance", "state_tolerance", "tolerance")
 
 
-class ExplicitSimulation:
+class ExplicitSimulation(Runner):
     """One system marched by an explicit integrator, fixed or contact-state adaptive step.
 
     dt (fixed) = period / ceil(period / (step_ratio * factor * T_min(all stick))), with
     ``factor = integrator.step_limit_factor`` (the stability limit, see the integrator).
     Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
     """
+
+    failure_hint = (" (an explicit scheme diverges above its stability limit: lower step_ratio; "
+                    "or a fluttering slip state, physics.md 8)")
 
     def __init__(self, system: System, integrator, adaptive: bool = False, **options):
         if not isinstance(system, System):
@@ -87,6 +87,7 @@ class ExplicitSimulation:
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
         self.kernel_time = math.nan
+        self._kernel = None
 
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
@@ -96,69 +97,24 @@ class ExplicitSimulation:
         ws.tmin_used[:] = False
         ws.lu_dt[0] = np.nan
         self.out.counters[:] = 0
+        args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        kernel = self._kernel if self._kernel is not None else E.explicit_march
         start = time.perf_counter()
-        status = E.explicit_march(self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
+        status = kernel(*args)
         self.kernel_time = time.perf_counter() - start
+        if self._kernel is None:
+            self._kernel = compiled_entry(E.explicit_march, args)
         self.status = Status(status)
         return self.status
 
-    def run(self, raise_on_failure: bool = False):
-        start = time.perf_counter()
-        self.march()
-        ds = self.dataset()
-        ds.attrs["wall_time_s"] = time.perf_counter() - start
-        if raise_on_failure and self.status != Status.OK:
-            raise SolverError(ds.attrs["status_message"], ds)
-        return ds
+    def _visited_states(self) -> str:
+        return ""
 
-    def dataset(self):
-        if self.status is None:
-            raise RuntimeError("call march() first")
-        c = self.out.counters
-        n_steps = int(c[K.C_STEPS])
-        t = self.out.t[: n_steps + 1]
-        motion = evaluate_compiled(_motion_signal(self.compiled), t)
-        message = self.status.message
-        failure = {}
-        if self.status != Status.OK:
-            step = int(c[K.C_FAIL_STEP])
-            failure = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
-            message = f"{self.status.name}: {message}; stopped at step {step}, t = {self.out.t[step]:.6g} s"
-            if self.status == Status.NON_FINITE:
-                message += (" (an explicit scheme diverges above its stability limit: lower step_ratio; "
-                            "or a fluttering slip state, physics.md 8)")
-        solves = int(self.out.solves[1: n_steps + 1].sum())
+    def method_attrs(self) -> dict:
         name = self.integrator.name
-        attrs = {
-            "title": f"slipstep result: {self.system.name}, {name}",
-            "case": self.system.name,
-            "method": f"{name}-adaptive" if self.adaptive else name,
-            "paper_method": "App. A (explicit)",
-            "solver": "explicit",
-            "adaptive_step": self.adaptive,
-            "quasi_static": False,
-            "scheme": name,
-            "status": self.status.name,
-            "status_message": message,
-            "steps": n_steps,
-            "solves": solves,
-            "iterations": solves,
-            "mean_solves_per_step": solves / max(n_steps, 1),
-            "factorisations": int(c[K.C_FACTORISATIONS]),
-            "law_calls": int(c[K.C_LAW_CALLS]),
-            "redone_steps": int(c[K.C_REDOS]),
-            "fallback_steps": 0,
-            "state_changes": int(c[K.C_STATE_CHANGES]),
-            "dt_s": self.dt,
-            "t_min_s": self.t_min_stick,
-            "t_end_s": self.t_end,
-            "period_s": self.period,
-            "step_ratio": self.options.step_ratio,
-            "kernel_time_s": self.kernel_time,
-            "length_scale_m": self.compiled.length_scale,
-        }
-        attrs.update(failure)
-        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=True, compiled=self.compiled)
+        return {"method": f"{name}-adaptive" if self.adaptive else name, "paper_method": "App. A (explicit)",
+                "solver": "explicit", "adaptive_step": self.adaptive, "quasi_static": False, "scheme": name,
+                "fallback_steps": 0}
 
 
 def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:

@@ -93,7 +93,80 @@ def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarra
     return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), ev
 
 
-class Simulation:
+class Runner:
+    """What every march runner shares: run(), the Dataset and the failure report.
+
+    Subclasses set system, compiled, options, out (kernels.march.Outputs), status,
+    kernel_time, dt, t_min_stick, t_end, period, and implement march(), method_attrs()
+    (method, paper_method, solver, adaptive_step, quasi_static, scheme, ...) and
+    _visited_states() (the contact states tried at a failure, as text)."""
+
+    failure_hint = ""
+
+    def run(self, raise_on_failure: bool = False):
+        """Preloaded march + Dataset. On failure the Dataset holds every step done before it."""
+        start = time.perf_counter()
+        self.march()
+        ds = self.dataset()
+        ds.attrs["wall_time_s"] = time.perf_counter() - start
+        if raise_on_failure and self.status != Status.OK:
+            raise SolverError(ds.attrs["status_message"], ds)
+        return ds
+
+    def failure_report(self) -> dict:
+        if self.status in (None, Status.OK):
+            return {}
+        step = int(self.out.counters[K.C_FAIL_STEP])
+        report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
+        visited = self._visited_states()
+        if visited:
+            report["states_visited"] = visited
+        return report
+
+    def dataset(self):
+        if self.status is None:
+            raise RuntimeError("call march() first")
+        c = self.out.counters
+        n_steps = int(c[K.C_STEPS])
+        t = self.out.t[: n_steps + 1]
+        motion = evaluate_compiled(_motion_signal(self.compiled), t)
+        failure = self.failure_report()
+        message = self.status.message
+        if failure:
+            message = (f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
+                       f"t = {failure['failed_at_time_s']:.6g} s")
+            if "states_visited" in failure:
+                message += f", states tried {failure['states_visited']}"
+            message += self.failure_hint if self.status == Status.NON_FINITE else ""
+        solves = int(self.out.solves[1: n_steps + 1].sum())
+        method = self.method_attrs()
+        attrs = {"title": f"slipstep result: {self.system.name}, {method['method']}", "case": self.system.name}
+        attrs.update(method)
+        attrs.update({
+            "status": self.status.name,
+            "status_message": message,
+            "steps": n_steps,
+            "solves": solves,
+            "iterations": solves,
+            "mean_solves_per_step": solves / max(n_steps, 1),
+            "factorisations": int(c[K.C_FACTORISATIONS]),
+            "law_calls": int(c[K.C_LAW_CALLS]),
+            "redone_steps": int(c[K.C_REDOS]),
+            "state_changes": int(c[K.C_STATE_CHANGES]),
+            "dt_s": self.dt,
+            "t_min_s": self.t_min_stick,
+            "t_end_s": self.t_end,
+            "period_s": self.period,
+            "step_ratio": self.options.step_ratio,
+            "kernel_time_s": self.kernel_time,
+            "length_scale_m": self.compiled.length_scale,
+        })
+        attrs.update(failure)
+        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"],
+                             compiled=self.compiled)
+
+
+class Simulation(Runner):
     """One system marched by one method with one set of options."""
 
     def __init__(self, system: System, method: str | Method = "newmark", **options):
@@ -235,74 +308,27 @@ class Simulation:
         self.status = Status(status)
         return self.status
 
-    def run(self, raise_on_failure: bool = False):
-        """Preloaded march + Dataset. On failure the Dataset holds every step done before it."""
-        start = time.perf_counter()
-        self.march()
-        ds = self.dataset()
-        ds.attrs["wall_time_s"] = time.perf_counter() - start
-        if raise_on_failure and self.status != Status.OK:
-            raise SolverError(ds.attrs["status_message"], ds)
-        return ds
-
     # -- results --------------------------------------------------------------------------
-    def failure_report(self) -> dict:
-        if self.status in (None, Status.OK):
-            return {}
+    def _visited_states(self) -> str:
         c = self.out.counters
-        step = int(c[K.C_FAIL_STEP])
         names = self.system.direction_names()
         visited = self.ws.visited[: max(int(c[K.C_N_VISITED]), 1)]
-        text = " -> ".join("(" + ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(names, row)) + ")" for row in visited)
-        return {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step]), "states_visited": text}
+        return " -> ".join("(" + ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(names, row)) + ")"
+                           for row in visited)
 
-    def dataset(self):
-        if self.status is None:
-            raise RuntimeError("call march() first")
-        c = self.out.counters
-        n_steps = int(c[K.C_STEPS])
-        t = self.out.t[: n_steps + 1]
-        motion = evaluate_compiled(_motion_signal(self.compiled), t)
-        failure = self.failure_report()
-        message = self.status.message
-        if failure:
-            message = (f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
-                       f"t = {failure['failed_at_time_s']:.6g} s, states tried {failure['states_visited']}")
-        solves = int(self.out.solves[1: n_steps + 1].sum())
-        attrs = {
-            "title": f"slipstep result: {self.system.name}, {self.method.name}",
-            "case": self.system.name,
+    def method_attrs(self) -> dict:
+        return {
             "method": self.method.name,
             "paper_method": self.method.paper_label,
             "solver": SOLVER_NAMES[self.method.solver],
             "adaptive_step": self.method.adaptive,
             "quasi_static": self.method.quasi_static,
             "scheme": "quasi-static" if self.method.quasi_static else self.options.scheme.name,
-            "status": self.status.name,
-            "status_message": message,
-            "steps": n_steps,
-            "solves": solves,
-            "iterations": solves,
-            "mean_solves_per_step": solves / max(n_steps, 1),
-            "factorisations": int(c[K.C_FACTORISATIONS]),
-            "law_calls": int(c[K.C_LAW_CALLS]),
-            "redone_steps": int(c[K.C_REDOS]),
-            "fallback_steps": int(c[K.C_FALLBACKS]),
-            "state_changes": int(c[K.C_STATE_CHANGES]),
-            "dt_s": self.dt,
-            "t_min_s": self.t_min_stick,
-            "t_end_s": self.t_end,
-            "period_s": self.period,
-            "step_ratio": self.options.step_ratio,
+            "fallback_steps": int(self.out.counters[K.C_FALLBACKS]),
             "steps_per_period": self.options.steps_per_period if self.method.quasi_static else None,
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
-            "kernel_time_s": self.kernel_time,
-            "length_scale_m": self.compiled.length_scale,
         }
-        attrs.update(failure)
-        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not self.method.quasi_static,
-                             compiled=self.compiled)
 
 
 def compiled_entry(dispatcher, args):
