@@ -377,8 +377,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- the step solver ----
             status = STATE_CYCLING
             if solver == PIECEWISE_LINEAR:
-                for d in range(nd):
-                    state1[d] = state[d]
+                if attempt == 0:  # postulate S_{n+1} = S_n; a redone step keeps the state it found
+                    for d in range(nd):
+                        state1[d] = state[d]
                 counters[C_N_VISITED] = 0
                 for it in range(max_state_iter):
                     for d in range(nd):
