@@ -296,7 +296,7 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
         reasons.append("no visited state lacks a quasi-static equilibrium")
         reasons.append("it needs about 300 steps per period whatever the contact stiffness, with no ringing to filter")
     else:
-        rec = "dynamic: piecewise-linear Newmark with adaptive step (Method 2+3)"
+        rec = "dynamic: piecewise-linear Newmark (Method 3)"
         if f5 is None:
             reasons.append("the inertia check (Eq. 9) was not possible: give rotor speed, radius and displacement "
                            "amplitude to see whether the quasi-static method applies")
@@ -306,7 +306,10 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
         if singular_v:
             reasons.append("some visited states have no quasi-static equilibrium (mechanism or lift-off): the "
                            "quasi-static method would stop there")
-        reasons.append("Method 3 needs about one solve per step; Method 2 lengthens the step in slip and lift-off")
+        reasons.append("Method 3 needs about one solve per step (paper case: 1.2) and reproduces Method 1's "
+                       "solution; the adaptive step (2+3) saves steps in slip and lift-off, but each saved step "
+                       "is paid back in re-factorisations and redone steps (paper case: 222 against 221 solves "
+                       "per period), so use it when slip or lift-off dominates the period")
     if flutter_v:
         reasons.append("flutter-prone states are visited: expect growing oscillations in undamped dynamic runs; "
                        "add damping or check the friction coefficients")
