@@ -15,7 +15,9 @@ import numpy as np
 
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
-from slipstep.methods.simulation import RunOptions, Runner, Simulation, _allocate_outputs, compiled_entry
+from slipstep.methods.simulation import (
+    RunOptions, Runner, Simulation, _allocate_outputs, compiled_entry, default_max_step,
+)
 from slipstep.model.validate import positive
 from slipstep.system import System
 
@@ -65,7 +67,7 @@ class ExplicitSimulation(Runner):
                              "simulate longer or use a smaller step")
         self.dt = dt
         opt = self.options
-        dt_max = opt.max_step if opt.max_step is not None else (period / 50 if period else 10 * self.dt_limit)
+        dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
         if self.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:

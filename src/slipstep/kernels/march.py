@@ -19,7 +19,8 @@ Quasi-static (inertia off, paper Eq. 10): Lin = K, r0 = f_e - K x_n, J(S) = K + 
 
 Step solvers:
     0 modified Newton (Method 1): J(all stick) factorised once per dt, iterate on dx until
-      max |A delta| <= tol * L; each iteration = one contact-law call + one solve.
+      the error estimate theta/(1-theta) max |A delta| <= tol * L (theta: the observed
+      contraction); each iteration = one contact-law call + one solve.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
@@ -142,7 +143,9 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
             dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
             keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs, singular_rtol, counters):
     """Modified Newton (J of all stick) or full Newton (J of the current iterate's state) on
-    r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0; stop when max |A delta| <= tol_abs.
+    r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0. Stop when the estimated error of the
+    linearly converging iteration, theta/(1 - theta) max |A delta| with the contraction
+    theta = |delta_k| / |delta_{k-1}|, is below tol_abs (the first iteration: max |A delta|).
     Returns (status, solves); on success q1, f1, w1, state1, gf1 hold the converged step."""
     n = dx.shape[0]
     nq = A.shape[0]
@@ -154,6 +157,7 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
     if not ok:
         return SINGULAR, 0
     solves = 0
+    prev_norm = 0.0
     for it in range(max_iter):
         for rr in range(nq):
             q1[rr] = qbase[rr]
@@ -176,23 +180,28 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
                 use = s2
         lu_solve(lus[use], pivs[use], r, delta)
         solves += 1
-        small = True
         for i in range(n):
             dx[i] += delta[i]
             if not np.isfinite(dx[i]):
                 return NON_FINITE, solves
+        norm = 0.0
         if nq == 0:
             for i in range(n):
-                if abs(delta[i]) > tol_abs:
-                    small = False
+                norm = max(norm, abs(delta[i]))
         else:
             for rr in range(nq):
                 s = 0.0
                 for j in range(n):
                     s += A[rr, j] * delta[j]
-                if abs(s) > tol_abs:
-                    small = False
-                    break
+                norm = max(norm, abs(s))
+        # stop when the error estimate of the contraction, theta/(1 - theta) |delta|, is below
+        # tol (Hairer & Wanner IV.8); the first iteration has no theta yet: |delta| itself
+        if it == 0:
+            small = norm <= tol_abs
+        else:
+            theta = norm / prev_norm if prev_norm > 0.0 else 0.0
+            small = norm == 0.0 or (theta < 1.0 and norm * theta / (1.0 - theta) <= tol_abs)
+        prev_norm = norm
         if small:
             for rr in range(nq):
                 q1[rr] = qbase[rr]

@@ -38,7 +38,7 @@ class RunOptions:
     steps_per_period: quasi-static step count per excitation period.
     tolerance: Newton stop, max |A delta| <= tolerance * length scale.
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
-    max_step: cap of the adaptive step [s] (default: period / 50).
+    max_step: cap of the adaptive step [s] (default: max(period / 50, 2 dt_stick)).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     """
 
@@ -212,7 +212,7 @@ class Simulation(Runner):
             raise InputError(field_name, f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
                              "simulate longer or use a smaller step")
         self.dt = dt
-        dt_max = opt.max_step if opt.max_step is not None else (period / 50 if period else 10 * self.dt_limit)
+        dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
         n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
         if self.method.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
@@ -329,6 +329,13 @@ class Simulation(Runner):
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
         }
+
+
+def default_max_step(period: float | None, dt_stick: float) -> float:
+    """Cap of the adaptive step where T_min is long or infinite (slip, lift-off): period / 50
+    for accuracy, but never below twice the full-stick step (else adaptive would cost more
+    steps than fixed at high frequencies); 10 full-stick steps without a period."""
+    return max(period / 50, 2 * dt_stick) if period else 10 * dt_stick
 
 
 def compiled_entry(dispatcher, args):
