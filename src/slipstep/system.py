@@ -27,6 +27,7 @@ class CompiledSystem(NamedTuple):
     C: np.ndarray  # (n, n) N s/m
     K: np.ndarray  # (n, n) N/m
     A: np.ndarray  # (nq, n) gather from DOFs
+    AT: np.ndarray  # (n, nq) its transpose, contiguous (scatter A^T f)
     B: np.ndarray  # (nq, m) gather from prescribed motions
     g: np.ndarray  # (nq,) offsets (normal interference)
     normal_row: np.ndarray  # (nc,) int64 row of v in q
@@ -144,6 +145,7 @@ class System:
             kn.append(c.normal_stiffness)
             mu.append(c.friction_coefficient)
             row += nrow
+        A = np.vstack(A_rows) if A_rows else np.zeros((0, n))
         exc = self.excitation
         f0 = np.zeros(n) if exc.constant_force is None else np.asarray(exc.constant_force, float)
         fs = compile_signal(exc.force, n)
@@ -153,7 +155,7 @@ class System:
         as_f = lambda v: np.ascontiguousarray(np.asarray(v, dtype=np.float64))
         return CompiledSystem(
             as_f(s.mass), as_f(s.damping), as_f(s.stiffness),
-            as_f(np.vstack(A_rows) if A_rows else np.zeros((0, n))),
+            as_f(A), as_f(A.T),
             as_f(np.vstack(B_rows) if B_rows else np.zeros((0, m))).reshape(row, m),
             as_f(g), as_i(normal_row), as_f(kn), as_f(mu), as_i(first_dir), as_i(n_dir),
             as_i(tan_row), as_i(dir_contact), as_f(kt), as_f(f0),

@@ -30,7 +30,7 @@ SLIP_NEG = 3
 #   ndir (nc) number of directions, trow (nd) tangential row of each direction in q, kt (nd).
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def gather(A, B, g, x, p, q):
     """q = A x - B p + g."""
     for r in range(A.shape[0]):
@@ -42,19 +42,18 @@ def gather(A, B, g, x, p, q):
         q[r] = s
 
 
-@njit(cache=True, inline="always")
-def scatter(A, f, out):
-    """out = A^T f: the contact force on the DOFs as it enters the left-hand side."""
-    for j in range(A.shape[1]):
-        out[j] = 0.0
-    for r in range(A.shape[0]):
-        fr = f[r]
-        if fr != 0.0:
-            for j in range(A.shape[1]):
-                out[j] += A[r, j] * fr
+@njit(cache=True, error_model="numpy", inline="always")
+def scatter(AT, f, out):
+    """out = A^T f (AT: the contiguous transpose of A): the contact force on the DOFs as it
+    enters the left-hand side. One dot product per DOF, accumulated in a register."""
+    for j in range(AT.shape[0]):
+        s = 0.0
+        for r in range(AT.shape[1]):
+            s += AT[j, r] * f[r]
+        out[j] = s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
     """The nonlinear law: forces f (local, like q), new sliders and states from q and w_old."""
     for c in range(kn.shape[0]):
@@ -88,7 +87,7 @@ def law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
                 state[d] = SLIP_NEG
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
     """The piecewise-linear law f = K(S) q + s(S, w_old) for a postulated state S."""
     for c in range(kn.shape[0]):
@@ -114,7 +113,7 @@ def piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
                 w_new[d] = q[tr] - T / kt[d]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
     """Does the postulated state satisfy its row of the state table at q (within tolerance)?
 
@@ -147,7 +146,7 @@ def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _add_outer(out, k, A, r1, r2):
     """out += k * A[r1]^T A[r2]."""
     n = A.shape[1]
@@ -158,7 +157,7 @@ def _add_outer(out, k, A, r1, r2):
                 out[i, j] += a * A[r2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out):
     """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7)."""
     for c in range(kn.shape[0]):
@@ -180,41 +179,41 @@ def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out)
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def local_displacement(sys, x, p, q):
     """q = A x - B p + g."""
     gather(sys.A, sys.B, sys.g, x, p, q)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_law(sys, q, w_old, f, w_new, state):
     """The nonlinear law (see :func:`law`)."""
     law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
         q, w_old, f, w_new, state)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def linear_law(sys, state, q, w_old, f, w_new):
     """The piecewise-linear law (see :func:`piecewise_law`)."""
     piecewise_law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
                   state, q, w_old, f, w_new)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def is_compatible(sys, state, q, w_old, rtol):
     """The compatibility check (see :func:`compatible`)."""
     return compatible(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
                       sys.kt, state, q, w_old, rtol, sys.length_scale)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def add_contact_stiffness(sys, state, factor, out):
     """out += factor * K_D(S) (see :func:`contact_stiffness`)."""
     contact_stiffness(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
                       sys.kt, sys.A, state, factor, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def generalised_force(sys, f, out):
     """out = A^T f."""
-    scatter(sys.A, f, out)
+    scatter(sys.AT, f, out)

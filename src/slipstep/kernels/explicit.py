@@ -85,7 +85,7 @@ class ExplicitWorkspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def explicit_step_limit(sys, fpar, ws, state):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state."""
     slot, found = find_slot(ws.tmin_keys, ws.tmin_used, state)
@@ -103,7 +103,7 @@ def explicit_step_limit(sys, fpar, ws, state):
     return min(fpar[STEP_FACTOR] * ws.tmin_value[slot], fpar[DT_MAX])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _factor(sys, fpar, ipar, ws, dt, counters):
     """Factorise M (RK4) or M + dt/2 C (central difference) if not done for this dt."""
     if ipar[KIND] == RK4:
@@ -125,7 +125,7 @@ def _factor(sys, fpar, ipar, ws, dt, counters):
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _accel(sys, ws, t, x, v, w_old, f, w_new, state, q, out):
     """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state."""
     n = x.shape[0]
@@ -142,7 +142,7 @@ def _accel(sys, ws, t, x, v, w_old, f, w_new, state, q, out):
     lu_solve(ws.lu, ws.piv, ws.rhs, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _central_difference_step(sys, fpar, ws, t1, dt, counters):
     """One central-difference step into the '1' fields. Returns the number of solves."""
     n = ws.x.shape[0]
@@ -167,7 +167,7 @@ def _central_difference_step(sys, fpar, ws, t1, dt, counters):
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rk4_step(sys, fpar, ws, t, dt, counters):
     """One classical RK4 step on [x, v] into the '1' fields (stages use w_n). Returns solves."""
     n = ws.x.shape[0]
@@ -193,7 +193,7 @@ def _rk4_step(sys, fpar, ws, t, dt, counters):
     return 4
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _step(sys, fpar, ipar, ws, t, dt, counters):
     """One step of the chosen scheme from t to t + dt. Returns (status, solves)."""
     if not _factor(sys, fpar, ipar, ws, dt, counters):
@@ -213,7 +213,7 @@ def _step(sys, fpar, ipar, ws, t, dt, counters):
     return OK, solves
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _store(ws, out, k, t, dt, solves):
     out.t[k] = t
     out.dt[k] = dt
@@ -227,7 +227,7 @@ def _store(ws, out, k, t, dt, solves):
         out.state[k, d] = ws.state[d]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _accept(ws):
     changed = False
     for i in range(ws.x.shape[0]):
@@ -242,7 +242,7 @@ def _accept(ws):
     return changed
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     """March from t_start to t_end writing step k into out[k] (k = 0: the initial state with
     local q0, f0), same layout and counters as :func:`slipstep.kernels.march.march`.

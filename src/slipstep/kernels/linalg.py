@@ -7,7 +7,7 @@ reused (numba's np.linalg.solve refactorises on every call).
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lu_factor(A, lu, piv, singular_rtol):
     """Factorise A into ``lu`` (L below the diagonal, unit diagonal implied; U on and above)
     and row pivots ``piv``. Returns False if a pivot is below ``singular_rtol * max|A|``."""
@@ -45,7 +45,7 @@ def lu_factor(A, lu, piv, singular_rtol):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def lu_solve(lu, piv, b, x):
     """Solve with a factorisation from :func:`lu_factor`; ``x`` and ``b`` must be distinct."""
     n = lu.shape[0]

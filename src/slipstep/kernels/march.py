@@ -107,7 +107,7 @@ class Outputs(NamedTuple):
     counters: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, key,
                keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters):
     """Slot of the LU of J(S) = Lin + kfac K_D(S), cached per ``key`` (= S for K_D, S for dt).
@@ -130,7 +130,7 @@ def _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, ke
     return slot, ok
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _set_key(key, kd_state, dt_state):
     nd = kd_state.shape[0]
     for d in range(nd):
@@ -138,8 +138,8 @@ def _set_key(key, kd_state, dt_state):
         key[nd + d] = dt_state[d]
 
 
-@njit(cache=True)
-def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+@njit(cache=True, error_model="numpy")
+def _newton(full, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
             dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
             keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs, singular_rtol, counters):
     """Modified Newton (J of all stick) or full Newton (J of the current iterate's state) on
@@ -165,7 +165,7 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
                 q1[rr] += A[rr, j] * dx[j]
         law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
         counters[C_LAW_CALLS] += 1
-        scatter(A, f1, gf1)
+        scatter(AT, f1, gf1)
         for i in range(n):
             s = r0[i] - kfac * gf1[i]
             for j in range(n):
@@ -209,12 +209,12 @@ def _newton(full, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase
                     q1[rr] += A[rr, j] * dx[j]
             law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
             counters[C_LAW_CALLS] += 1
-            scatter(A, f1, gf1)
+            scatter(AT, f1, gf1)
             return OK, solves
     return NOT_CONVERGED, solves
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sub_matvec(Mat, y, out):
     """out -= Mat y."""
     for i in range(out.shape[0]):
@@ -224,7 +224,7 @@ def _sub_matvec(Mat, y, out):
         out[i] -= s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _same(s1, s2):
     for d in range(s1.shape[0]):
         if s1[d] != s2[d]:
@@ -232,7 +232,7 @@ def _same(s1, s2):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
@@ -250,7 +250,7 @@ def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, t
     return min(step_factor * tvalue[slot], dt_max)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def march(sys, fpar, ipar, ws, out, q0, f0):
     """March from t_start to t_end, writing step k into out[k] (k = 0: the initial state,
     whose local q0 and f0 are given). Returns the status; out.counters[C_STEPS] steps done.
@@ -262,6 +262,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     Cd = sys.C
     Kst = sys.K
     A = sys.A
+    AT = sys.AT
     B = sys.B
     g = sys.g
     nrow = sys.normal_row
@@ -411,7 +412,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status = SINGULAR
                         break
                     piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
-                    scatter(A, f1, gf1)
+                    scatter(AT, f1, gf1)
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
                     lu_solve(lus[slot], pivs[slot], r, dx)
@@ -430,7 +431,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         q1[rr] = s
                     if compatible(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
                         piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-                        scatter(A, f1, gf1)
+                        scatter(AT, f1, gf1)
                         status = OK
                         break
                     law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -438,7 +439,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    status, more = _newton(False, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+                    status, more = _newton(False, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
                                            dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                            keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
                                            singular_rtol, counters)
@@ -446,7 +447,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if status != OK:
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
-                status, more = _newton(solver == FULL_NEWTON, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                status, more = _newton(solver == FULL_NEWTON, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt,
                                        r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                        keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
                                        singular_rtol, counters)
@@ -499,7 +500,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     return status
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves):
     """Write the carried state as output point k."""
     o_t[k] = t
