@@ -112,7 +112,7 @@ try:
 
     @njit(inline="always")
     def _scatter(sys, f, out):
-        _s_core(sys.A, f, out)
+        _s_core(sys.AT, f, out)
 
     FLOOR_FUNCTIONS = "contact.gather + contact.law + contact.scatter + linalg.lu_solve"
 except ImportError:  # older kernels

@@ -1,0 +1,42 @@
+"""Every kernel path, compiled in a fresh process with numba's bounds checking on: an
+out-of-bounds read or write (which numba does not check by default, and which corrupts
+memory silently) fails here with an IndexError instead."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = textwrap.dedent("""
+    import numpy as np, slipstep
+    from slipstep.integrators import simulate
+
+    paper = slipstep.load_system("paper")
+    for method in slipstep.METHODS:
+        assert slipstep.run(paper, method, periods=0.5).attrs["status"] == "OK", method
+    for scheme in ("central-difference", "rk4"):
+        for variant in ("fixed", "adaptive"):
+            assert simulate(paper, scheme, variant, periods=0.5).attrs["status"] == "OK", (scheme, variant)
+    assert slipstep.run(paper, "newmark", periods=0.5, scheme=slipstep.hht(0.1)).attrs["status"] == "OK"
+
+    # a structure with more DOFs than contact coordinates and a quasi-3D contact (rows != columns)
+    n = 5
+    K = 2e5 * (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1))
+    A3 = np.zeros((3, n)); A3[0, 1] = A3[1, 2] = 1.0; A3[2, 3] = 1.0
+    A2 = np.zeros((2, n)); A2[0, 4] = 1.0
+    contacts = (slipstep.ContactElement("Q", A3, (1e6, 2e6), 1e6, 0.3, normal_offset=1e-5),
+                slipstep.ContactElement("J", A2, 1e6, 1e6, 0.2, normal_offset=2e-5))
+    force = slipstep.Signal(tuple(f"x{i}" for i in range(n)), (slipstep.Harmonic(20.0, [0, 30.0, 0, -20.0, 10.0]),))
+    chain = slipstep.System(slipstep.Structure(np.eye(n) * 0.5, stiffness=K), contacts,
+                            slipstep.Excitation(force=force))
+    for method in slipstep.METHODS:
+        assert slipstep.run(chain, method, periods=0.5).attrs["status"] == "OK", method
+    print("all kernel paths ran with bounds checking")
+""")
+
+
+def test_kernels_stay_in_bounds(tmp_path):
+    env = dict(os.environ, NUMBA_BOUNDSCHECK="1", NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    done = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=1200)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "all kernel paths ran with bounds checking" in done.stdout
