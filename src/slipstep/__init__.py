@@ -5,6 +5,8 @@ Methods for Systems with Friction-Induced Nonlinearities", on any linear structu
 any number of spring-slider contact elements.
 """
 
+from slipstep import post
+from slipstep.advise import advise
 from slipstep.config import builtin_cases, load_case, load_system
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.methods.registry import METHODS, PAPER_METHODS, get_method
@@ -20,7 +22,7 @@ from slipstep.system import CompiledSystem, System
 __version__ = "0.1.0"
 
 __all__ = [
-    "CompiledSystem", "ContactElement", "DamperContact", "Excitation", "Harmonic", "InputError", "METHODS",
+    "advise", "post", "CompiledSystem", "ContactElement", "DamperContact", "Excitation", "Harmonic", "InputError", "METHODS",
     "PAPER_METHODS", "Platform", "RunOptions", "Scheme", "Signal", "Simulation", "SolverError", "Status",
     "Structure", "System", "Tabulated", "builtin_cases", "generalized_alpha", "get_method", "hht", "load_case",
     "load_result", "load_system", "newmark", "rigid_damper", "run", "save_result", "state_t_min",
