@@ -97,7 +97,6 @@ class ExplicitSimulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
         ws.tmin_used[:] = False
-        ws.lu_dt[0] = np.nan
         self.out.counters[:] = 0
         args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else E.explicit_march
@@ -128,6 +127,6 @@ def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:
         x=z(n), v=z(n), a=z(n), w=z(nd), state=i8(nd),
         x1=z(n), v1=z(n), a1=z(n), q1=z(nq), f1=z(nq), w1=z(nd), state1=i8(nd),
         gf=z(n), fe=z(n), p=z(m), rhs=z(n), xs=z(n), vs=z(n), kx=z(4, n), kv=z(4, n),
-        fs=z(nq), ws_=z(nd), ss=i8(nd), lu=z(n, n), piv=np.zeros(n, np.int64), lu_dt=np.full(1, np.nan),
+        fs=z(nq), ws_=z(nd), ss=i8(nd), lu=z(n, n), piv=np.zeros(n, np.int64),
         Minv=np.linalg.inv(cs.M), tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
     )

@@ -32,14 +32,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.cache import find_slot
-from slipstep.kernels.contact import add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
-    CAPACITY, NON_FINITE, OK, SINGULAR,
+    CAPACITY, NON_FINITE, OK, SINGULAR, _state_step_limit, _store,
 )
-from slipstep.kernels.signals import force_at, motion_at
+from slipstep.kernels.signals import evaluate_signal
 
 # float parameters
 DT, STEP_FACTOR, DT_MAX, T_START, T_END, SINGULAR_RTOL, DIVERGENCE = range(7)
@@ -78,7 +77,6 @@ class ExplicitWorkspace(NamedTuple):
     ss: np.ndarray  # stage states (discarded), int8
     lu: np.ndarray  # (n, n) factorised M (RK4) or M + dt/2 C (central difference)
     piv: np.ndarray  # int64 (n)
-    lu_dt: np.ndarray  # (1,) dt of the current factorisation (nan: none)
     Minv: np.ndarray
     tmin_keys: np.ndarray  # int8 (cap, nd)
     tmin_used: np.ndarray  # bool (cap)
@@ -86,160 +84,24 @@ class ExplicitWorkspace(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy")
-def explicit_step_limit(sys, fpar, ws, state):
-    """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state."""
-    slot, found = find_slot(ws.tmin_keys, ws.tmin_used, state)
-    if not found:
-        n = ws.x.shape[0]
-        Keff = sys.K.copy()
-        add_contact_stiffness(sys, state, 1.0, Keff)
-        D = np.dot(ws.Minv, Keff).astype(np.complex128)
-        ev = np.linalg.eigvals(D)
-        wmax2 = 0.0
-        for i in range(n):
-            if abs(ev[i]) > wmax2:
-                wmax2 = abs(ev[i])
-        ws.tmin_value[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
-    return min(fpar[STEP_FACTOR] * ws.tmin_value[slot], fpar[DT_MAX])
-
-
-@njit(cache=True, error_model="numpy")
-def _factor(sys, fpar, ipar, ws, dt, counters):
-    """Factorise M (RK4) or M + dt/2 C (central difference) if not done for this dt."""
-    if ipar[KIND] == RK4:
-        if ws.lu_dt[0] == ws.lu_dt[0]:  # not nan: M already factorised
-            return True
-        c = 0.0
-    else:
-        if ws.lu_dt[0] == dt:
-            return True
-        c = 0.5 * dt
-    n = ws.x.shape[0]
-    Meff = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            Meff[i, j] = sys.M[i, j] + c * sys.C[i, j]
-    ok = lu_factor(Meff, ws.lu, ws.piv, fpar[SINGULAR_RTOL])
-    counters[C_FACTORISATIONS] += 1
-    ws.lu_dt[0] = dt
-    return ok
-
-
-@njit(cache=True, error_model="numpy")
-def _accel(sys, ws, t, x, v, w_old, f, w_new, state, q, out):
-    """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state."""
+def _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+           t, x, v, w_old, f, w_new, state, q, out):
+    """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state.
+    (lu, piv: the factorised M, or M + dt/2 C for central difference.)"""
     n = x.shape[0]
-    motion_at(sys, t, ws.p)
-    force_at(sys, t, 1.0, ws.fe)
-    local_displacement(sys, x, ws.p, q)
-    contact_law(sys, q, w_old, f, w_new, state)
-    generalised_force(sys, f, ws.gf)
+    evaluate_signal(t, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                    sys.motion_table_value, sys.motion_ramp, p)
+    evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                    sys.force_table_value, sys.force_ramp, fe)
+    gather(A, B, g, x, p, q)
+    law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
+    scatter(AT, f, gf)
     for i in range(n):
-        s = ws.fe[i] - ws.gf[i]
+        s = fe[i] + sys.constant_force[i] - gf[i]
         for j in range(n):
-            s -= sys.C[i, j] * v[j] + sys.K[i, j] * x[j]
-        ws.rhs[i] = s
-    lu_solve(ws.lu, ws.piv, ws.rhs, out)
-
-
-@njit(cache=True, error_model="numpy")
-def _central_difference_step(sys, fpar, ws, t1, dt, counters):
-    """One central-difference step into the '1' fields. Returns the number of solves."""
-    n = ws.x.shape[0]
-    h = 0.5 * dt
-    for i in range(n):
-        ws.x1[i] = ws.x[i] + dt * ws.v[i] + h * dt * ws.a[i]
-        ws.vs[i] = ws.v[i] + h * ws.a[i]  # predicted velocity v_n + dt/2 a_n
-    motion_at(sys, t1, ws.p)
-    force_at(sys, t1, 1.0, ws.fe)
-    local_displacement(sys, ws.x1, ws.p, ws.q1)
-    contact_law(sys, ws.q1, ws.w, ws.f1, ws.w1, ws.state1)
-    counters[C_LAW_CALLS] += 1
-    generalised_force(sys, ws.f1, ws.gf)
-    for i in range(n):
-        s = ws.fe[i] - ws.gf[i]
-        for j in range(n):
-            s -= sys.K[i, j] * ws.x1[j] + sys.C[i, j] * ws.vs[j]
-        ws.rhs[i] = s
-    lu_solve(ws.lu, ws.piv, ws.rhs, ws.a1)
-    for i in range(n):
-        ws.v1[i] = ws.vs[i] + h * ws.a1[i]
-    return 1
-
-
-@njit(cache=True, error_model="numpy")
-def _rk4_step(sys, fpar, ws, t, dt, counters):
-    """One classical RK4 step on [x, v] into the '1' fields (stages use w_n). Returns solves."""
-    n = ws.x.shape[0]
-    for i in range(n):
-        ws.kx[0, i] = ws.v[i]
-        ws.kv[0, i] = ws.a[i]
-    cs = (0.5, 0.5, 1.0)
-    for s in range(1, 4):
-        c = cs[s - 1]
-        for i in range(n):
-            ws.xs[i] = ws.x[i] + c * dt * ws.kx[s - 1, i]
-            ws.vs[i] = ws.v[i] + c * dt * ws.kv[s - 1, i]
-        _accel(sys, ws, t + c * dt, ws.xs, ws.vs, ws.w, ws.fs, ws.ws_, ws.ss, ws.q1, ws.kv[s])
-        counters[C_LAW_CALLS] += 1
-        for i in range(n):
-            ws.kx[s, i] = ws.vs[i]
-    for i in range(n):
-        ws.x1[i] = ws.x[i] + dt / 6.0 * (ws.kx[0, i] + 2.0 * ws.kx[1, i] + 2.0 * ws.kx[2, i] + ws.kx[3, i])
-        ws.v1[i] = ws.v[i] + dt / 6.0 * (ws.kv[0, i] + 2.0 * ws.kv[1, i] + 2.0 * ws.kv[2, i] + ws.kv[3, i])
-    # accepted-step law: forces, sliders and states at q_{n+1}; a_{n+1} (k1 of the next step)
-    _accel(sys, ws, t + dt, ws.x1, ws.v1, ws.w, ws.f1, ws.w1, ws.state1, ws.q1, ws.a1)
-    counters[C_LAW_CALLS] += 1
-    return 4
-
-
-@njit(cache=True, error_model="numpy")
-def _step(sys, fpar, ipar, ws, t, dt, counters):
-    """One step of the chosen scheme from t to t + dt. Returns (status, solves)."""
-    if not _factor(sys, fpar, ipar, ws, dt, counters):
-        return SINGULAR, 0
-    if ipar[KIND] == RK4:
-        solves = _rk4_step(sys, fpar, ws, t, dt, counters)
-    else:
-        solves = _central_difference_step(sys, fpar, ws, t + dt, dt, counters)
-    counters[C_SOLVES] += solves
-    bound = fpar[DIVERGENCE]
-    for i in range(ws.x1.shape[0]):
-        if not (np.isfinite(ws.x1[i]) and np.isfinite(ws.v1[i]) and np.isfinite(ws.a1[i])):
-            return NON_FINITE, solves
-    for r in range(ws.q1.shape[0]):
-        if not abs(ws.q1[r]) <= bound:
-            return NON_FINITE, solves
-    return OK, solves
-
-
-@njit(cache=True, error_model="numpy")
-def _store(ws, out, k, t, dt, solves):
-    out.t[k] = t
-    out.dt[k] = dt
-    out.solves[k] = solves
-    for i in range(ws.x.shape[0]):
-        out.x[k, i] = ws.x[i]
-        out.v[k, i] = ws.v[i]
-        out.a[k, i] = ws.a[i]
-    for d in range(ws.w.shape[0]):
-        out.w[k, d] = ws.w[d]
-        out.state[k, d] = ws.state[d]
-
-
-@njit(cache=True, error_model="numpy")
-def _accept(ws):
-    changed = False
-    for i in range(ws.x.shape[0]):
-        ws.x[i] = ws.x1[i]
-        ws.v[i] = ws.v1[i]
-        ws.a[i] = ws.a1[i]
-    for d in range(ws.w.shape[0]):
-        ws.w[d] = ws.w1[d]
-        if ws.state[d] != ws.state1[d]:
-            changed = True
-        ws.state[d] = ws.state1[d]
-    return changed
+            s -= Cd[i, j] * v[j] + Kst[i, j] * x[j]
+        rhs[i] = s
+    lu_solve(lu, piv, rhs, out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -247,51 +109,131 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     """March from t_start to t_end writing step k into out[k] (k = 0: the initial state with
     local q0, f0), same layout and counters as :func:`slipstep.kernels.march.march`.
     Returns the status; out.counters[C_STEPS] steps done."""
+    # ---- unpack once (the loop touches local arrays only) ----
+    M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
+    nrow, kn, mu, fdir, ndir, trow, kt = (sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions,
+                                         sys.tangential_row, sys.kt)
+    x, v, a, w, state = ws.x, ws.v, ws.a, ws.w, ws.state
+    x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
+    gf, fe, p, rhs, xs, vs, kx, kv = ws.gf, ws.fe, ws.p, ws.rhs, ws.xs, ws.vs, ws.kx, ws.kv
+    fs, w_s, ss, lu, piv = ws.fs, ws.ws_, ws.ss, ws.lu, ws.piv
+    tkeys, tused, tvalue, Minv = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.Minv
     counters = out.counters
+    n = x.shape[0]
+    nq = q1.shape[0]
+    nd = w.shape[0]
+    rk4 = ipar[KIND] == RK4
+    adaptive = ipar[ADAPTIVE] == 1
+    bound = fpar[DIVERGENCE]
     cap = out.t.shape[0] - 1
-    for r in range(q0.shape[0]):
+    for r in range(nq):
         out.q[0, r] = q0[r]
         out.f[0, r] = f0[r]
     t = fpar[T_START]
     t_end = fpar[T_END]
-    _store(ws, out, 0, t, 0.0, 0)
+    _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, 0, t, 0.0, 0)
     k = 0
-    adaptive = ipar[ADAPTIVE] == 1
     tiny = 1e-12 * (t_end - t + 1e-300)
+    lu_dt = np.nan
     status = OK
     while t < t_end - tiny:
         if k >= cap:
             status = CAPACITY
             break
         if adaptive:
-            dt = explicit_step_limit(sys, fpar, ws, ws.state)
+            dt = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+                                   fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt = fpar[DT]
         if t + dt > t_end - tiny:
             dt = t_end - t
-        status, solves = _step(sys, fpar, ipar, ws, t, dt, counters)
-        if adaptive and status == OK:
-            for redo in range(ipar[MAX_REDO]):
-                limit = explicit_step_limit(sys, fpar, ws, ws.state1)
-                if limit >= dt * (1.0 - 1e-9):
+        solves = 0
+        for attempt in range(ipar[MAX_REDO] + 1):
+            # ---- factorise M (RK4, once) or M + dt/2 C (central difference, per dt) ----
+            if (rk4 and lu_dt != lu_dt) or (not rk4 and lu_dt != dt):
+                c = 0.0 if rk4 else 0.5 * dt
+                Meff = np.empty((n, n))
+                for i in range(n):
+                    for j in range(n):
+                        Meff[i, j] = M[i, j] + c * Cd[i, j]
+                counters[C_FACTORISATIONS] += 1
+                lu_dt = dt
+                if not lu_factor(Meff, lu, piv, fpar[SINGULAR_RTOL]):
+                    status = SINGULAR
                     break
-                counters[C_REDOS] += 1
-                dt = limit
-                status, more = _step(sys, fpar, ipar, ws, t, dt, counters)
-                solves += more
-                if status != OK:
-                    break
+            h = 0.5 * dt
+            if rk4:
+                # ---- RK4 on [x, v]: k1 = (v_n, a_n); stages with the slider w_n ----
+                for i in range(n):
+                    kx[0, i] = v[i]
+                    kv[0, i] = a[i]
+                for st in range(1, 4):
+                    c = 1.0 if st == 3 else 0.5
+                    for i in range(n):
+                        xs[i] = x[i] + c * dt * kx[st - 1, i]
+                        vs[i] = v[i] + c * dt * kv[st - 1, i]
+                    _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                           t + c * dt, xs, vs, w, fs, w_s, ss, q1, kv[st])
+                    for i in range(n):
+                        kx[st, i] = vs[i]
+                for i in range(n):
+                    x1[i] = x[i] + dt / 6.0 * (kx[0, i] + 2.0 * kx[1, i] + 2.0 * kx[2, i] + kx[3, i])
+                    v1[i] = v[i] + dt / 6.0 * (kv[0, i] + 2.0 * kv[1, i] + 2.0 * kv[2, i] + kv[3, i])
+                # accepted-step law at q_{n+1}: forces, sliders, states and a_{n+1} (k1 of the next step)
+                _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                       t + dt, x1, v1, w, f1, w1, state1, q1, a1)
+                counters[C_LAW_CALLS] += 4
+                solves += 4
+            else:
+                # ---- central difference: x_{n+1} explicit, then (M + dt/2 C) a_{n+1} = ... ----
+                for i in range(n):
+                    x1[i] = x[i] + dt * v[i] + h * dt * a[i]
+                    vs[i] = v[i] + h * a[i]
+                _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                       t + dt, x1, vs, w, f1, w1, state1, q1, a1)
+                for i in range(n):
+                    v1[i] = vs[i] + h * a1[i]
+                counters[C_LAW_CALLS] += 1
+                solves += 1
+            status = OK
+            for i in range(n):
+                if not (np.isfinite(x1[i]) and np.isfinite(v1[i]) and np.isfinite(a1[i])):
+                    status = NON_FINITE
+            for r in range(nq):
+                if not abs(q1[r]) <= bound:
+                    status = NON_FINITE
+            if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
+                break
+            # ---- redo rule: the state reached needs a smaller step ----
+            limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, tkeys, tused,
+                                      tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+            if limit >= dt * (1.0 - 1e-9):
+                break
+            counters[C_REDOS] += 1
+            dt = limit
+        counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
             out.t[k + 1] = t + dt
             break
-        if _accept(ws):
+        # ---- accept ----
+        changed = False
+        for i in range(n):
+            x[i] = x1[i]
+            v[i] = v1[i]
+            a[i] = a1[i]
+        for d in range(nd):
+            w[d] = w1[d]
+            if state[d] != state1[d]:
+                changed = True
+            state[d] = state1[d]
+        if changed:
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        _store(ws, out, k, t, dt, solves)
-        for r in range(ws.q1.shape[0]):
-            out.q[k, r] = ws.q1[r]
-            out.f[k, r] = ws.f1[r]
+        _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, k, t, dt, solves)
+        for r in range(nq):
+            out.q[k, r] = q1[r]
+            out.f[k, r] = f1[r]
     counters[C_STEPS] = k
     return status
