@@ -96,7 +96,6 @@ class ExplicitSimulation(Runner):
         ws = self.ws
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
-        ws.tmin_used[:] = False
         self.out.counters[:] = 0
         args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else E.explicit_march
