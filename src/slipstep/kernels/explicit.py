@@ -36,7 +36,7 @@ from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
-    CAPACITY, NON_FINITE, OK, SINGULAR, _state_step_limit, _store,
+    CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
 from slipstep.kernels.signals import evaluate_signal
 
@@ -121,7 +121,6 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     counters = out.counters
     n = x.shape[0]
     nq = q1.shape[0]
-    nd = w.shape[0]
     rk4 = ipar[KIND] == RK4
     adaptive = ipar[ADAPTIVE] == 1
     bound = fpar[DIVERGENCE]
@@ -217,17 +216,11 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             out.t[k + 1] = t + dt
             break
         # ---- accept ----
-        changed = False
         for i in range(n):
             x[i] = x1[i]
             v[i] = v1[i]
             a[i] = a1[i]
-        for d in range(nd):
-            w[d] = w1[d]
-            if state[d] != state1[d]:
-                changed = True
-            state[d] = state1[d]
-        if changed:
+        if _accept_contacts(w, state, w1, state1):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1

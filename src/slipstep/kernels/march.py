@@ -225,6 +225,18 @@ def _sub_matvec(Mat, y, out):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _accept_contacts(w, state, w1, state1):
+    """Take the step's sliders and states; True if any state changed."""
+    changed = False
+    for d in range(w.shape[0]):
+        w[d] = w1[d]
+        if state[d] != state1[d]:
+            changed = True
+        state[d] = state1[d]
+    return changed
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _same(s1, s2):
     for d in range(s1.shape[0]):
         if s1[d] != s2[d]:
@@ -473,7 +485,6 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             out.t[k + 1] = t + dt if n_preload == 0 else t
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
-        changed = False
         for i in range(n):
             if inertia:
                 a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
@@ -482,12 +493,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             x[i] += dx[i]
             fe[i] = fe1[i]
             gf[i] = gf1[i]
-        for d in range(nd):
-            w[d] = w1[d]
-            if state[d] != state1[d]:
-                changed = True
-            state[d] = state1[d]
-        if changed:
+        if _accept_contacts(w, state, w1, state1):
             counters[C_STATE_CHANGES] += 1
         if n_preload == 0:
             t += dt
