@@ -29,7 +29,7 @@ EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo",
 class ExplicitSimulation(Runner):
     """One system marched by an explicit integrator, fixed or contact-state adaptive step.
 
-    dt (fixed) = period / ceil(period / (step_ratio * factor * T_min(all stick))), with
+    dt (fixed) = period / ceil(period / min(step_ratio * factor * T_min(all stick), max_step)), with
     ``factor = integrator.step_limit_factor`` (the stability limit, see the integrator).
     Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
     """
@@ -61,13 +61,14 @@ class ExplicitSimulation(Runner):
         factor = ratio * integrator.step_limit_factor
         self.dt_limit = factor * self.t_min_stick
         period, t_end = self.period, self.t_end
-        dt = period / math.ceil(period / self.dt_limit * (1 - 1e-12)) if period is not None else self.dt_limit
+        opt = self.options
+        self.max_step = dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
+        limit = min(self.dt_limit, dt_max)
+        dt = period / math.ceil(period / limit * (1 - 1e-12)) if period is not None else limit
         if dt > t_end:
             raise InputError("duration", f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
                              "simulate longer or use a smaller step")
         self.dt = dt
-        opt = self.options
-        dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
         if self.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
