@@ -64,3 +64,20 @@ def test_shroud_pair_method3_is_method1_and_energy_balances(shroud):
         eb = energy_balance(runs[m], system)
         assert eb.attrs["relative_residual"] < 1e-6, m
         assert eb.friction_dissipation.values[-1] > 0 and eb.damping_dissipation.values[-1] > 0
+
+
+def test_compare_without_constant_load(tmp_path):
+    """compare on a case with no constant load: forces are then scaled by the largest contact force."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from slipstep.cli import app
+
+    result = CliRunner().invoke(app, ["compare", str(EXAMPLES / "shroud_pair.toml"), "--methods", "1,3", "--periods",
+                                      "4", "--repeats", "1", "--json", "--output-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    rows = {r["method"]: r for r in json.loads(result.stdout)}
+    assert rows["piecewise-linear"]["force_scale_N"] > 0
+    assert rows["piecewise-linear"]["max_force_diff_pct_cf"] < 1e-3
+    assert rows["piecewise-linear"]["solves"] < rows["newmark"]["solves"] / 3

@@ -40,6 +40,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError, SolverError
+from slipstep.methods.simulation import default_max_step
 from slipstep.results import STATE_NAMES
 
 LIFT = 0
@@ -191,9 +192,11 @@ class Advice:
                      f"R = {self.radius_m:g} m, x_d = {self.displacement_amplitude_m * 1e6:g} um).")
         else:
             L.append("Inertia vs centrifugal load (Eq. 9): not evaluated (give rotor speed, radius and displacement).")
-        L.append(f"Full stick: T_min = {self.stick_t_min_s * 1e6:.4g} us, fixed Newmark step dt = T_min/pi = "
-                 f"{self.fixed_dt_s * 1e6:.4g} us" + (f", {self.fixed_steps_per_period} steps per period"
-                                                    if self.fixed_steps_per_period else ""))
+        capped = self.fixed_dt_s < self.stick_t_min_s / math.pi * (1 - 1e-9)
+        L.append(f"Full stick: T_min = {self.stick_t_min_s * 1e6:.4g} us, T_min/pi = "
+                 f"{self.stick_t_min_s / math.pi * 1e6:.4g} us; fixed Newmark step "
+                 f"{self.fixed_dt_s * 1e6:.4g} us" + (" (accuracy cap: 50 steps per period)" if capped else "")
+                 + (f", {self.fixed_steps_per_period} steps per period" if self.fixed_steps_per_period else ""))
         if self.adaptive_steps_per_period_estimate:
             L.append(f"Adaptive step (Method 2) over the visited states: about "
                      f"{self.adaptive_steps_per_period_estimate:.0f} steps per period")
@@ -244,7 +247,10 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
     fe = [float(f) for f in excitation_frequencies(system)]
     period = system.period
     stick = analyse_state(cs, (1,) * nd)
-    fixed_dt = stick.t_min_s / math.pi
+    # the steps Simulation takes: dt = T_min/pi (Newmark's convergence limit, paper 4.2),
+    # capped for accuracy at max_step (default period / 50)
+    max_step = default_max_step(period, stick.t_min_s / math.pi)
+    fixed_dt = min(stick.t_min_s / math.pi, max_step)
     fixed_n = math.ceil(period / fixed_dt * (1 - 1e-12)) if period and math.isfinite(fixed_dt) else None
 
     rho = f5 = None
@@ -285,7 +291,8 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
         n = 0.0
         for row, h in zip(S, dt):
             info = lookup.get(tuple(int(v) for v in row)) or analyse_state(cs, row)
-            n += h / (info.t_min_s / math.pi if math.isfinite(info.t_min_s) and not info.singular else fixed_dt)
+            limit = info.t_min_s / math.pi if math.isfinite(info.t_min_s) and not info.singular else max_step
+            n += h / min(limit, max_step)
         adaptive_n = n * period / float(dt.sum())
 
     reasons: list[str] = []

@@ -104,7 +104,8 @@ def _force_scale(system: System, ref: xr.Dataset) -> float:
     cf = float(np.linalg.norm(f0)) if f0 is not None else 0.0
     if cf > 0:
         return cf
-    peak = max(float(np.abs(ref.tangential_force).max(initial=0.0)), float(np.abs(ref.normal_force).max(initial=0.0)))
+    peak = max(float(np.abs(ref.tangential_force.values).max(initial=0.0)),
+               float(np.abs(ref.normal_force.values).max(initial=0.0)))
     return peak if peak > 0 else 1.0
 
 
