@@ -35,7 +35,7 @@ class ExplicitSimulation(Runner):
     """
 
     failure_hint = (" (an explicit scheme diverges above its stability limit: lower step_ratio; "
-                    "or a fluttering slip state, physics.md 8)")
+                    "or a fluttering slip state: `slipstep advise` lists states with complex eigenvalues)")
 
     def __init__(self, system: System, integrator, adaptive: bool = False, **options):
         if not isinstance(system, System):

@@ -36,7 +36,8 @@ class RunOptions:
     periods / duration: simulated time after the preload (duration [s] wins if given).
     step_ratio: r in dt = r * T_min / (2 pi sqrt(beta)) (dynamic methods).
     steps_per_period: quasi-static step count per excitation period.
-    tolerance: Newton stop, max |A delta| <= tolerance * length scale.
+    tolerance: Newton stop: the estimated error theta/(1-theta) max |A delta| of the modified-Newton
+        iteration (theta its observed contraction) <= tolerance * length scale.
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
     max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
@@ -280,9 +281,11 @@ class Simulation(Runner):
         # initial point of the march: p(0), f_e(0), consistent acceleration
         p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
         fe0 = evaluate_compiled(_force_signal(cs), np.zeros(1))[0] + cs.constant_force
-        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale and not self.method.quasi_static:
-            warnings.warn("the prescribed motion does not start from zero: the damper receives an impulse and "
-                          "rings (physics.md 8). Start motions from zero or set ramp_time.", stacklevel=3)
+        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale:
+            warnings.warn("the prescribed motion does not start from zero (p(0) != 0): a dynamic run receives it "
+                          "as an impulse and rings at the internal frequencies for as long as nothing damps them; "
+                          "a quasi-static run jumps in its first step. Start motions from zero (sine phase) or "
+                          "set ramp_time.", stacklevel=3)
         w_pre = ws.w.copy()
         local_displacement(cs, ws.x, p0, q)
         contact_law(cs, q, w_pre, f, ws.w, ws.state)
