@@ -12,8 +12,9 @@ For each method the same System is marched with the same options. The table repo
   (adaptive, quasi-static) are linearly interpolated onto Method 1's grid. The same
   differences are also given after a zero-phase low-pass filter that removes the damper's
   ringing at its internal frequencies (paper 5.1): :func:`slipstep.post.filtering.lowpass`
-  (zero-phase Butterworth) on a uniform grid of Method 1's step, cut-off 5 x the excitation
-  frequency by default.
+  (zero-phase Butterworth) on a uniform grid of Method 1's step, with the cut-off that
+  :func:`slipstep.post.filtering.choose_cutoff` picks between the excitation harmonics and the
+  lowest internal frequency of the states Method 1 visits (it warns when they are too close).
 
 Writers: :func:`write_csv`, :func:`write_json`, :func:`plot_time_ratios` (Figure 8) and
 :func:`plot_solves_histogram` (Figure 5).
@@ -24,7 +25,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import warnings
 from pathlib import Path
 from statistics import median
 
@@ -33,8 +33,10 @@ import xarray as xr
 
 from slipstep.errors import InputError
 from slipstep.methods.registry import PAPER_METHODS, get_method
-from slipstep.methods.simulation import Simulation, state_t_min
-from slipstep.post.filtering import lowpass, samples_per_period
+from slipstep.methods.simulation import Simulation
+from slipstep.post.filtering import (
+    choose_cutoff, excitation_frequencies, lowest_internal_frequency, lowpass, samples_per_period, visited_states,
+)
 from slipstep.system import System
 
 REFERENCE = "newmark"
@@ -48,19 +50,19 @@ COLUMNS = (
 
 
 def compare(system: System, methods=PAPER_METHODS, periods: float = 3, repeats: int = 5,
-            cutoff_factor: float = 5.0, datasets: dict | None = None, **options) -> list[dict]:
+            cutoff_Hz: float | None = None, datasets: dict | None = None, **options) -> list[dict]:
     """Run ``methods`` on ``system`` and return one row (dict, keys :data:`COLUMNS` plus
     ``force_scale_N`` and ``filter_cutoff_Hz``) per method, Method 1 first.
 
-    ``cutoff_factor``: low-pass cut-off = cutoff_factor x excitation frequency.
+    ``cutoff_Hz``: low-pass cut-off (default: chosen by slipstep.post.filtering.choose_cutoff).
     ``datasets``: if a dict is given it receives the result Dataset of every method.
     ``options``: further :class:`~slipstep.methods.simulation.RunOptions` for every method.
     """
     names = _method_names(methods)
     if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
         raise InputError("repeats", f"is {repeats!r}", "give a whole number >= 1")
-    if not (isinstance(cutoff_factor, (int, float)) and math.isfinite(cutoff_factor) and cutoff_factor > 1):
-        raise InputError("cutoff_factor", f"is {cutoff_factor!r}", "give a number > 1 (e.g. 5)")
+    if cutoff_Hz is not None and not (isinstance(cutoff_Hz, (int, float)) and math.isfinite(cutoff_Hz) and cutoff_Hz > 0):
+        raise InputError("cutoff_Hz", f"is {cutoff_Hz!r}", "give a frequency > 0 [Hz], or None to choose it")
     results, times = {}, {}
     for name in names:
         sim = Simulation(system, name, periods=periods, **options)
@@ -74,7 +76,7 @@ def compare(system: System, methods=PAPER_METHODS, periods: float = 3, repeats: 
         datasets.update(results)
     ref = results[REFERENCE]
     force_scale = _force_scale(system, ref)
-    cutoff = _cutoff(system, cutoff_factor, ref)
+    cutoff = _cutoff(system, ref) if cutoff_Hz is None else float(cutoff_Hz)
     filtered_ref = _lowpass_dataset(ref, ref, cutoff)
     rows = []
     for name in names:
@@ -109,24 +111,13 @@ def _force_scale(system: System, ref: xr.Dataset) -> float:
     return peak if peak > 0 else 1.0
 
 
-def _cutoff(system: System, factor: float, ref: xr.Dataset) -> float:
-    """Low-pass cut-off [Hz]: factor x excitation frequency, kept below Nyquist; warns when the
-    lowest full-stick frequency is not well above it (paper Remark 3: filtering not safe)."""
+def _cutoff(system: System, ref: xr.Dataset) -> float:
+    """The automatic cut-off of the paper's filter (slipstep.post.filtering), kept below the
+    Nyquist frequency of Method 1's grid; FilterWarning when the ringing cannot be separated."""
     period = float(ref.attrs["period_s"]) if "period_s" in ref.attrs else float(ref.attrs["t_end_s"])
-    f_exc = 1.0 / period
-    dt = float(ref.attrs["dt_s"])
-    cutoff = min(factor * f_exc, 0.4 / dt)
-    cs = system.compile()
-    stick = np.ones(cs.kt.shape[0], np.int8)
-    _, ev = state_t_min(cs, stick)
-    positive = np.abs(ev[np.abs(ev) > 0])
-    if positive.size:
-        f_low = math.sqrt(positive.min()) / (2 * math.pi)
-        if f_low < 2 * cutoff:
-            warnings.warn(f"the lowest full-stick frequency ({f_low:.4g} Hz) is within a factor 2 of the "
-                          f"low-pass cut-off ({cutoff:.4g} Hz): the filtered differences may remove real "
-                          "response (paper Remark 3)", stacklevel=3)
-    return cutoff
+    excitation = max(excitation_frequencies(system), default=1.0 / period)
+    internal = lowest_internal_frequency(system, visited_states(ref))
+    return min(choose_cutoff(excitation, internal).cutoff_Hz, 0.4 / float(ref.attrs["dt_s"]))
 
 
 def _last_period(ref: xr.Dataset) -> np.ndarray:
