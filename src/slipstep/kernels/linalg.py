@@ -10,7 +10,8 @@ from numba import njit
 @njit(cache=True, error_model="numpy")
 def lu_factor(A, lu, piv, singular_rtol):
     """Factorise A into ``lu`` (L below the diagonal, unit diagonal implied; U on and above)
-    and row pivots ``piv``. Returns False if a pivot is below ``singular_rtol * max|A|``."""
+    and row pivots ``piv`` (``lu`` may be ``A`` itself: in place). Returns False if a pivot is
+    below ``singular_rtol * max|A|``."""
     n = A.shape[0]
     scale = 0.0
     for i in range(n):

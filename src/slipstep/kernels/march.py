@@ -35,22 +35,22 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.cache import find_slot
+from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
+    C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
+    CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
+)
 from slipstep.kernels.contact import compatible, contact_stiffness, gather, law, piecewise_law, scatter
-from slipstep.kernels.linalg import lu_factor, lu_solve
+from slipstep.kernels.linalg import lu_solve
+from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
 
 # float parameters
 BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
 N_FPAR = 12
 # int parameters
-SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD = range(9)
-N_IPAR = 9
+SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
+N_IPAR = 10
 MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR = 0, 1, 2
-# counters
-C_STEPS, C_SOLVES, C_FACTORISATIONS, C_LAW_CALLS, C_REDOS, C_FALLBACKS, C_STATE_CHANGES, C_FAIL_STEP, C_N_VISITED = range(9)
-N_COUNTERS = 9
-# status (mirrors slipstep.errors.Status)
-OK, NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, NON_FINITE = 0, 1, 2, 3, 4, 5
 
 
 class Workspace(NamedTuple):
@@ -91,6 +91,7 @@ class Workspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
     lin_dt: np.ndarray  # (1,) dt of the current Lin
     visited: np.ndarray  # int8 (max_state_iter + 1, nd): states of the last state iteration
+    lr: LowRank  # the low-rank solve's arrays (placeholders in direct mode), see state_solve.py
 
 
 class Outputs(NamedTuple):
@@ -107,111 +108,123 @@ class Outputs(NamedTuple):
     counters: np.ndarray
 
 
-@njit(cache=True, error_model="numpy")
-def _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, key,
-               keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters):
-    """Slot of the LU of J(S) = Lin + kfac K_D(S), cached per ``key`` (= S for K_D, S for dt).
-    A non-nominal dt (the shortened last step) uses the scratch slot. Returns (slot, ok)."""
-    cap = used.shape[0]
-    if nominal:
-        slot, found = find_slot(keys, used, key)
-        if found:
-            return slot, ok_flags[slot]
-    else:
-        slot = cap
-    n = Lin.shape[0]
-    for i in range(n):
+@njit(cache=True, error_model="numpy", inline="always")
+def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
+                     gf1, r, counters):
+    """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
+    n = dx.shape[0]
+    for rr in range(A.shape[0]):
+        s = qbase[rr]
         for j in range(n):
-            J[i, j] = Lin[i, j]
-    contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, kd_state, kfac, J)
-    ok = lu_factor(J, lus[slot], pivs[slot], singular_rtol)
-    ok_flags[slot] = ok
-    counters[C_FACTORISATIONS] += 1
-    return slot, ok
+            s += A[rr, j] * dx[j]
+        q1[rr] = s
+    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+    counters[C_LAW_CALLS] += 1
+    scatter(AT, f1, gf1)
+    for i in range(n):
+        s = r0[i] - kfac * gf1[i]
+        for j in range(n):
+            s -= Lin[i, j] * dx[j]
+        r[i] = s
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _set_key(key, kd_state, dt_state):
-    nd = kd_state.shape[0]
-    for d in range(nd):
-        key[d] = kd_state[d]
-        key[nd + d] = dt_state[d]
-
-
-@njit(cache=True, error_model="numpy")
-def _newton(full, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
-            dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-            keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs, singular_rtol, counters):
-    """Modified Newton (J of all stick) or full Newton (J of the current iterate's state) on
-    r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0. Stop when the estimated error of the
+def _newton_update(A, dx, delta, it, prev_norm, tol_abs):
+    """dx += delta; returns (status, converged, norm). Convergence: the error estimate of the
     linearly converging iteration, theta/(1 - theta) max |A delta| with the contraction
-    theta = |delta_k| / |delta_{k-1}|, is below tol_abs (the first iteration: max |A delta|).
-    Returns (status, solves); on success q1, f1, w1, state1, gf1 hold the converged step."""
+    theta = |delta_k| / |delta_{k-1}|, below tol_abs (Hairer & Wanner IV.8); the first
+    iteration has no theta yet: max |A delta| itself."""
     n = dx.shape[0]
     nq = A.shape[0]
     for i in range(n):
+        dx[i] += delta[i]
+        if not np.isfinite(dx[i]):
+            return NON_FINITE, False, 0.0
+    norm = 0.0
+    if nq == 0:
+        for i in range(n):
+            norm = max(norm, abs(delta[i]))
+    else:
+        for rr in range(nq):
+            s = 0.0
+            for j in range(n):
+                s += A[rr, j] * delta[j]
+            norm = max(norm, abs(s))
+    if it == 0:
+        return OK, norm <= tol_abs, norm
+    theta = norm / prev_norm if prev_norm > 0.0 else 0.0
+    return OK, norm == 0.0 or (theta < 1.0 and norm * theta / (1.0 - theta) <= tol_abs), norm
+
+
+@njit(cache=True, error_model="numpy")
+def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+                     dx, delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs, counters):
+    """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
+    factorised full-stick Jacobian (lu0, piv0). Returns (status, solves); on success q1, f1,
+    w1, state1, gf1 hold the converged step."""
+    for i in range(dx.shape[0]):
         dx[i] = 0.0
-    _set_key(key, stick, dt_state)
-    slot, ok = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, key,
-                          keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
-    if not ok:
-        return SINGULAR, 0
-    solves = 0
     prev_norm = 0.0
     for it in range(max_iter):
-        for rr in range(nq):
-            q1[rr] = qbase[rr]
-            for j in range(n):
-                q1[rr] += A[rr, j] * dx[j]
-        law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
-        counters[C_LAW_CALLS] += 1
-        scatter(AT, f1, gf1)
-        for i in range(n):
-            s = r0[i] - kfac * gf1[i]
-            for j in range(n):
-                s -= Lin[i, j] * dx[j]
-            r[i] = s
-        use = slot
-        if full:
-            _set_key(key, state1, dt_state)
-            s2, ok2 = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, key,
-                                 keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
-            if ok2:
-                use = s2
-        lu_solve(lus[use], pivs[use], r, delta)
-        solves += 1
-        for i in range(n):
-            dx[i] += delta[i]
-            if not np.isfinite(dx[i]):
-                return NON_FINITE, solves
-        norm = 0.0
-        if nq == 0:
-            for i in range(n):
-                norm = max(norm, abs(delta[i]))
+        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                         state1, gf1, r, counters)
+        lu_solve(lu0, piv0, r, delta)
+        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        if status != OK:
+            return status, it + 1
+        if converged:
+            _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                             state1, gf1, r, counters)
+            return OK, it + 1
+    return NOT_CONVERGED, max_iter
+
+
+@njit(cache=True, error_model="numpy")
+def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+                 dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs, singular_rtol, counters):
+    """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
+    cached); the full-stick one where J(S) is singular. As :func:`_modified_newton` otherwise."""
+    for i in range(dx.shape[0]):
+        dx[i] = 0.0
+    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state,
+                                     stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+    if not ok:
+        return SINGULAR, 0
+    prev_norm = 0.0
+    for it in range(max_iter):
+        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                         state1, gf1, r, counters)
+        use, use_state = stick_slot, stick
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, dt_state,
+                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+        if ok:
+            use, use_state = slot, state1
+        if lowrank:
+            solve_low_rank(use, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, use_state, kfac, r, delta)
         else:
-            for rr in range(nq):
-                s = 0.0
-                for j in range(n):
-                    s += A[rr, j] * delta[j]
-                norm = max(norm, abs(s))
-        # stop when the error estimate of the contraction, theta/(1 - theta) |delta|, is below
-        # tol (Hairer & Wanner IV.8); the first iteration has no theta yet: |delta| itself
-        if it == 0:
-            small = norm <= tol_abs
-        else:
-            theta = norm / prev_norm if prev_norm > 0.0 else 0.0
-            small = norm == 0.0 or (theta < 1.0 and norm * theta / (1.0 - theta) <= tol_abs)
-        prev_norm = norm
-        if small:
-            for rr in range(nq):
-                q1[rr] = qbase[rr]
-                for j in range(n):
-                    q1[rr] += A[rr, j] * dx[j]
-            law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
-            counters[C_LAW_CALLS] += 1
-            scatter(AT, f1, gf1)
-            return OK, solves
-    return NOT_CONVERGED, solves
+            lu_solve(lus[use], pivs[use], r, delta)
+        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        if status != OK:
+            return status, it + 1
+        if converged:
+            _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                             state1, gf1, r, counters)
+            return OK, it + 1
+    return NOT_CONVERGED, max_iter
+
+
+@njit(cache=True, error_model="numpy")
+def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, key,
+                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+    """(slot, ok) of J(all stick) and which LU arrays hold it: the state slot (direct) or the
+    low-rank base (where C(stick) = I)."""
+    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, stick,
+                               key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+    if lowrank:
+        b = lr.slot_base[slot]
+        return ok, lr.base_lu[b], lr.base_piv[b]
+    return ok, lus[slot], pivs[slot]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -292,6 +305,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     Lin, J, Minv, key, dt_state, stick = ws.Lin, ws.J, ws.Minv, ws.key, ws.dt_state, ws.stick
     keys, used, ok_flags, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_ok, ws.cache_lu, ws.cache_piv
     tkeys, tused, tvalue, visited = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.visited
+    lr = ws.lr
+    lowrank = ipar[LOWRANK] == 1
     counters = out.counters
     n = x.shape[0]
     nq = A.shape[0]
@@ -327,6 +342,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     status = OK
     k = 0
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
+    stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
+    ok0 = False
+    lu0 = lus[0]
+    piv0 = pivs[0]
     dt_state_limit = 0.0  # step limit of dt_state (adaptive)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
@@ -416,9 +435,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if same:
                         slot, ok = last_slot, ok_flags[last_slot]
                     else:
-                        _set_key(key, state1, dt_state)
-                        slot, ok = _factorise(Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, key,
-                                              keys, used, ok_flags, lus, pivs, nominal, singular_rtol, counters)
+                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                                                   state1, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
+                                                   lr, nominal, singular_rtol, counters)
                         last_slot = slot if nominal else -1
                     if not ok:
                         status = SINGULAR
@@ -427,7 +446,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     scatter(AT, f1, gf1)
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
-                    lu_solve(lus[slot], pivs[slot], r, dx)
+                    if lowrank:
+                        solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, kfac, r, dx)
+                    else:
+                        lu_solve(lus[slot], pivs[slot], r, dx)
                     solves += 1
                     finite = True
                     for i in range(n):
@@ -451,18 +473,35 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    status, more = _newton(False, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
-                                           dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                                           keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
-                                           singular_rtol, counters)
+                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                                                          stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
+                                                          nominal, singular_rtol, counters)
+                    more = 0
+                    if ok0:
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
+                                                        max_iter, tol_abs, counters)
                     solves += more
                     if status != OK:
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
-                status, more = _newton(solver == FULL_NEWTON, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt,
-                                       r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                                       keys, used, ok_flags, lus, pivs, nominal, max_iter, tol_abs,
-                                       singular_rtol, counters)
+                if solver == FULL_NEWTON:
+                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0,
+                                                qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                                                keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
+                                                singular_rtol, counters)
+                else:
+                    if dt != stick_dt or not nominal:  # the stick factorisation of this step size
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow,
+                                                              kt, stick, dt_state, key, keys, used, ok_flags, lus,
+                                                              pivs, lr, nominal, singular_rtol, counters)
+                        stick_dt = dt if nominal else np.nan
+                    if ok0:
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
+                                                        max_iter, tol_abs, counters)
+                    else:
+                        status, more = SINGULAR, 0
                 solves += more
             if status != OK or not adaptive or attempt == max_redo:
                 break

@@ -18,6 +18,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels import march as K
+from slipstep.kernels.state_solve import LowRank
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
@@ -41,6 +42,9 @@ class RunOptions:
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
     max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
+    linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
+        an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
+        when the contact coordinates are at most half the DOFs).
     """
 
     periods: float = 3.0
@@ -58,6 +62,7 @@ class RunOptions:
     preload_increments: int = 45
     fallback: bool = True
     dt: float | None = None
+    linear_solver: str = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -79,6 +84,8 @@ class RunOptions:
             positive("max_step", self.max_step)
         if self.dt is not None:
             positive("dt", self.dt)
+        if self.linear_solver not in ("auto", "direct", "low-rank"):
+            raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
@@ -243,7 +250,9 @@ class Simulation(Runner):
         self.ipar[K.FALLBACK] = int(opt.fallback)
         self.ipar[K.SIGNALS] = 1
         self.ipar[K.PRELOAD] = 0
-        self.ws = _allocate_workspace(cs, opt.max_state_iterations)
+        self.low_rank = use_low_rank(cs, opt.linear_solver)
+        self.ipar[K.LOWRANK] = int(self.low_rank)
+        self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
         self.kernel_time = math.nan
@@ -334,6 +343,7 @@ class Simulation(Runner):
             "steps_per_period": self.options.steps_per_period if self.method.quasi_static else None,
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
+            "linear_solver": "low-rank" if self.low_rank else "direct",
         }
 
 
@@ -368,14 +378,33 @@ def _reset_cache(ws: K.Workspace) -> None:
     """Forget the factorisations (every march pays for its own). T_min per state is a property
     of the system and is kept for the life of the Simulation (cleared at allocation)."""
     ws.cache_used[:] = False
+    ws.lr.base_used[:] = False
     ws.lin_dt[0] = np.nan
 
 
-def _allocate_workspace(cs: CompiledSystem, max_state_iter: int) -> K.Workspace:
+def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
+    """The low-rank (Woodbury) state solve pays when the contact coordinates are few against
+    the DOFs (kernels/state_solve.py): 'auto' takes it when 2 nq <= n."""
+    n, nq = cs.M.shape[0], cs.A.shape[0]
+    if linear_solver == "auto":
+        return 0 < nq and 2 * nq <= n
+    return linear_solver == "low-rank" and nq > 0
+
+
+def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
-    cap = int(min(512, max(8, 2e8 // (8 * n * n))))
+    size = nq if low_rank else n  # the matrix factorised per state: C(S) (nq) or J(S) (n)
+    cap = int(min(512, max(8, 2e8 // (8 * size * size + 1))))
+    capb = int(min(64, max(2, 2e8 // (8 * (n * n + 2 * n * nq) + 1)))) if low_rank else 1
+    nb, nqb = (n, nq) if low_rank else (1, 1)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
+    lr = LowRank(
+        base_keys=i8(capb, nd), base_used=np.zeros(capb, np.bool_), base_ok=np.zeros(capb + 1, np.bool_),
+        base_lu=z(capb + 1, nb, nb), base_piv=np.zeros((capb + 1, nb), np.int64), Z=z(capb + 1, nb, nqb),
+        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 1, np.int64), slot_identity=np.zeros(cap + 1, np.bool_),
+        Ay=z(nq), t=z(nq), s=z(nq), col=z(n), zc=z(n),
+    )
     return K.Workspace(
         x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
         fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
@@ -383,9 +412,9 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int) -> K.Workspace:
         Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
         cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),
-        cache_lu=z(cap + 1, n, n), cache_piv=np.zeros((cap + 1, n), np.int64),
+        cache_lu=z(cap + 1, size, size), cache_piv=np.zeros((cap + 1, size), np.int64),
         tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
-        lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd),
+        lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd), lr=lr,
     )
 
 

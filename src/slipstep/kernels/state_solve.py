@@ -1,0 +1,172 @@
+"""The linear solve of a step in contact state S, factorised once per state (paper Eq. 7):
+
+    J(S) = Lin + kfac K_D(S),   K_D(S) = A^T K(S) A
+
+Two ways, chosen once per run (ipar LOWRANK in march.py):
+
+* direct: the LU of the n x n J(S) per state tuple (best when the contact coordinates are
+  as many as the DOFs, e.g. a rigid damper);
+* low-rank (Woodbury), for structures with many more DOFs n than contact coordinates nq:
+  J(S) = J0 + A^T dK(S) A with J0 = J(all stick) and dK(S) = kfac (K(S) - K(stick)) local.
+  With Z = J0^-1 A^T (n x nq, once per step size) and the capacitance C(S) = I + dK(S) A Z
+  (nq x nq, once per state):
+      J(S)^-1 r = y - Z C(S)^-1 dK(S) A y,   y = J0^-1 r
+  so a new state costs an nq x nq factorisation instead of n x n, and a solve O(n^2 + n nq).
+  J(S) is singular exactly when C(S) is (J0 regular).
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from slipstep.kernels.cache import find_slot
+from slipstep.kernels.codes import C_FACTORISATIONS
+from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
+from slipstep.kernels.linalg import lu_factor, lu_solve
+
+
+class LowRank(NamedTuple):
+    """Arrays of the low-rank solves (tiny placeholders in direct mode). Base slots are keyed
+    by the dt state (one J0 per step size); slot capb is scratch (the shortened last step)."""
+
+    base_keys: np.ndarray  # int8 (capb, nd)
+    base_used: np.ndarray  # bool (capb)
+    base_ok: np.ndarray  # bool (capb + 1)
+    base_lu: np.ndarray  # (capb + 1, n, n)
+    base_piv: np.ndarray  # int64 (capb + 1, n)
+    Z: np.ndarray  # (capb + 1, n, nq): J0^-1 A^T
+    AZ: np.ndarray  # (capb + 1, nq, nq): A J0^-1 A^T
+    slot_base: np.ndarray  # int64 (cap + 1): base slot of each state slot
+    slot_identity: np.ndarray  # bool (cap + 1): the state is all stick, C = I
+    Ay: np.ndarray  # (nq) scratch
+    t: np.ndarray  # (nq) scratch
+    s: np.ndarray  # (nq) scratch
+    col: np.ndarray  # (n) scratch
+    zc: np.ndarray  # (n) scratch
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def delta_k(nrow, kn, mu, fdir, ndir, trow, kt, state, kfac, y, out):
+    """out = kfac (K(S) - K(stick)) y, local (the state table of contact.py):
+    lift-off: -k_t on u, -k_n on v; slip+/-: -k_t on u and +/- mu k_n from v; stick: 0."""
+    for r in range(out.shape[0]):
+        out[r] = 0.0
+    for c in range(kn.shape[0]):
+        nr = nrow[c]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            out[nr] = -kfac * kn[c] * y[nr]
+            for d in range(d0, d0 + ndir[c]):
+                out[trow[d]] = -kfac * kt[d] * y[trow[d]]
+            continue
+        for d in range(d0, d0 + ndir[c]):
+            st = state[d]
+            if st != STICK:
+                sign = 1.0 if st == SLIP_POS else -1.0
+                out[trow[d]] = kfac * (sign * mu[c] * kn[c] * y[nr] - kt[d] * y[trow[d]])
+
+
+@njit(cache=True, error_model="numpy")
+def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, dt_state, stick, key,
+                    keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+    """Slot of the factorised solve of J(kd_state) for the current step size, cached per
+    key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
+    slots. Returns (slot, ok); ok is False when J(S) is singular."""
+    nd = kd_state.shape[0]
+    for d in range(nd):
+        key[d] = kd_state[d]
+        key[nd + d] = dt_state[d]
+    cap = used.shape[0]
+    if nominal:
+        slot, found = find_slot(keys, used, key)
+        if found:
+            return slot, ok_flags[slot]
+    else:
+        slot = cap
+    n = Lin.shape[0]
+    if not lowrank:
+        for i in range(n):
+            for j in range(n):
+                J[i, j] = Lin[i, j]
+        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, kd_state, kfac, J)
+        ok = lu_factor(J, lus[slot], pivs[slot], singular_rtol)
+        ok_flags[slot] = ok
+        counters[C_FACTORISATIONS] += 1
+        return slot, ok
+    # ---- low rank: the base J0 = J(stick) of this step size, then C(S) ----
+    nq = A.shape[0]
+    capb = lr.base_used.shape[0]
+    if nominal:
+        b, bfound = find_slot(lr.base_keys, lr.base_used, dt_state)
+    else:
+        b, bfound = capb, False
+    if not bfound:
+        for i in range(n):
+            for j in range(n):
+                J[i, j] = Lin[i, j]
+        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, stick, kfac, J)
+        ok0 = lu_factor(J, lr.base_lu[b], lr.base_piv[b], singular_rtol)
+        lr.base_ok[b] = ok0
+        counters[C_FACTORISATIONS] += 1
+        if ok0:
+            for r in range(nq):
+                for i in range(n):
+                    lr.col[i] = A[r, i]
+                lu_solve(lr.base_lu[b], lr.base_piv[b], lr.col, lr.zc)
+                for i in range(n):
+                    lr.Z[b, i, r] = lr.zc[i]
+            for r in range(nq):
+                for c in range(nq):
+                    acc = 0.0
+                    for i in range(n):
+                        acc += A[r, i] * lr.Z[b, i, c]
+                    lr.AZ[b, r, c] = acc
+    lr.slot_base[slot] = b
+    if not lr.base_ok[b]:
+        ok_flags[slot] = False
+        return slot, False
+    identity = True
+    for d in range(nd):
+        if kd_state[d] != STICK:
+            identity = False
+    lr.slot_identity[slot] = identity
+    if identity:
+        ok_flags[slot] = True
+        return slot, True
+    C = lus[slot]  # C(S) = I + dK(S) A Z, assembled in its slot and factorised in place
+    for c in range(nq):
+        for r in range(nq):
+            lr.t[r] = lr.AZ[b, r, c]
+        delta_k(nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, lr.t, lr.s)
+        for r in range(nq):
+            C[r, c] = lr.s[r] + (1.0 if r == c else 0.0)
+    ok = lu_factor(C, C, pivs[slot], singular_rtol)
+    ok_flags[slot] = ok
+    counters[C_FACTORISATIONS] += 1
+    return slot, ok
+
+
+@njit(cache=True, error_model="numpy")
+def solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, r, out):
+    """out = J(kd_state)^-1 r by the low-rank update of ``slot`` (see the module docstring).
+    In direct mode the callers use lu_solve(lus[slot], pivs[slot], r, out) instead (kept out of
+    this function so that the direct hot path never touches the low-rank arrays)."""
+    b = lr.slot_base[slot]
+    lu_solve(lr.base_lu[b], lr.base_piv[b], r, out)
+    if lr.slot_identity[slot]:
+        return
+    nq = A.shape[0]
+    n = out.shape[0]
+    for rr in range(nq):
+        acc = 0.0
+        for j in range(n):
+            acc += A[rr, j] * out[j]
+        lr.Ay[rr] = acc
+    delta_k(nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, lr.Ay, lr.t)
+    lu_solve(lus[slot], pivs[slot], lr.t, lr.s)
+    for i in range(n):
+        acc = 0.0
+        for c in range(nq):
+            acc += lr.Z[b, i, c] * lr.s[c]
+        out[i] -= acc
