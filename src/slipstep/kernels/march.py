@@ -217,8 +217,10 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, k
 @njit(cache=True, error_model="numpy")
 def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
-    """(slot, ok) of J(all stick) and which LU arrays hold it: the state slot (direct) or the
-    low-rank base (where C(stick) = I)."""
+    """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
+    state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
+    in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
+    carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
     slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, stick,
                                key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if lowrank:
