@@ -25,8 +25,12 @@ Step solvers:
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
-Adaptive step (Method 2): dt = step_factor * T_min(S_n), T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|);
-redo the step with the smaller dt when the new state's limit is below the dt used.
+Adaptive step (Method 2): dt = min(step_factor * T_min(S_n), dt_max), with
+T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|) cached per state; redo the step with the
+smaller dt when the new state's limit is below the dt used (a redone step postulates the
+state it found).
+Every solve with J(S) goes through kernels/state_solve.py: a cached LU per (S, dt state), or
+the low-rank update of J(all stick) for structures with few contact coordinates.
 """
 
 from typing import NamedTuple
