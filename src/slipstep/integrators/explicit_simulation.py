@@ -9,14 +9,13 @@ and reuses its preload and allocation helpers, so the result has the standard sc
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.methods.simulation import (
-    RunOptions, Runner, Simulation, _allocate_outputs, compiled_entry, default_max_step,
+    RunOptions, Runner, Simulation, _allocate_outputs, default_max_step,
 )
 from slipstep.model.validate import positive
 from slipstep.system import System
@@ -90,23 +89,13 @@ class ExplicitSimulation(Runner):
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
         self.kernel_time = math.nan
-        self._kernel = None
 
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
         ws = self.ws
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
-        self.out.counters[:] = 0
-        args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
-        kernel = self._kernel if self._kernel is not None else E.explicit_march
-        start = time.perf_counter()
-        status = kernel(*args)
-        self.kernel_time = time.perf_counter() - start
-        if self._kernel is None:
-            self._kernel = compiled_entry(E.explicit_march, args)
-        self.status = Status(status)
-        return self.status
+        return self._run_kernel(E.explicit_march)
 
     def _visited_states(self) -> str:
         return ""

@@ -110,6 +110,21 @@ class Runner:
     _visited_states() (the contact states tried at a failure, as text)."""
 
     failure_hint = ""
+    _kernel = None
+
+    def _run_kernel(self, dispatcher) -> Status:
+        """Time one call of the march kernel on this runner's arrays; after the first call the
+        compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
+        self.out.counters[:] = 0
+        args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
+        kernel = self._kernel if self._kernel is not None else dispatcher
+        start = time.perf_counter()
+        status = kernel(*args)
+        self.kernel_time = time.perf_counter() - start
+        if self._kernel is None:
+            self._kernel = compiled_entry(dispatcher, args)
+        self.status = Status(status)
+        return self.status
 
     def run(self, raise_on_failure: bool = False):
         """Preloaded march + Dataset. On failure the Dataset holds every step done before it."""
@@ -256,7 +271,6 @@ class Simulation(Runner):
         self.out = _allocate_outputs(cs, capacity)
         self.status = None
         self.kernel_time = math.nan
-        self._kernel = None
         self._preload()
 
     # -- set-up ---------------------------------------------------------------------------
@@ -312,16 +326,7 @@ class Simulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        self.out.counters[:] = 0
-        args = (self.compiled, self.fpar, self.ipar, ws, self.out, self.q0, self.f0)
-        kernel = self._kernel if self._kernel is not None else K.march
-        start = time.perf_counter()
-        status = kernel(*args)
-        self.kernel_time = time.perf_counter() - start
-        if self._kernel is None:
-            self._kernel = compiled_entry(K.march, args)
-        self.status = Status(status)
-        return self.status
+        return self._run_kernel(K.march)
 
     # -- results --------------------------------------------------------------------------
     def _visited_states(self) -> str:
