@@ -20,6 +20,8 @@ class Status(IntEnum):
     SINGULAR = 3
     CAPACITY = 4
     NON_FINITE = 5
+    INTERRUPTED = 6
+    DIVERGED = 7
 
     @property
     def message(self) -> str:
@@ -43,6 +45,11 @@ _MESSAGES = {
     ),
     Status.CAPACITY: "the output buffer filled before the end time (adaptive step too small)",
     Status.NON_FINITE: "the solution became non-finite (NaN or inf)",
+    Status.INTERRUPTED: "interrupted by the user (Ctrl-C); the steps done before it are kept",
+    Status.DIVERGED: (
+        "the response grew without an energy source (numerical instability): the step exceeds "
+        "the scheme's stability limit; reduce the step ratio or use an unconditionally stable scheme"
+    ),
 }
 
 

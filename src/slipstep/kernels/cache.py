@@ -8,7 +8,7 @@ Open addressing with linear probing; when the table is full the home slot is reu
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _hash(key):
     h = 1469598103934665603
     for i in range(key.shape[0]):
@@ -16,7 +16,7 @@ def _hash(key):
     return h
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def find_slot(keys, used, key):
     """Return (slot, found). If not found, ``slot`` is where the key has been written
     (and ``used[slot]`` set); the caller must then fill the slot's data."""

@@ -146,7 +146,7 @@ def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _add_outer(out, k, A, r1, r2):
     """out += k * A[r1]^T A[r2]."""
     n = A.shape[1]
@@ -157,7 +157,7 @@ def _add_outer(out, k, A, r1, r2):
                 out[i, j] += a * A[r2, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out):
     """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7)."""
     for c in range(kn.shape[0]):
@@ -179,41 +179,41 @@ def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out)
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def local_displacement(sys, x, p, q):
     """q = A x - B p + g."""
     gather(sys.A, sys.B, sys.g, x, p, q)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def contact_law(sys, q, w_old, f, w_new, state):
     """The nonlinear law (see :func:`law`)."""
     law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
         q, w_old, f, w_new, state)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def linear_law(sys, state, q, w_old, f, w_new):
     """The piecewise-linear law (see :func:`piecewise_law`)."""
     piecewise_law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
                   state, q, w_old, f, w_new)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def is_compatible(sys, state, q, w_old, rtol):
     """The compatibility check (see :func:`compatible`)."""
     return compatible(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
                       sys.kt, state, q, w_old, rtol, sys.length_scale)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def add_contact_stiffness(sys, state, factor, out):
     """out += factor * K_D(S) (see :func:`contact_stiffness`)."""
     contact_stiffness(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
                       sys.kt, sys.A, state, factor, out)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def generalised_force(sys, f, out):
     """out = A^T f."""
     scatter(sys.AT, f, out)

@@ -83,7 +83,7 @@ class ExplicitWorkspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
            t, x, v, w_old, f, w_new, state, q, out):
     """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state.
@@ -104,7 +104,7 @@ def _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, pi
     lu_solve(lu, piv, rhs, out)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     """March from t_start to t_end writing step k into out[k] (k = 0: the initial state with
     local q0, f0), same layout and counters as :func:`slipstep.kernels.march.march`.

@@ -7,7 +7,7 @@ reused (numba's np.linalg.solve refactorises on every call).
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def lu_factor(A, lu, piv, singular_rtol):
     """Factorise A into ``lu`` (L below the diagonal, unit diagonal implied; U on and above)
     and row pivots ``piv`` (``lu`` may be ``A`` itself: in place). Returns False if a pivot is

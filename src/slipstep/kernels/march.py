@@ -160,7 +160,7 @@ def _newton_update(A, dx, delta, it, prev_norm, tol_abs):
     return OK, norm == 0.0 or (theta < 1.0 and norm * theta / (1.0 - theta) <= tol_abs), norm
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
                      dx, delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
@@ -183,7 +183,7 @@ def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow
     return NOT_CONVERGED, max_iter
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
                  dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                  keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs, singular_rtol, counters):
@@ -218,7 +218,7 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, k
     return NOT_CONVERGED, max_iter
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
@@ -263,7 +263,7 @@ def _same(s1, s2):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
@@ -281,7 +281,7 @@ def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, t
     return min(step_factor * tvalue[slot], dt_max)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def march(sys, fpar, ipar, ws, out, q0, f0):
     """March from t_start to t_end, writing step k into out[k] (k = 0: the initial state,
     whose local q0 and f0 are given). Returns the status; out.counters[C_STEPS] steps done.

@@ -39,14 +39,14 @@ def evaluate_signal(t, freq, sin_c, cos_c, tab_t, tab_v, ramp_time, out):
             out[c] *= fac
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def motion_at(sys, t, out):
     """Prescribed motion p(t)."""
     evaluate_signal(t, sys.motion_frequency, sys.motion_sin, sys.motion_cos,
                     sys.motion_table_time, sys.motion_table_value, sys.motion_ramp, out)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def force_at(sys, t, load_factor, out):
     """External force f_e(t) = load_factor * f_const + f_var(t)."""
     evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos,

@@ -67,7 +67,7 @@ def delta_k(nrow, kn, mu, fdir, ndir, trow, kt, state, kfac, y, out):
                 out[trow[d]] = kfac * (sign * mu[c] * kn[c] * y[nr] - kt[d] * y[trow[d]])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, dt_state, stick, key,
                     keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
@@ -147,7 +147,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt
     return slot, ok
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, r, out):
     """out = J(kd_state)^-1 r by the low-rank update of ``slot`` (see the module docstring).
     In direct mode the callers use lu_solve(lus[slot], pivs[slot], r, out) instead (kept out of

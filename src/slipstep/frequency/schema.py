@@ -1,0 +1,49 @@
+"""The layout of a frequency-response Dataset, in one place (like ``slipstep.results.SCHEMA``).
+
+Every FRF solver (marching to the steady state, shooting, harmonic balance) returns an
+``xarray.Dataset`` with these variables, so that curves from different solvers overlay in one
+plot. Dimensions:
+
+- ``frequency``: excitation frequencies of the points [Hz], in the order they were computed;
+- ``harmonic``: harmonic numbers h = 0..H of the response (0: mean value);
+- ``response``: the response DOFs reported (DOF names; coordinate ``response_unit``);
+- ``contact``: contact elements (as in the time-domain result).
+
+A sweep computed in both directions is two such Datasets concatenated along ``sweep``
+(coordinate values "up", "down"). Values not computed by a solver are NaN (floats) or "" (text).
+
+Response convention: x_j(t) = sum_h A_hj cos(h Omega t + phi_hj), Omega = 2 pi frequency,
+t = 0 at the start of the steady-state period.
+"""
+
+from __future__ import annotations
+
+FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
+    # name: (dims, units, long_name)
+    "amplitude": (("frequency", "response"), "m or rad (see response_unit)",
+                  "half the peak-to-peak response over one steady-state period"),
+    "harmonic_amplitude": (("frequency", "harmonic", "response"), "m or rad (see response_unit)",
+                           "amplitude A_h of harmonic h of the response (h = 0: mean)"),
+    "harmonic_phase": (("frequency", "harmonic", "response"), "rad",
+                       "phase phi_h of harmonic h: x = sum_h A_h cos(h Omega t + phi_h)"),
+    "energy_per_cycle": (("frequency", "contact"), "J", "energy dissipated by friction per cycle in each contact"),
+    "excitation_work": (("frequency",), "J", "work of the external forces and prescribed motions per cycle"),
+    "viscous_dissipation": (("frequency",), "J", "energy dissipated by the damping matrix C per cycle"),
+    "periods_to_steady": (("frequency",), "1", "excitation periods marched before the steady state was reached"),
+    "floquet_multiplier_max": (("frequency",), "1",
+                               "largest modulus of the Floquet multipliers (< 1: stable orbit; shooting only)"),
+    "linear_free_amplitude": (("frequency", "response"), "m or rad (see response_unit)",
+                              "linear limit with the contacts removed (frequency-domain solution)"),
+    "linear_stuck_amplitude": (("frequency", "response"), "m or rad (see response_unit)",
+                               "linear limit with every contact stuck (frequency-domain solution)"),
+    "check_amplitude_rel_diff": (("frequency",), "1",
+                                 "relative difference of the peak amplitude against the time-marching "
+                                 "cross-check (harmonic balance only; NaN where not checked)"),
+    "check_energy_rel_diff": (("frequency",), "1",
+                              "relative difference of the dissipated energy per cycle against the "
+                              "time-marching cross-check (harmonic balance only; NaN where not checked)"),
+    "status": (("frequency",), "1", "status of the point: OK or the name of the failure"),
+}
+"""Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),
+``sweep`` ("up" or "down"), ``method`` (time-marching method, where one is used),
+``harmonics`` (the retained harmonic numbers, HBM), ``steady_tolerance``, ``slipstep_version``."""
