@@ -18,7 +18,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 import slipstep  # noqa: E402
 from slipstep.config import CASES_DIR, build_system, parse_case, read_toml  # noqa: E402

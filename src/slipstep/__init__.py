@@ -19,7 +19,18 @@ from slipstep.model.structure import Structure
 from slipstep.results import load as load_result, save as save_result
 from slipstep.system import CompiledSystem, System
 
-__version__ = "0.1.0"
+
+def _version() -> str:
+    """The installed package's version: written once, in pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("slipstep")
+    except PackageNotFoundError:  # a source tree on sys.path, not installed
+        return "0+unknown"
+
+
+__version__ = _version()
 
 __all__ = [
     "advise", "post", "CompiledSystem", "ContactElement", "DamperContact", "Excitation", "Harmonic", "InputError", "METHODS",
