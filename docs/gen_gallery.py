@@ -152,6 +152,9 @@ def _page(
     return "\n".join(L)
 
 
+NAV_TITLES = {"paper_case": "The paper's damper", "method_comparison": "Methods side by side"}
+
+
 def _entries() -> list[tuple[str, str]]:
     """(slug, title) of every gallery entry, in page order."""
     out = [(slug, title) for slug, title, _, _ in SNIPPETS]
@@ -160,13 +163,13 @@ def _entries() -> list[tuple[str, str]]:
             (path.stem, " ".join(_module_doc(path).split("\n\n")[0].split()).split(": ")[0].rstrip(".") or path.stem)
         )
     for path in sorted(EXAMPLES.glob("*.toml")):
-        out.append((path.stem, f"Case file `examples/{path.name}`"))
+        out.append((path.stem, f"Case file examples/{path.name}"))
     return out
 
 
 def gallery_nav() -> list:
     """The mkdocs nav of the gallery: the index, then one page per entry."""
-    return ["gallery/index.md"] + [{title: f"gallery/{slug}.md"} for slug, title in _entries()]
+    return ["gallery/index.md"] + [{NAV_TITLES.get(slug, title): f"gallery/{slug}.md"} for slug, title in _entries()]
 
 
 def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
