@@ -18,6 +18,7 @@ or a registered method has no entry, so the pages cannot fall behind the code.
 from __future__ import annotations
 
 import ast
+import re
 import sys
 import typing
 from pathlib import Path
@@ -635,14 +636,9 @@ def cli_reference() -> str:
     ]
     for name in sorted(group.commands):
         cmd = group.commands[name]
-        L += [
-            f"## `slipstep {name}`",
-            "",
-            (cmd.help or "").strip().replace("\b\n", ""),
-            "",
-            "| argument / option | type | default | help |",
-            "|---|---|---|---|",
-        ]
+        L += [f"## `slipstep {name}`", "", (cmd.help or "").strip().replace("\b\n", ""), ""]
+        if any(p.name != "help" for p in cmd.params):
+            L += ["| argument / option | type | default | help |", "|---|---|---|---|"]
         ctx = cmd.context_class(cmd, info_name=name)
         for p in cmd.params:
             if p.param_type_name == "argument":
@@ -665,7 +661,6 @@ def cli_reference() -> str:
 # Theory: which code implements which equation (docstrings citing the paper or physics.md)
 # --------------------------------------------------------------------------------------------
 
-import re  # noqa: E402
 
 _CITE = re.compile(r"(?:paper\s+)?Eq(?:s)?\.\s*(\d+)|physics\.md(?:\s+section)?\s+(\d+)")
 
@@ -783,9 +778,14 @@ def api_pages() -> dict[str, str]:
     return pages
 
 
+_ROLE = re.compile(r":(?:py:)?[a-z]+:`~?([^`]+)`")
+
+
 def _first_line(module: str) -> str:
+    """The first paragraph of a module's docstring, Sphinx roles as code."""
     doc = next(_docstrings(module))[1]
-    return " ".join(doc.split("\n\n")[0].split()).replace("|", "/") or "-"
+    text = " ".join(doc.split("\n\n")[0].split()).replace("|", "/")
+    return _ROLE.sub(lambda m: f"`{m.group(1)}`", text).rstrip(":") or "-"
 
 
 def api_nav() -> list:
