@@ -773,7 +773,7 @@ def api_pages() -> dict[str, str]:
     for module in module_names():
         options = ["    options:", "      show_submodules: false"]
         if module == "slipstep":
-            options += ["      members_order: alphabetical"]
+            options += ["      members_order: alphabetical", "      summary: true"]
         pages[f"api/{module}.md"] = "\n".join([f"::: {module}"] + options) + "\n"
     return pages
 
