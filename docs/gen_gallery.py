@@ -6,7 +6,9 @@ Entries:
 * the snippets in :data:`SNIPPETS` (Python, run in a temporary directory, in this process);
 * every ``examples/*.py`` script, run as ``python examples/NAME.py --output-dir DIR`` (its
   printed output and the PNG files it writes are shown; its module docstring is the text);
-* every ``examples/*.toml`` case, run as ``slipstep run`` followed by ``slipstep plot``.
+* every ``examples/*.toml`` case, run with the command its leading comments give in backticks
+  (``# `slipstep frf examples/NAME.toml --frequencies 250:450:41` ``) plus ``--output-dir DIR``,
+  else as ``slipstep run`` followed by ``slipstep plot``.
 
 An example that fails fails the build (``mkdocs build --strict`` then stops), so the gallery
 cannot show a figure the code no longer makes. Keep examples short: the gallery runs them all.
@@ -20,6 +22,8 @@ import ast
 import contextlib
 import io
 import os
+import re
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -86,6 +90,17 @@ for row in rows:
 
 def _module_doc(path: Path) -> str:
     return ast.get_docstring(ast.parse(path.read_text())) or ""
+
+
+def _toml_command(path: Path) -> str | None:
+    """The command a case file's leading comments give for itself: `slipstep CMD examples/NAME.toml ...`."""
+    for line in path.read_text().splitlines():
+        if not line.startswith("#"):
+            break
+        m = re.search(r"`(slipstep \S+ examples/" + re.escape(path.name) + r"[^`]*)`", line)
+        if m:
+            return m.group(1)
+    return None
 
 
 def _toml_comment(path: Path) -> str:
@@ -220,19 +235,30 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
             )
         )
     for path in sorted(EXAMPLES.glob("*.toml")):
+        own = _toml_command(path)
+        if own:  # the case file names the command that shows it (e.g. `slipstep frf ...`)
+            commands = f"{own} --output-dir DIR"
 
-        def run_case(d: Path, p=path) -> str:
-            text = _run(_slipstep("run", str(p), "--output-dir", str(d)), d)
-            results = sorted(d.glob("*.nc"))
-            if not results:
-                raise RuntimeError(f"gallery: `slipstep run {p}` wrote no result")
-            text += _run(_slipstep("plot", str(results[0]), "--output-dir", str(d), "--case", str(p)), d)
-            for png in d.glob("*.png"):  # the figures that read best on a page
-                if not png.stem.endswith(("time_histories", "loops", "states")):
-                    png.unlink()
-            return text.replace(str(d) + os.sep, "")
+            def run_case(d: Path, p=path, cmd=own) -> str:
+                args = [str(p) if a == f"examples/{p.name}" else a for a in shlex.split(cmd)[1:]]
+                return _run(_slipstep(*args, "--output-dir", str(d)), d).replace(str(d) + os.sep, "")
+        else:
+            commands = (
+                f"slipstep run examples/{path.name} --output-dir DIR\n"
+                f"slipstep plot DIR/RESULT.nc -o DIR --case examples/{path.name}"
+            )
 
-        commands = f"slipstep run examples/{path.name} --output-dir DIR\nslipstep plot DIR/RESULT.nc -o DIR --case examples/{path.name}"
+            def run_case(d: Path, p=path) -> str:
+                text = _run(_slipstep("run", str(p), "--output-dir", str(d)), d)
+                results = sorted(d.glob("*.nc"))
+                if not results:
+                    raise RuntimeError(f"gallery: `slipstep run {p}` wrote no result")
+                text += _run(_slipstep("plot", str(results[0]), "--output-dir", str(d), "--case", str(p)), d)
+                for png in d.glob("*.png"):  # the figures that read best on a page
+                    if not png.stem.endswith(("time_histories", "loops", "states")):
+                        png.unlink()
+                return text.replace(str(d) + os.sep, "")
+
         pages.update(
             _build(
                 path.stem,
