@@ -347,7 +347,10 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "factorisations": ("1", "matrix factorisations (one per new contact state for the piecewise-linear solver)"),
     "law_calls": ("1", "contact-law evaluations"),
     "redone_steps": ("1", "steps redone with a smaller step (adaptive methods: the new state needed one)"),
-    "fallback_steps": ("1", "steps the piecewise-linear solver handed to Newton (state cycling)"),
+    "fallback_steps": (
+        "1",
+        "steps the piecewise-linear state loop did not settle (state cycling) and handed to modified Newton",
+    ),
     "state_changes": ("1", "steps whose contact-state tuple differs from the previous step's"),
     "dt_s": ("s", "the fixed step (adaptive methods: the full-stick step)"),
     "t_min_s": ("s", "T_min of the full-stick state, 2 pi / omega_max (paper Eq. 8)"),
@@ -360,7 +363,11 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "state_tolerance": ("1", "relative tolerance of the contact-state compatibility check"),
     "kernel_time_s": ("s", "time spent in the compiled march (excludes set-up and the Dataset)"),
     "wall_time_s": ("s", "time of the whole run() call"),
-    "length_scale_m": ("m", "displacement scale of the tolerances (largest preload/motion displacement)"),
+    "length_scale_m": (
+        "m",
+        "displacement scale of the tolerances: the larger of the motion amplitude and the static "
+        "deflection abs(f) / k of the loads, at least 1 nm",
+    ),
     "failed_at_step": ("1", "on failure: the step that failed"),
     "failed_at_time_s": ("s", "on failure: the time it failed at"),
     "states_visited": ("-", "on failure: the contact states tried in the failing step"),
