@@ -39,7 +39,30 @@ def on_config(config):
             item["API reference"] = gen.api_nav()
         if isinstance(item, dict) and "Gallery" in item:
             item["Gallery"] = gallery.gallery_nav()
+    extra = _unlisted_pages(config["docs_dir"], nav)
+    if extra:  # a page someone added without a nav entry still gets one (and a note in the build log)
+        nav.append({"More": [{_title(Path(config["docs_dir"]) / page): page} for page in extra]})
+        print(f"INFO    -  slipstep: pages not in mkdocs.yml's nav, listed under 'More': {extra}", file=sys.stderr)
     return config
+
+
+def _leaves(nav):
+    for item in nav:
+        for value in item.values() if isinstance(item, dict) else [item]:
+            yield from _leaves(value) if isinstance(value, list) else [value]
+
+
+def _unlisted_pages(docs_dir: str, nav) -> list[str]:
+    listed = set(_leaves(nav))
+    pages = [p.relative_to(docs_dir).as_posix() for p in sorted(Path(docs_dir).rglob("*.md"))]
+    return [p for p in pages if p not in listed]
+
+
+def _title(path: Path) -> str:
+    for line in path.read_text().splitlines():
+        if line.startswith("# "):
+            return line[2:].strip()
+    return path.stem.replace("_", " ").capitalize()
 
 
 def on_files(files, config):
