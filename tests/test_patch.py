@@ -115,3 +115,31 @@ def test_bad_patch_input_names_the_field():
         contact_patch("face", face_points(L, 3), rigid_face_gather(0.0, (0, 0), (0, 1, 2), 3),
                       normal_stiffness_per_area=float("nan"), tangential_stiffness_per_area=1.0,
                       friction_coefficient=0.3)
+
+
+def test_definiteness_checks_without_eigen_decomposition():
+    """Structure's checks (Cholesky / sparse diagonal-pivot LU): a 400-DOF banded chain is
+    accepted; one negative stiffness entry, a zero mass, and an indefinite coupling are refused
+    with the smallest eigenvalue in the message, on both the dense and the sparse path."""
+    from slipstep.model.structure import Structure
+
+    for n in (50, 400):  # dense path, sparse path
+        K = 4e5 * (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1))
+        M = np.diag(np.full(n, 0.02))
+        Structure(M, 2e-5 * K, K)
+        Structure(M, None, np.zeros((n, n)))  # K = 0 (a free body) is semi-definite
+        free = K.copy()
+        free[0, 0] = 4e5  # fixed-free -> free-free: singular, still semi-definite
+        Structure(M, None, free)
+        bad = K.copy()
+        bad[5, 5] = -1e3
+        with pytest.raises(InputError, match="structure.stiffness.*negative eigenvalue"):
+            Structure(M, None, bad)
+        zero_mass = M.copy()
+        zero_mass[3, 3] = 0.0
+        with pytest.raises(InputError, match="structure.mass.*not positive definite"):
+            Structure(zero_mass)
+        coupled = M.copy()
+        coupled[1, 2] = coupled[2, 1] = 0.03  # |m12| > sqrt(m11 m22): indefinite
+        with pytest.raises(InputError, match="structure.mass"):
+            Structure(coupled)
