@@ -723,33 +723,56 @@ def _api_page_of(obj: str) -> str:
     return "slipstep"
 
 
-def theory_index() -> str:
-    headings = {}
-    physics = ROOT / "docs" / "physics.md"
-    for line in physics.read_text().splitlines():
+def physics_sections() -> dict[int, tuple[str, str, str]]:
+    """{n: (title, anchor, text)} of the numbered sections of docs/physics.md."""
+    from markdown.extensions.toc import slugify
+
+    sections: dict[int, tuple[str, str, str]] = {}
+    current = None
+    for line in (ROOT / "docs" / "physics.md").read_text().splitlines():
         m = re.match(r"^## (\d+)\. (.*)", line)
         if m:
-            headings[int(m.group(1))] = m.group(2)
+            current = int(m.group(1))
+            heading = line[3:].strip()
+            sections[current] = (m.group(2), slugify(heading, "-"), "")
+        elif current is not None:
+            title, anchor, text = sections[current]
+            sections[current] = (title, anchor, text + line + "\n")
+    return sections
+
+
+def theory_index() -> str:
+    sections = physics_sections()
+
+    def where(eq: int) -> str:
+        """Links to the physics.md sections that state paper Eq. ``eq``."""
+        pattern = re.compile(rf"Eq(?:s)?\.\s*(?:\d+\s*[-,]\s*)*{eq}\b")
+        hits = [n for n, (title, _, text) in sections.items() if pattern.search(title + "\n" + text)]
+        return ", ".join(f"[physics.md {n}](../physics.md#{sections[n][1]})" for n in hits)
+
     L = [
         GENERATED_NOTE,
         "# Equations in the code",
         "",
         "The theory is [physics.md](../physics.md): the paper's equations restored, the algorithms and the "
         "numbers to reproduce. The docstrings state the equation they implement; this index lists, for each "
-        "equation of the paper and each section of physics.md, the code whose docstring cites it (found by "
-        "reading the docstrings when the site is built).",
+        "equation of the paper and each section of physics.md, where physics.md states it and the code whose "
+        "docstring cites it (found by reading the docstrings when the site is built).",
         "",
-        "| equation | code that implements or uses it |",
-        "|---|---|",
+        "| equation | stated in | code that implements or uses it |",
+        "|---|---|---|",
     ]
     for (kind, n), objects in equation_index().items():
-        label = (
-            f"physics.md {n}" + (f": {headings[n]}" if n in headings else "")
-            if kind == "physics.md"
-            else f"paper Eq. {n}"
-        )
+        if kind == "physics.md":
+            title, anchor, _ = sections.get(n, ("", "", ""))
+            label, stated = (
+                f"physics.md {n}" + (f": {title}" if title else ""),
+                (f"[physics.md {n}](../physics.md#{anchor})" if anchor else "-"),
+            )
+        else:
+            label, stated = f"paper Eq. {n}", where(n) or "-"
         links = ", ".join(f"[`{o}`][{o}]" for o in objects)
-        L.append(f"| {label} | {links} |")
+        L.append(f"| {label} | {stated} | {links} |")
     return "\n".join(L) + "\n"
 
 
