@@ -110,6 +110,11 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "ContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] of a quasi-3D contact"),
     "ContactSpec.friction_coefficient": ("1", "friction coefficient mu >= 0"),
     "ContactSpec.normal_offset_m": ("", "g on v: initial interference (> 0) or gap (< 0)"),
+    "ContactSpec.law": (
+        "-",
+        "contact law of the element (default: the paper's spring-slider law, with uncoupled directions in "
+        "quasi-3D); a coupled 3D law bounds the tangential force by a friction circle of radius mu N",
+    ),
     "HarmonicSpec.component": ("-", "what is driven: a prescribed motion component or a DOF"),
     "HarmonicSpec.frequency_Hz": ("", "frequency f of amplitude sin(2 pi f t + phase)"),
     "HarmonicSpec.amplitude": ("", "amplitude"),
@@ -368,6 +373,15 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
         "displacement scale of the tolerances: the larger of the motion amplitude and the static "
         "deflection abs(f) / k of the loads, at least 1 nm",
     ),
+    "energy_error_estimate": (
+        "1",
+        "relative error estimate of the loop energy per cycle, by step doubling (NaN when not available)",
+    ),
+    "peak_force_error_estimate": (
+        "1",
+        "relative error estimate of the peak contact force, by step doubling (NaN when not available)",
+    ),
+    "error_estimate_method": ("-", "how the error estimates were obtained"),
     "failed_at_step": ("1", "on failure: the step that failed"),
     "failed_at_time_s": ("s", "on failure: the time it failed at"),
     "states_visited": ("-", "on failure: the contact states tried in the failing step"),

@@ -61,8 +61,6 @@ def _rows(section: str) -> dict[str, list[str]]:
 def test_every_spec_key_has_a_meaning():
     missing = [q for q in gen.all_spec_keys() if q not in gen.KEY_DOCS]
     assert not missing, f"add these case-file keys to KEY_DOCS in docs/gen_pages.py: {missing}"
-    stale = sorted(set(gen.KEY_DOCS) - set(gen.all_spec_keys()))
-    assert not stale, f"KEY_DOCS documents keys the specs no longer have: {stale}"
 
 
 @pytest.mark.parametrize("kind", ["damper", "structure"])
