@@ -791,6 +791,111 @@ def theory_index() -> str:
 
 
 # --------------------------------------------------------------------------------------------
+# Validation: physics.md section 6 reproduced by running the paper case when the site is built
+# --------------------------------------------------------------------------------------------
+
+
+def validation_report() -> str:
+    """The numbers of physics.md section 6 (reference column, from that page) beside the values
+    this build computes (Methods 1 and 4, 3 periods of the paper case, as tests/test_paper_case.py)."""
+    import math
+
+    import numpy as np
+
+    import slipstep as ss
+    from slipstep.post.energy import friction_energy_per_period
+
+    system = ss.load_system("paper")
+    cs = system.compile()
+    nd = cs.kt.shape[0]
+    t_min, ev = ss.state_t_min(cs, np.ones(nd, np.int8))
+    f_khz = np.sort(np.sqrt(np.real(ev))) / (2 * math.pi) / 1e3
+    sim = ss.Simulation(system, "newmark", periods=1)
+    qs = ss.run(system, "quasi-static", periods=3)
+    nm = ss.run(system, "newmark", periods=3)
+
+    def last(ds):
+        return ds.sel(time=slice(float(ds.time[-1]) - ds.attrs["period_s"] * (1 + 1e-9), None))
+
+    def changes(states):
+        return np.nonzero(np.any(states[1:] != states[:-1], axis=1))[0] + 1
+
+    x0 = qs.displacement.isel(time=0).values
+    N0, T0 = qs.normal_force.isel(time=0).values, qs.tangential_force.isel(time=0).values
+    lq, ln = last(qs), last(nm)
+    idx = changes(lq.contact_state.values)
+    phases = (lq.time.values[idx] / qs.attrs["period_s"]) % 1.0 * 360.0
+    slip = np.all(lq.contact_state.values[1:] >= 2, axis=1).mean()
+    energy = friction_energy_per_period(qs)
+    e_left, e_right = float(energy.sel(contact=["P1", "P2"]).sum()), float(energy.sel(contact="P3"))
+    T = lq.tangential_force
+    left, right = T.sel(direction=["P1", "P2"]).sum("direction").values, T.sel(direction="P3").values
+    dx = max(
+        np.abs(
+            ln.displacement.values[:, j] - np.interp(ln.time.values, lq.time.values, lq.displacement.values[:, j])
+        ).max()
+        for j in range(2)
+    )
+    df = max(
+        np.abs(ln[v].values[:, j] - np.interp(ln.time.values, lq.time.values, lq[v].values[:, j])).max()
+        for v in ("tangential_force", "normal_force")
+        for j in range(nd)
+    )
+    from slipstep.config import CASES_DIR, read_toml
+
+    cf = read_toml(CASES_DIR / "paper.toml")["damper"]["centrifugal_force_N"]  # forces in % of CF
+
+    def fmt(values, digits=4):
+        return ", ".join(f"{v:.{digits}g}" for v in values)
+
+    rows = [
+        ("full-stick frequencies [kHz]", "8.41, 10.48, 11.86", fmt(f_khz, 4)),
+        (
+            "T_min [us]; dt = T_min/pi [us]; steps per period",
+            "84.3; 26.84; 187",
+            f"{t_min * 1e6:.4g}; {t_min / math.pi * 1e6:.4g}; {round(sim.period / sim.dt)}",
+        ),
+        ("preload x_G [um], y_G [um], phi [mrad]", "-1.29, 5.88, 0.563", fmt([x0[0] * 1e6, x0[1] * 1e6, x0[2] * 1e3])),
+        ("preload N [N]", "43.6, 72.9, 99.9", fmt(N0)),
+        ("preload T [N]", "17.4, 24.1, -25.0", fmt(T0)),
+        (
+            "quasi-static state changes in the last period, phases [deg]",
+            "6: 91.2, 134.4, 172.8, 271.2, 322.8, 352.8",
+            f"{len(idx)}: " + ", ".join(f"{p:.1f}" for p in phases),
+        ),
+        ("share of the period with every point slipping", "54.7 %", f"{100 * slip:.1f} %"),
+        (
+            "friction energy per period, left / right face [mJ]",
+            "2.52 / 2.70",
+            f"{e_left * 1e3:.4g} / {e_right * 1e3:.4g}",
+        ),
+        ("left tangential force range [N]", "-78.6 .. 47.1", f"{left.min():.4g} .. {left.max():.4g}"),
+        ("right tangential force range [N]", "-32.8 .. 55.0", f"{right.min():.4g} .. {right.max():.4g}"),
+        (
+            "Newmark against quasi-static, last period: displacement [um]; forces [% of CF]",
+            "< 0.45; < 5",
+            f"{dx * 1e6:.4g}; {100 * df / cf:.4g}",
+        ),
+        ("Newmark raw state changes in the last period", "30 - 50", f"{len(changes(ln.contact_state.values))}"),
+    ]
+    L = [
+        GENERATED_NOTE,
+        "# Validation: the paper's case",
+        "",
+        "The numbers of [physics.md section 6](../physics.md#6-numbers-every-implementation-must-reproduce-on-the-paper-case) "
+        "(from two independent implementations and the paper) beside the values slipstep computed when this page "
+        "was built: 3 periods of the built-in case `paper` with the quasi-static method (300 steps per period) and "
+        "Newmark (Method 1). `tests/test_paper_case.py` asserts each of them; the README's reproduction table adds "
+        "the paper's iteration and step statistics.",
+        "",
+        "| quantity | physics.md 6 | slipstep (this build) |",
+        "|---|---|---|",
+    ]
+    L += [f"| {q} | {ref} | {got} |" for q, ref, got in rows]
+    return "\n".join(L) + "\n"
+
+
+# --------------------------------------------------------------------------------------------
 # API reference: one page per module
 # --------------------------------------------------------------------------------------------
 
@@ -869,6 +974,7 @@ def all_pages(samples=None) -> dict[str, str]:
         "reference/methods.md": methods_reference() + "\n" + advice_example(),
         "reference/cli.md": cli_reference(),
         "theory/equations.md": theory_index(),
+        "theory/validation.md": validation_report(),
     }
     frf = frf_reference()
     if frf:
