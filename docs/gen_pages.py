@@ -526,6 +526,22 @@ def frf_reference() -> str | None:
 # --------------------------------------------------------------------------------------------
 
 
+# When to use each method (the advice the advisor's rules and the measurements support)
+METHOD_ADVICE: dict[str, str] = {
+    "newmark": "you want the reference: the standard method, the baseline of every comparison",
+    "newmark-adaptive": "you study the paper's Method 2; prefer Method 2+3, which takes the same steps at "
+    "a tenth of the solves",
+    "piecewise-linear": "dynamics matter (near a resonance, light dampers, high frequency, lift-off): "
+    "Method 1's solution at about one solve per step; the default choice for dynamic runs",
+    "piecewise-linear-adaptive": "slip or lift-off dominate the period: longer steps in the softer states, "
+    "partly paid back in redone steps",
+    "quasi-static": "the excitation is far below the damper's resonances (inertia below 5 % of the "
+    "centrifugal load, paper Eq. 9) and every visited state has a static equilibrium: about 300 steps "
+    "per period, no ringing to filter",
+    "full-newton": "Method 1 needs many iterations per step (strong slip): fewer iterations, one factorisation each",
+}
+
+
 def methods_reference() -> str:
     from slipstep.integrators import INTEGRATORS
     from slipstep.integrators.base import VARIANTS
@@ -544,8 +560,8 @@ def methods_reference() -> str:
         "[Choosing a method](../guide/methods.md), or ask `slipstep advise CASE` (`slipstep.advise`), which "
         "analyses the case and recommends one with its reasons.",
         "",
-        "| name | paper | also accepted | step solver | step | what it does |",
-        "|---|---|---|---|---|---|",
+        "| name | paper | also accepted | use it when | what it does | step solver | step |",
+        "|---|---|---|---|---|---|---|",
     ]
     for m in METHODS.values():
         also = ", ".join(f"`{a}`" for a in numbers.get(m.name, [])) or "-"
@@ -554,28 +570,21 @@ def methods_reference() -> str:
             if m.quasi_static
             else ("contact-state adaptive" if m.adaptive else "fixed")
         )
+        when = METHOD_ADVICE.get(m.name, "**no advice yet: add it to METHOD_ADVICE in docs/gen_pages.py**")
         L.append(
-            f"| `{m.name}` | {m.paper_label} | {also} | {SOLVER_NAMES.get(m.solver, m.solver)} | {step} "
-            f"| {m.description} |"
+            f"| `{m.name}` | {m.paper_label} | {also} | {when} | {m.description} "
+            f"| {SOLVER_NAMES.get(m.solver, m.solver)} | {step} |"
         )
     L += [
         "",
-        "## Advice in one table",
+        "## Which one for my case?",
         "",
-        "| your case | use | why |",
-        "|---|---|---|",
-        "| excitation far below the damper's inertia limit (paper Eq. 9; `slipstep advise CASE "
-        "--rotor-speed-rpm ... --radius-m ... --displacement-um ...` computes it) and every visited state has a static equilibrium "
-        "| `quasi-static` (Method 4) | about 300 steps per period whatever the contact stiffness, no ringing "
-        "to filter |",
-        "| dynamics matter (near resonance, light dampers, high frequency) | `piecewise-linear` (Method 3) "
-        "| Method 1's solution to solver tolerance at about one solve per step |",
-        "| slip or lift-off dominate the period | `piecewise-linear-adaptive` (Method 2+3) | fewer steps; "
-        "each saved step is partly paid back in re-factorisations and redone steps |",
-        "| a reference to check against | `newmark` (Method 1) | the standard, the baseline of every "
-        "comparison (`slipstep compare CASE`) |",
-        "| Method 1 needs many iterations (strong slip) | `full-newton` | current-state tangent: fewer "
-        "iterations, one factorisation each |",
+        "`slipstep advise CASE --rotor-speed-rpm ... --radius-m ... --displacement-um ...` "
+        "(`slipstep.advise`) analyses the case and recommends a method with its reasons: the inertia ratio "
+        "of paper Eq. 9, T_min and internal frequencies of every visited contact state, states without a "
+        "static equilibrium, flutter-prone states, and whether the ringing can be filtered "
+        "(its report on the paper's case is [below](#the-advisor-on-the-papers-case)). "
+        "`slipstep compare CASE` measures the methods side by side on the case.",
         "",
         "## Time-integration schemes",
         "",
