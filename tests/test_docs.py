@@ -136,7 +136,7 @@ def test_methods_page_lists_every_method_and_scheme(pages):
     from slipstep.methods.registry import ALIASES, METHODS
 
     page = pages["reference/methods.md"]
-    rows = _rows(_section(page, "# Methods", "## Advice"))
+    rows = _rows(_section(page, "# Methods", "## Which one"))
     for name, method in METHODS.items():
         assert name in rows and rows[name][0] == method.paper_label and rows[name][3] == method.description
         assert name in gen.METHOD_ADVICE and rows[name][2] == gen.METHOD_ADVICE[name]  # the advice column
