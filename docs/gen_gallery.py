@@ -6,9 +6,10 @@ Entries:
 * the snippets in :data:`SNIPPETS` (Python, run in a temporary directory, in this process);
 * every ``examples/*.py`` script, run as ``python examples/NAME.py --output-dir DIR`` (its
   printed output and the PNG files it writes are shown; its module docstring is the text);
-* every ``examples/*.toml`` case, run with the command its leading comments give in backticks
-  (``# `slipstep frf examples/NAME.toml --frequencies 250:450:41` ``) plus ``--output-dir DIR``,
-  else as ``slipstep run`` followed by ``slipstep plot``.
+* every ``examples/*.toml`` file, run with the commands its leading comments give (comment lines
+  whose text starts with ``slipstep ``, in backticks or not; a trailing backslash continues the
+  command), in an empty directory; without any, as ``slipstep run`` followed by ``slipstep plot``.
+  Every PNG file the commands write is shown.
 
 An example that fails fails the build (``mkdocs build --strict`` then stops), so the gallery
 cannot show a figure the code no longer makes. Keep examples short: the gallery runs them all.
@@ -22,7 +23,6 @@ import ast
 import contextlib
 import io
 import os
-import re
 import shlex
 import subprocess
 import sys
@@ -92,24 +92,41 @@ def _module_doc(path: Path) -> str:
     return ast.get_docstring(ast.parse(path.read_text())) or ""
 
 
-def _toml_command(path: Path) -> str | None:
-    """The command a case file's leading comments give for itself: `slipstep CMD examples/NAME.toml ...`."""
+def _toml_commands(path: Path) -> list[str]:
+    """The commands a TOML file's leading comments give for itself: comment lines whose text (in
+    backticks or not) starts with ``slipstep ``, a trailing backslash continuing on the next line."""
+    commands: list[str] = []
+    pending = ""
     for line in path.read_text().splitlines():
         if not line.startswith("#"):
             break
-        m = re.search(r"`(slipstep \S+ examples/" + re.escape(path.name) + r"[^`]*)`", line)
-        if m:
-            return m.group(1)
-    return None
+        text = line.lstrip("#").strip().strip("`").strip()
+        if pending:
+            pending += " " + text
+        elif text.startswith("slipstep "):
+            pending = text
+        else:
+            continue
+        if pending.endswith("\\"):
+            pending = pending[:-1].rstrip()
+        else:
+            commands.append(" ".join(pending.split()))
+            pending = ""
+    return commands
 
 
 def _toml_comment(path: Path) -> str:
-    lines = []
+    """The prose of a TOML file's leading comments (the command lines left out)."""
+    prose, continued = [], False
     for line in path.read_text().splitlines():
         if not line.startswith("#"):
             break
-        lines.append(line.lstrip("# ").rstrip())
-    return " ".join(lines)
+        text = line.lstrip("#").strip()
+        command = continued or text.strip("`").startswith("slipstep ")
+        continued = command and text.endswith("\\")
+        if text and not command:
+            prose.append(text)
+    return " ".join(prose)
 
 
 @contextlib.contextmanager
@@ -235,13 +252,17 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
             )
         )
     for path in sorted(EXAMPLES.glob("*.toml")):
-        own = _toml_command(path)
-        if own:  # the case file names the command that shows it (e.g. `slipstep frf ...`)
-            commands = f"{own} --output-dir DIR"
+        own = _toml_commands(path)
+        if own:  # the file names the commands that show it (`slipstep frf ...`, `slipstep sweep ...`)
+            commands = "\n".join(own)
 
-            def run_case(d: Path, p=path, cmd=own) -> str:
-                args = [str(p) if a == f"examples/{p.name}" else a for a in shlex.split(cmd)[1:]]
-                return _run(_slipstep(*args, "--output-dir", str(d)), d).replace(str(d) + os.sep, "")
+            def run_case(d: Path, p=path, cmds=tuple(own)) -> str:
+                text = ""
+                for cmd in cmds:
+                    args = [str(p) if a == f"examples/{p.name}" else a for a in shlex.split(cmd)[1:]]
+                    text += _run(_slipstep(*args), d)
+                return text.replace(str(d) + os.sep, "")
+
         else:
             commands = (
                 f"slipstep run examples/{path.name} --output-dir DIR\n"
@@ -284,11 +305,12 @@ def _build(slug: str, make, page) -> dict[str, str | bytes]:
         start = time.perf_counter()
         output = make(d)
         seconds = time.perf_counter() - start
-        figures = sorted(d.glob("*.png"), key=lambda f: (f.stat().st_mtime_ns, f.name))  # the order written
+        figures = sorted(d.rglob("*.png"), key=lambda f: (f.stat().st_mtime_ns, f.name))  # the order written
         if not figures:
             raise RuntimeError(f"gallery entry {slug!r} wrote no figure")
-        out = {f"gallery/{slug}/{f.name}": f.read_bytes() for f in figures}
-        out[f"gallery/{slug}.md"] = page(output, [f"{slug}/{f.name}" for f in figures], seconds)
+        names = [f.relative_to(d).as_posix().replace("/", "_") for f in figures]
+        out = {f"gallery/{slug}/{n}": f.read_bytes() for f, n in zip(figures, names)}
+        out[f"gallery/{slug}.md"] = page(output, [f"{slug}/{n}" for n in names], seconds)
     return out
 
 
