@@ -250,6 +250,10 @@ def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
         if unknown:
             raise InputError(f"engine_order_force[{k}].blades", f"names unknown substructure(s) {unknown}",
                              f"use names from {list(subs)}")
+        for b in blades:
+            if eo.dof not in subs[b].dof_names:
+                raise InputError(f"engine_order_force[{k}].dof", f"{eo.dof!r} is not a DOF of {b}",
+                                 f"use one of {', '.join(subs[b].dof_names[:6])} (without the blade's name)")
         forces += engine_order_forces(blades, eo.dof, eo.amplitude_N, eo.frequency_Hz, eo.engine_order,
                                       math.radians(eo.phase_deg))
     return assemble(list(subs.values()), links, contacts, forces, spec.constant_force_N, name=spec.name,
