@@ -113,7 +113,7 @@ def test_is_the_massless_limit_of_the_fully_dynamic_damper():
     """The fully dynamic march with the damper's mass and inertia scaled by 1e-3 (same step)
     converges to the quasi-static damper: the method is the m -> 0 limit of the dynamic model.
     (With the real 12 g the resonant amplitude at converged steps is 5 % lower: the damper's
-    inertia, about 2-5 % of the friction forces at 330 Hz, dissipates; see the README.)"""
+    inertia force, 2-5 % of the friction forces at 330 Hz, matters; see the README.)"""
     system = retuned(ss.load_system("blades"), 330.0)
     st = system.structure
     M = st.mass.copy()
