@@ -6,7 +6,6 @@ bad TOML input naming the key."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,11 +15,25 @@ import scipy.sparse as sp
 import slipstep as ss
 from slipstep.config import CASES_DIR, read_toml
 from slipstep.kernels.contact import add_contact_stiffness
-from slipstep.model.assembly import (DamperLink, HarmonicForce, PlatformLink, assemble, blade_chain,
-                                     engine_order_forces)
+from slipstep.model.assembly import (
+    DamperLink,
+    HarmonicForce,
+    PlatformLink,
+    assemble,
+    blade_chain,
+    engine_order_forces,
+)
 from slipstep.model.damper import DamperContact
-from slipstep.model.substructure import (Substructure, cantilever_frequencies, craig_bampton, frame_blade, load_mtx,
-                                         load_npz, save_mtx, save_npz)
+from slipstep.model.substructure import (
+    Substructure,
+    cantilever_frequencies,
+    craig_bampton,
+    frame_blade,
+    load_mtx,
+    load_npz,
+    save_mtx,
+    save_npz,
+)
 
 E, RHO, L, B, H = 2.0e11, 7800.0, 0.12, 0.02, 0.0045
 AREA, SECOND = B * H, B * H ** 3 / 12
@@ -201,7 +214,7 @@ def test_platform_rotation_offset_enters_the_gather():
     lx, ly = off[0] + PAPER_CONTACTS[0].position[0], off[1] + PAPER_CONTACTS[0].position[1]
     assert np.allclose(A[0, 3:6], -(t @ np.array([[1, 0, -ly], [0, 1, lx]])))
     # a rigid translation of everything moves no contact
-    rigid = np.array([1.0 if n.endswith(".x") or n.endswith("x_G") else 0.0 for n in s.structure.dof_names])
+    rigid = np.array([1.0 if n.endswith((".x", "x_G")) else 0.0 for n in s.structure.dof_names])
     assert np.allclose(np.vstack([c.dof_gather for c in s.contacts]) @ rigid, 0.0, atol=1e-15)
 
 

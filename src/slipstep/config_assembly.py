@@ -14,16 +14,38 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Literal
 
 import numpy as np
 from pydantic import ValidationError
 
-from slipstep.config import MM, N_PER_UM, DamperContactSpec, HarmonicSpec, RunSpec, _loc, _Strict
+from slipstep.config import (
+    MM,
+    N_PER_UM,
+    DamperContactSpec,
+    HarmonicSpec,
+    RunSpec,
+    _loc,
+    _Strict,
+)
 from slipstep.errors import InputError
-from slipstep.model.assembly import DamperLink, HarmonicForce, LinkContact, PlatformLink, assemble, engine_order_forces
+from slipstep.model.assembly import (
+    DamperLink,
+    HarmonicForce,
+    LinkContact,
+    PlatformLink,
+    assemble,
+    engine_order_forces,
+)
 from slipstep.model.damper import DamperContact
-from slipstep.model.substructure import (Point, Substructure, craig_bampton, frame_blade, load_mtx, load_npz)
+from slipstep.model.substructure import (
+    Point,
+    Substructure,
+    craig_bampton,
+    frame_blade,
+    load_mtx,
+    load_npz,
+)
 from slipstep.system import System
 
 GPA = 1e9
@@ -31,9 +53,9 @@ GPA = 1e9
 
 class PointSpec(_Strict):
     name: str
-    x: Optional[str] = None
-    y: Optional[str] = None
-    rz: Optional[str] = None
+    x: str | None = None
+    y: str | None = None
+    rz: str | None = None
     position_mm: list[float] = [0.0, 0.0]
 
 
@@ -45,39 +67,39 @@ class ReductionSpec(_Strict):
 class SubstructureSpec(_Strict):
     name: str
     kind: Literal["frame_blade", "matrices"] = "frame_blade"
-    copy_of: Optional[str] = None
+    copy_of: str | None = None
     # frame_blade
-    length_mm: Optional[float] = None
-    elements: Optional[int] = None
-    youngs_modulus_GPa: Optional[float] = None
-    density_kg_per_m3: Optional[float] = None
-    area_mm2: Optional[float] = None
-    second_moment_mm4: Optional[float] = None
-    platform_node: Optional[int] = None
+    length_mm: float | None = None
+    elements: int | None = None
+    youngs_modulus_GPa: float | None = None
+    density_kg_per_m3: float | None = None
+    area_mm2: float | None = None
+    second_moment_mm4: float | None = None
+    platform_node: int | None = None
     platform_mass_kg: float = 0.0
     tip_mass_kg: float = 0.0
     root_mm: list[float] = [0.0, 0.0]
     angle_deg: float = 90.0
     # matrices (SI)
-    file: Optional[str] = None
-    mass_file: Optional[str] = None
-    stiffness_file: Optional[str] = None
-    damping_file: Optional[str] = None
-    dofs_file: Optional[str] = None
-    dof_names: Optional[list[str]] = None
-    dof_units: Optional[list[str]] = None
+    file: str | None = None
+    mass_file: str | None = None
+    stiffness_file: str | None = None
+    damping_file: str | None = None
+    dofs_file: str | None = None
+    dof_names: list[str] | None = None
+    dof_units: list[str] | None = None
     points: list[PointSpec] = []
     # damping
-    modal_damping_ratio: Optional[float] = None
-    rayleigh_alpha_per_s: Optional[float] = None
-    rayleigh_beta_s: Optional[float] = None
-    reduction: Optional[ReductionSpec] = None
+    modal_damping_ratio: float | None = None
+    rayleigh_alpha_per_s: float | None = None
+    rayleigh_beta_s: float | None = None
+    reduction: ReductionSpec | None = None
 
 
 class PlatformLinkSpec(_Strict):
     name: str
     angle_deg: float
-    substructure: Optional[str] = None
+    substructure: str | None = None
     point: str = "platform"
     offset_mm: list[float] = [0.0, 0.0]
 
@@ -108,7 +130,7 @@ class EngineOrderSpec(_Strict):
     frequency_Hz: float
     engine_order: int
     phase_deg: float = 0.0
-    blades: Optional[list[str]] = None
+    blades: list[str] | None = None
 
 
 class ChainSpec(_Strict):
@@ -124,11 +146,11 @@ class AssemblyCaseSpec(_Strict):
     substructures: list[SubstructureSpec]
     dampers: list[DamperLinkSpec] = []
     contacts: list[LinkContactSpec] = []
-    chain: Optional[ChainSpec] = None
+    chain: ChainSpec | None = None
     force: list[HarmonicSpec] = []
     engine_order_force: list[EngineOrderSpec] = []
     constant_force_N: dict[str, float] = {}
-    period_s: Optional[float] = None
+    period_s: float | None = None
     run: RunSpec = RunSpec()
 
 

@@ -374,9 +374,8 @@ def save_npz(sub: Substructure, path: str | Path) -> None:
         else:
             arrays[key] = np.asarray(A)
     path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
 
 
 def load_npz(path: str | Path, name: str, field_name: str = "file", **kwargs) -> Substructure:
@@ -426,9 +425,8 @@ def save_mtx(sub: Substructure, directory: str | Path) -> dict:
         if A is None:
             continue
         p = directory / f"{sub.name}_{key}.mtx"
-        with atomic_path(p) as tmp:
-            with open(tmp, "wb") as fh:
-                scipy.io.mmwrite(fh, sp.coo_matrix(A) if sp.issparse(A) else np.asarray(A), precision=17)
+        with atomic_path(p) as tmp, open(tmp, "wb") as fh:
+            scipy.io.mmwrite(fh, sp.coo_matrix(A) if sp.issparse(A) else np.asarray(A), precision=17)
         paths[attr] = p
     p = directory / f"{sub.name}_dofs.txt"
     with atomic_path(p) as tmp:
