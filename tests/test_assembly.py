@@ -328,3 +328,64 @@ def test_matrices_substructure_from_files(tmp_path):
     for attr in ("stiffness", "mass", "damping"):
         want = getattr(ref.structure, attr)
         assert np.allclose(getattr(system.structure, attr), want, rtol=1e-9, atol=1e-12 * abs(want).max())
+
+
+def test_toml_link_contact_between_tips_preload_is_analytic(tmp_path):
+    """A contact on named DOFs between the two tips (normal along X, interference g) whose
+    tangential row holds blade1's platform: the static preload gives N = k_n g / (1 + k_n (c1 +
+    c2)), c_i the tips' static compliances (blade1's with the stuck tangential spring)."""
+    text = BLADES.split("[[dampers]]")[0] + """
+[[contacts]]
+name = "tips"
+dofs = ["blade1.8.x", "blade2.8.x", "blade1.2.x"]
+dof_gather = [[0.0, 0.0, 1.0], [1.0, -1.0, 0.0]]
+normal_stiffness_N_per_m = 1.0e6
+tangential_stiffness_N_per_m = 1.0e5
+friction_coefficient = 0.3
+normal_offset_m = 2.0e-5
+
+[[force]]
+component = "blade1.8.x"
+amplitude = 0.1
+frequency_Hz = 300.0
+"""
+    path = tmp_path / "tips.toml"
+    path.write_text(text)
+    system = ss.load_system(path)
+    assert system.contact_names == ("tips",) and system.n_dofs == 6
+    A = system.contacts[0].dof_gather
+    names = system.structure.dof_names
+    assert A[1, names.index("blade1.8.x")] == 1 and A[1, names.index("blade2.8.x")] == -1 and A[0, 0] == 1
+    sim = ss.Simulation(system, "piecewise-linear", periods=1)
+    K1 = system.structure.stiffness[:3, :3].copy()
+    c2 = np.linalg.inv(K1)[1, 1]
+    K1[0, 0] += 1e5  # blade1's platform is held by the stuck tangential spring (row u)
+    c1 = np.linalg.inv(K1)[1, 1]
+    T, N = sim.f0
+    assert N == pytest.approx(1e6 * 2e-5 / (1 + (c1 + c2) * 1e6), rel=1e-9)
+    assert abs(T) < 0.3 * N and T == pytest.approx(1e5 * sim.preload_state[0][0], rel=1e-9)
+    # constant forces by DOF name
+    loaded = tmp_path / "loaded.toml"
+    loaded.write_text(text.replace('name = "blades"', 'name = "blades"\nconstant_force_N = {"blade2.8.x" = 0.5}'))
+    assert ss.load_system(loaded).excitation.constant_force[names.index("blade2.8.x")] == 0.5
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('"blade1.2.x"]', '"blade3.2.x"]'))
+    with pytest.raises(ss.InputError, match=r"^contacts\[tips\]\.dofs: names unknown DOF 'blade3.2.x'"):
+        ss.load_system(bad)
+
+
+def test_readme_assembly_example_builds_the_ring_case(monkeypatch):
+    """The README's Python assembly example runs and builds exactly the built-in `ring`."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    start = text.index("```python", text.index("Blades and dampers (issue 11)")) + len("```python")
+    code = text[start:text.index("```", start)].replace('periods=50', 'periods=1')
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    ring = ss.load_system("ring")
+    got = ns["ring"]
+    assert got.structure.dof_names == ring.structure.dof_names
+    for attr in ("mass", "stiffness", "damping"):
+        want = getattr(ring.structure, attr)
+        assert np.allclose(getattr(got.structure, attr), want, rtol=1e-9, atol=1e-12 * abs(want).max())
+    assert np.allclose(np.vstack([c.dof_gather for c in got.contacts]), np.vstack([c.dof_gather for c in ring.contacts]))
+    assert ns["ds"].attrs["status"] == "OK"
