@@ -6,6 +6,7 @@ bad TOML input naming the key."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
