@@ -390,3 +390,16 @@ def test_readme_assembly_example_builds_the_ring_case(monkeypatch):
         assert np.allclose(getattr(got.structure, attr), want, rtol=1e-9, atol=1e-12 * abs(want).max())
     assert np.allclose(np.vstack([c.dof_gather for c in got.contacts]), np.vstack([c.dof_gather for c in ring.contacts]))
     assert ns["ds"].attrs["status"] == "OK"
+
+
+def test_large_frame_blade_is_sparse_and_its_craig_bampton_reduction_stays_accurate():
+    big = frame_blade("big", L, 1000, E, RHO, AREA, SECOND, platform_node=250)  # 3000 DOFs, CSR
+    assert big.sparse and sp.issparse(big.mass) and big.mass.nnz < 30 * big.n_dofs
+    bend, _ = cantilever_frequencies(L, E, RHO, AREA, SECOND, 3)
+    cb = craig_bampton(big, ["250.x", "1000.x"], 4)
+    f = cb.frequencies()
+    assert np.allclose(f[:3], bend, rtol=5e-3) and f[0] == pytest.approx(bend[0], rel=1e-5)
+    small = blade(8, platform_node=2)
+    assert not small.sparse  # small blades stay dense
+    assert np.allclose(frame_blade("b", L, 8, E, RHO, AREA, SECOND, platform_node=2, sparse=True).mass.toarray(),
+                       small.mass, rtol=1e-14, atol=0)

@@ -228,12 +228,14 @@ def frame_element(E: float, rho: float, area: float, inertia: float, length: flo
 def frame_blade(name: str, length: float, n_elements: int, youngs_modulus: float, density: float,
                 area: float, second_moment: float, platform_node: int | None = None,
                 root: tuple[float, float] = (0.0, 0.0), angle: float = math.pi / 2,
-                tip_mass: float = 0.0, platform_mass: float = 0.0, **damping) -> Substructure:
+                tip_mass: float = 0.0, platform_mass: float = 0.0, sparse: bool | None = None,
+                **damping) -> Substructure:
     """A cantilever frame blade clamped at ``root`` [m], axis at ``angle`` [rad] (default +Y,
     radial), ``n_elements`` equal elements; nodes 1..n_elements with DOFs '<i>.x', '<i>.y'
     [m] and '<i>.rz' [rad] (i = node number); points 'platform' (node ``platform_node``,
     default the tip) and 'tip'; optional lumped ``tip_mass`` and ``platform_mass`` [kg] (on x
-    and y of their node: a shroud, a platform). ``damping``: damping /
+    and y of their node: a shroud, a platform). ``sparse``: CSR matrices (default: above 600
+    DOFs), else dense. ``damping``: damping /
     rayleigh / modal_damping_ratio of :class:`Substructure`."""
     where = f"substructures[{name}]"
     L = positive(f"{where}.length", length)
@@ -249,18 +251,17 @@ def frame_blade(name: str, length: float, n_elements: int, youngs_modulus: float
     ne, le = int(n_elements), L / n_elements
     k_e, m_e = frame_element(E, rho, A_, I_, le, angle)
     n_all = 3 * (ne + 1)
-    K = np.zeros((n_all, n_all))
-    M = np.zeros((n_all, n_all))
-    for e in range(ne):
-        idx = slice(3 * e, 3 * e + 6)
-        K[idx, idx] += k_e
-        M[idx, idx] += m_e
-    K, M = K[3:, 3:], M[3:, 3:]  # clamp the root node
+    rows = (3 * np.arange(ne)[:, None, None] + np.arange(6)[None, :, None]).repeat(6, axis=2).ravel()
+    cols = (3 * np.arange(ne)[:, None, None] + np.arange(6)[None, None, :]).repeat(6, axis=1).ravel()
+    lumped = np.zeros(n_all)
     for key, node, value in (("tip_mass", ne, tip_mass), ("platform_mass", pnode, platform_mass)):
         if value:
-            lumped = positive(f"{where}.{key}", value)
-            M[3 * node - 3, 3 * node - 3] += lumped
-            M[3 * node - 2, 3 * node - 2] += lumped
+            lumped[3 * node: 3 * node + 2] += positive(f"{where}.{key}", value)
+    K = sp.coo_matrix((np.tile(k_e.ravel(), ne), (rows, cols)), shape=(n_all, n_all)).tocsr()
+    M = (sp.coo_matrix((np.tile(m_e.ravel(), ne), (rows, cols)), shape=(n_all, n_all)) + sp.diags(lumped)).tocsr()
+    K, M = K[3:, 3:], M[3:, 3:]  # clamp the root node
+    if not (sparse if sparse is not None else n_all > 600):
+        K, M = K.toarray(), M.toarray()
     names = tuple(f"{i}.{c}" for i in range(1, ne + 1) for c in COMPONENTS)
     units = ("m", "m", "rad") * ne
     c, s = math.cos(angle), math.sin(angle)
