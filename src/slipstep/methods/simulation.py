@@ -97,7 +97,11 @@ class RunOptions:
 
 def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
     """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
-    (paper Eq. 8), and the eigenvalues themselves."""
+    (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
+    quasi-static-dofs method) those are condensed out first (methods/massless.py)."""
+    zero = ML.massless_mask(cs.M)
+    if zero.any():
+        return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
     Keff = cs.K.copy()
     add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
     ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
