@@ -158,3 +158,20 @@ def test_advisor_says_when_the_quasi_static_damper_applies():
     assert not b.massless["applies"] and "Remark 3" in b.massless["why"]
     # the damper alone (no dynamic part): not this method's case
     assert ss.advise(ss.load_system("paper"), run_cases=False).massless is None
+
+
+def test_filter_of_an_assembly_result_with_a_round_off_last_step():
+    """A fixed dt that does not divide the duration leaves a last step of ~1e-12 s; the filter
+    must not resample onto that sliver (1e11 points), and an assembly has no motion column.
+    The cut-off sits between the excitation and the damper's frequencies, not at the blades'
+    first mode (253 Hz, below the excitation)."""
+    system = ss.load_system("blades")
+    dt = 1 / 300 / 400
+    ds = ss.run(system, "piecewise-linear", duration=1200 * dt + 1e-12, dt=dt)
+    steps = np.diff(ds.time.values)
+    assert steps.min() < 1e-6 * steps.max() and ds.prescribed_motion.shape[1] == 0
+    out = filter_dataset(ds, system)
+    assert out.time.size <= ds.time.size + 1 and np.all(np.isfinite(out.displacement.values))
+    # the damper's lowest frequency over the visited states (slip lowers it below stick's 8.41 kHz)
+    f_int = out.attrs["filter_internal_Hz"]
+    assert 5 * 300 < f_int <= 8.42e3 and 300 < out.attrs["filter_cutoff_Hz"] < f_int

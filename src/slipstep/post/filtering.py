@@ -184,7 +184,10 @@ def filter_dataset(ds: xr.Dataset, system=None, cutoff_Hz: float | None = None, 
     period = ds.attrs.get("period_s")
     if not is_uniform(ds["time"].values):
         t = ds["time"].values
-        step = float(np.diff(t).min())
+        steps = np.diff(t)
+        # the smallest step, ignoring round-off slivers (a fixed dt that does not divide the
+        # duration ends with a last step of ~1e-12 s, which would ask for a grid of 1e11 points)
+        step = float(steps[steps > 1e-6 * steps.max()].min())
         if period:
             step = period / math.ceil(period / step * (1 - 1e-12))
         ds = resample_uniform(ds, dt=step)
