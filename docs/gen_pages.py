@@ -40,6 +40,11 @@ GENERATED_NOTE = (
 
 # The unit is part of every key name; the suffix -> unit rule (longest suffix first).
 UNIT_SUFFIXES = (
+    ("_kg_per_m3", "kg/m^3"),
+    ("_per_s", "1/s"),
+    ("_mm2", "mm^2"),
+    ("_mm4", "mm^4"),
+    ("_GPa", "GPa"),
     ("_N_s_per_m", "N s/m"),
     ("_N_per_um", "N/um"),
     ("_N_per_m", "N/m"),
@@ -122,6 +127,96 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "TableSpec.component": ("-", "what is driven: a prescribed motion component or a DOF"),
     "TableSpec.times_s": ("", "sample times, increasing; linear interpolation between them"),
     "TableSpec.values": ("", "one value per time"),
+    # Kind 3: assemblies (slipstep.config_assembly)
+    "AssemblyCaseSpec.name": ("-", "case name, used in output file names and reports"),
+    "AssemblyCaseSpec.description": ("-", "free text shown by `slipstep cases`"),
+    "AssemblyCaseSpec.substructures": ("", "the substructures (blades, imported models)"),
+    "AssemblyCaseSpec.dampers": ("", "rigid dampers whose platforms follow substructure points"),
+    "AssemblyCaseSpec.contacts": ("", "contacts on named assembled DOFs"),
+    "AssemblyCaseSpec.chain": ("", "copy one blade and one damper into a chain or a closed ring"),
+    "AssemblyCaseSpec.force": ("", "harmonic forces on assembled DOFs"),
+    "AssemblyCaseSpec.engine_order_force": ("", "one harmonic force per blade with an engine-order phase lag"),
+    "AssemblyCaseSpec.constant_force_N": ("N", 'constant loads by assembled DOF name, e.g. `{"blade1.8.x" = 1.0}`'),
+    "AssemblyCaseSpec.period_s": ("", "excitation period when no harmonic sets it"),
+    "AssemblyCaseSpec.run": ("", "default run options"),
+    "SubstructureSpec.name": ("-", "substructure name, the prefix of its DOF names (`blade1.8.x`)"),
+    "SubstructureSpec.kind": (
+        "-",
+        "`frame_blade`: a 2D cantilever Euler-Bernoulli frame (axial and bending, DOFs "
+        "`<node>.x`, `.y`, `.rz`); `matrices`: M, K (and C) imported from files, SI",
+    ),
+    "SubstructureSpec.copy_of": ("-", "a renamed copy of an earlier substructure"),
+    "SubstructureSpec.length_mm": ("", "frame blade: length"),
+    "SubstructureSpec.elements": ("1", "frame blade: number of elements"),
+    "SubstructureSpec.youngs_modulus_GPa": ("", "frame blade: Young's modulus"),
+    "SubstructureSpec.density_kg_per_m3": ("", "frame blade: density"),
+    "SubstructureSpec.area_mm2": ("", "frame blade: cross-section area"),
+    "SubstructureSpec.second_moment_mm4": ("", "frame blade: second moment of area of the cross-section"),
+    "SubstructureSpec.platform_node": (
+        "1",
+        "frame blade: node of the point `platform` (default: the tip; the point `tip` is the last node)",
+    ),
+    "SubstructureSpec.platform_mass_kg": ("", "frame blade: lumped mass at the platform node"),
+    "SubstructureSpec.tip_mass_kg": ("", "frame blade: lumped mass at the tip"),
+    "SubstructureSpec.root_mm": ("", "frame blade: position of the root"),
+    "SubstructureSpec.angle_deg": ("", "frame blade: direction of the blade axis from X"),
+    "SubstructureSpec.file": ("-", "matrices: a .npz file with M, K (and C, dof_names, dof_units), dense or CSR, SI"),
+    "SubstructureSpec.mass_file": ("-", "matrices: M as a Matrix Market (.mtx) file, SI"),
+    "SubstructureSpec.stiffness_file": ("-", "matrices: K as a Matrix Market (.mtx) file, SI"),
+    "SubstructureSpec.damping_file": ("-", "matrices: C as a Matrix Market (.mtx) file, SI"),
+    "SubstructureSpec.dofs_file": ("-", 'matrices: the DOFs, one "name unit" a line'),
+    "SubstructureSpec.dof_names": ("-", "matrices: DOF names, when the files do not give them"),
+    "SubstructureSpec.dof_units": ("-", "matrices: DOF units (m or rad), when the files do not give them"),
+    "SubstructureSpec.points": ("", "named points for damper platforms"),
+    "SubstructureSpec.modal_damping_ratio": ("1", "damping ratio of every mode"),
+    "SubstructureSpec.rayleigh_alpha_per_s": ("", "alpha of Rayleigh damping C = alpha M + beta K"),
+    "SubstructureSpec.rayleigh_beta_s": ("", "beta of Rayleigh damping C = alpha M + beta K"),
+    "SubstructureSpec.reduction": ("", "optional Craig-Bampton reduction"),
+    "PointSpec.name": ("-", "point name (the `point` a damper platform follows)"),
+    "PointSpec.x": ("-", "the DOF carrying the point's x displacement"),
+    "PointSpec.y": ("-", "the DOF carrying the point's y displacement"),
+    "PointSpec.rz": ("-", "the DOF carrying the point's rotation"),
+    "PointSpec.position_mm": ("", "position of the point"),
+    "ReductionSpec.boundary_dofs": (
+        "-",
+        "DOFs kept as boundary DOFs (a point keeps only its components on the boundary)",
+    ),
+    "ReductionSpec.modes": ("1", "fixed-interface modes kept (DOFs mode1..modeN, in m)"),
+    "DamperLinkSpec.name": ("-", "damper name, the prefix of its DOF names"),
+    "DamperLinkSpec.mass_kg": ("", "damper mass"),
+    "DamperLinkSpec.inertia_kg_m2": ("", "moment of inertia about the centre of mass"),
+    "DamperLinkSpec.centrifugal_force_N": ("", "constant load on the centre of mass (ramped in the static preload)"),
+    "DamperLinkSpec.centrifugal_angle_deg": ("", "direction of the centrifugal load from X (90: +Y)"),
+    "DamperLinkSpec.platforms": ("", "the platform faces, each following a substructure point"),
+    "DamperLinkSpec.contacts": ("", "the contact points (the `[[damper.contacts]]` keys of kind 1)"),
+    "PlatformLinkSpec.name": ("-", "platform name"),
+    "PlatformLinkSpec.angle_deg": ("", "angle of the face from X: tangent (cos, sin)"),
+    "PlatformLinkSpec.substructure": (
+        "-",
+        "the substructure the platform moves with (set by `[chain]` for chained dampers)",
+    ),
+    "PlatformLinkSpec.point": ("-", "the point of that substructure"),
+    "PlatformLinkSpec.offset_mm": (
+        "",
+        "from the point to the damper's centre of mass (lever arm of the point's rotation)",
+    ),
+    "LinkContactSpec.name": ("-", "contact name (a `contact` coordinate of the result)"),
+    "LinkContactSpec.dofs": ("-", "assembled DOF names, one per column of `dof_gather`"),
+    "LinkContactSpec.dof_gather": ("1", "rows u (tangential) then v (normal), one column per name in `dofs`"),
+    "LinkContactSpec.normal_stiffness_N_per_m": ("", "normal contact stiffness k_n"),
+    "LinkContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] (quasi-3D)"),
+    "LinkContactSpec.friction_coefficient": ("1", "friction coefficient mu >= 0"),
+    "LinkContactSpec.normal_offset_m": ("", "g on v: initial interference (> 0) or gap (< 0)"),
+    "ChainSpec.blade": ("-", "the substructure copied into `<blade>1` .. `<blade>N`"),
+    "ChainSpec.damper": ("-", "the damper copied between each neighbouring pair of blades"),
+    "ChainSpec.blades": ("1", "number of blades N"),
+    "ChainSpec.closed": ("-", "true: also a damper between blade N and blade 1 (a ring)"),
+    "EngineOrderSpec.dof": ("-", "the DOF of each blade, without the blade's name (e.g. `8.x`)"),
+    "EngineOrderSpec.amplitude_N": ("", "force amplitude on each blade"),
+    "EngineOrderSpec.frequency_Hz": ("", "excitation frequency"),
+    "EngineOrderSpec.engine_order": ("1", "engine order EO: blade j (0-based) lags by 2 pi EO j / N"),
+    "EngineOrderSpec.phase_deg": ("", "phase of blade 0"),
+    "EngineOrderSpec.blades": ("-", "the blades (default: the `[chain]`'s blades)"),
     "RunSpec.method": ("-", "a method name or the paper's number (see Methods; default newmark)"),
     "RunSpec.periods": ("1", "excitation periods simulated after the preload (default 3)"),
     "RunSpec.duration_s": ("", "simulated time instead of periods"),
@@ -145,10 +240,56 @@ CONTEXT_DOCS: dict[tuple[str, str, str], tuple[str, str]] = {
     ("structure", "[[force]]", "amplitude"): ("N (N m on rad DOFs)", "force amplitude"),
     ("structure", "[[force_table]]", "component"): ("-", "a DOF name (`dof_names`)"),
     ("structure", "[[force_table]]", "values"): ("N (N m on rad DOFs)", "force at each time"),
+    ("assembly", "[[force]]", "component"): ("-", "an assembled DOF name (`blade1.8.x`)"),
+    ("assembly", "[[force]]", "amplitude"): ("N (N m on rad DOFs)", "force amplitude"),
 }
 
 # which top-level entries a kind of case uses (the others are refused by slipstep.config.build_system)
-KIND_SKIPS = {"damper": {"structure", "contacts", "motion_names", "force", "force_table"}, "structure": {"damper"}}
+KIND_SKIPS = {
+    "damper": {"structure", "contacts", "motion_names", "force", "force_table"},
+    "structure": {"damper"},
+    "assembly": set(),
+}
+
+
+def case_kinds() -> list[tuple[str, type[BaseModel], str, str]]:
+    """(kind, root spec, heading, text) of every kind of case file slipstep.config.load_case reads."""
+    from slipstep.config import CaseSpec
+
+    kinds = [
+        (
+            "damper",
+            CaseSpec,
+            "Kind 1: damper case, every key",
+            "A rigid 2D underplatform damper. DOFs x = [x_G, y_G, phi] at the centre of mass; X horizontal, Y "
+            "radial outward. Motions are given per platform component `<platform>.x` / `<platform>.y` in um; "
+            "components not given are fixed.",
+        ),
+        (
+            "structure",
+            CaseSpec,
+            "Kind 2: structure case, every key",
+            "Any linear structure in SI: M, C, K over named DOFs, contact elements with explicit gather maps "
+            "(q = A x - B p + g, rows u then v), prescribed motions named in `motion_names`, forces on DOFs.",
+        ),
+    ]
+    try:
+        from slipstep.config_assembly import AssemblyCaseSpec
+    except ImportError:  # pragma: no cover - a tree without assemblies
+        return kinds
+    kinds.append(
+        (
+            "assembly",
+            AssemblyCaseSpec,
+            "Kind 3: assembly case, every key",
+            "Substructures (a built-in frame blade, or M/K matrices from files, optionally Craig-Bampton "
+            "reduced), each with its DOF names prefixed by its own name (`blade1.8.x`), joined by rigid "
+            "dampers whose platforms follow substructure points and by contacts on named DOFs; `[chain]` "
+            "copies one blade and one damper into a chain or a closed ring. A file with "
+            "`[[substructures]]` is read as this kind.",
+        )
+    )
+    return kinds
 
 
 def unit_of_key(key: str) -> str | None:
@@ -186,6 +327,10 @@ def _type_name(annotation) -> str:
         return "list of " + _type_name(typing.get_args(inner)[0])
     if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
         return " or ".join(_type_name(a) for a in typing.get_args(inner))
+    if origin is dict:
+        return "table of " + _type_name(typing.get_args(inner)[1])
+    if origin is typing.Literal:
+        return "one of " + ", ".join(f'`"{a}"`' for a in typing.get_args(inner))
     return {float: "number", int: "integer", str: "string", bool: "boolean"}.get(
         inner, getattr(inner, "__name__", str(inner))
     )
@@ -224,16 +369,20 @@ def key_doc(qualname: str, key: str, kind: str = "", table: str = "") -> tuple[s
 
 
 def all_spec_keys() -> list[str]:
-    """Every ``Spec.field`` reachable from :class:`slipstep.config.CaseSpec`."""
-    from slipstep.config import CaseSpec
-
-    return [q for _, _, q, _, _ in key_rows(CaseSpec)]
+    """Every ``Spec.field`` reachable from the root spec of every kind of case file."""
+    keys: list[str] = []
+    for _, root, _, _ in case_kinds():
+        keys += [q for _, _, q, _, _ in key_rows(root) if q not in keys]
+    return keys
 
 
 def _key_table(rows, kind: str) -> list[str]:
     """One table of keys per TOML table, top-level keys first, then the tables in schema order."""
     rows = [r for r in rows if not r[4]]
-    rows.sort(key=lambda r: r[0] != "")
+    order: dict[str, int] = {}
+    for r in rows:  # each table once, where it first appears (a sub-table may interrupt its parent's keys)
+        order.setdefault(r[0], len(order))
+    rows.sort(key=lambda r: (r[0] != "", order[r[0]]))
     out: list[str] = []
     current = None
     for table, key, qual, field, _ in rows:
@@ -258,7 +407,7 @@ def _slug(table: str) -> str:
 
 
 def case_file_reference() -> str:
-    from slipstep.config import CASES_DIR, CaseSpec
+    from slipstep.config import CASES_DIR
 
     L = [
         GENERATED_NOTE,
@@ -270,37 +419,24 @@ def case_file_reference() -> str:
         'of the wrong type (strict: `true` or `"0.012"` is not a number) are errors naming the key '
         "(see [Bad input](../bad_input.md)).",
         "",
-        "A case holds exactly one of two kinds of model: a rigid underplatform **damper** (`[damper]`, "
-        "geometry in mm, stiffness in N/um, motions in um) or a general **structure** (`[structure]` + "
-        "`[[contacts]]`, SI). `[table]` is a TOML table, `[[table]]` an array of tables (repeat it once per "
+        "A case holds one of these kinds of model: a rigid underplatform **damper** (`[damper]`, "
+        "geometry in mm, stiffness in N/um, motions in um), a general **structure** (`[structure]` + "
+        "`[[contacts]]`, SI) or, where available, an **assembly** of substructures and dampers "
+        "(`[[substructures]]`). `[table]` is a TOML table, `[[table]]` an array of tables (repeat it once per "
         "item). Unit `1`: a dimensionless number; `-`: text.",
         "",
-        "- [Kind 1: `[damper]` case, every key](#damper-case)",
-        "- [Kind 2: `[structure]` case, every key](#structure-case)",
-        "- [Complete example files](#complete-example-files)",
-        "",
     ]
-    L += [
-        "## Kind 1: damper case, every key { #damper-case }",
-        "",
-        "DOFs x = [x_G, y_G, phi] at the centre of mass; X horizontal, Y radial outward. Motions are "
-        "given per platform component `<platform>.x` / `<platform>.y` in um; components not given are fixed.",
-        "",
-    ]
-    L += _key_table(key_rows(CaseSpec, skip=KIND_SKIPS["damper"]), "damper")
-    L += [
-        "",
-        "## Kind 2: structure case, every key { #structure-case }",
-        "",
-        "Any linear structure in SI: M, C, K over named DOFs, contact elements with explicit gather maps "
-        "(q = A x - B p + g, rows u then v), prescribed motions named in `motion_names`, forces on DOFs.",
-        "",
-    ]
-    L += _key_table(key_rows(CaseSpec, skip=KIND_SKIPS["structure"]), "structure")
+    kinds = case_kinds()
+    L += [f"- [{heading}](#{kind}-case)" for kind, _, heading, _ in kinds]
+    L += ["- [Complete example files](#complete-example-files)", ""]
+    for kind, root, heading, text in kinds:
+        L += ["", f"## {heading} {{ #{kind}-case }}", "", text, ""]
+        L += _key_table(key_rows(root, skip=KIND_SKIPS.get(kind, set())), kind)
     L += ["", "## Complete example files", ""]
     for path, title in (
         (CASES_DIR / "paper.toml", "The paper's damper (built-in case `paper`)"),
         (ROOT / "examples" / "shroud_pair.toml", "A quasi-3D shroud pair (`examples/shroud_pair.toml`)"),
+        (CASES_DIR / "blades.toml", "An assembly of blades and dampers (built-in case `blades`)"),
     ):
         if path.exists():
             L += [f"### {title}", "", "```toml", path.read_text().rstrip(), "```", ""]
@@ -539,6 +675,9 @@ METHOD_ADVICE: dict[str, str] = {
     "centrifugal load, paper Eq. 9) and every visited state has a static equilibrium: about 300 steps "
     "per period, no ringing to filter",
     "full-newton": "Method 1 needs many iterations per step (strong slip): fewer iterations, one factorisation each",
+    "quasi-static-dofs": "a structure (blades) carries light dampers whose internal modes are far above the "
+    "excitation (at least 5x and 1 kHz, paper Remark 3): the dampers without inertia, the rest dynamic; the "
+    "step is set by the structure, not the damper (`slipstep advise` says when it applies)",
 }
 
 

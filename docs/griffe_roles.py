@@ -33,8 +33,15 @@ def _resolve(pkg: griffe.Module, obj: griffe.Object, target: str) -> str | None:
     for base in ["", *scopes]:
         path = f"{base}.{target}" if base else target
         found = _lookup(pkg, path)
-        if found is not None and not found.name.startswith("_"):
-            return found.path if not found.is_alias else path
+        if found is None or found.name.startswith("_"):
+            continue
+        if not found.is_alias:
+            return found.path
+        # an imported name: link to where it is defined, if that is in the package (it is documented there)
+        target = found.target_path
+        if not target.startswith(pkg.path + ".") or _lookup(pkg, target) is None:
+            return None
+        return target
     return None
 
 

@@ -63,14 +63,12 @@ def test_every_spec_key_has_a_meaning():
     assert not missing, f"add these case-file keys to KEY_DOCS in docs/gen_pages.py: {missing}"
 
 
-@pytest.mark.parametrize("kind", ["damper", "structure"])
+@pytest.mark.parametrize("kind", [k for k, _, _, _ in gen.case_kinds()])
 def test_case_file_page_lists_every_key_of_each_kind_with_its_unit(pages, kind):
-    from slipstep.config import CaseSpec
-
     page = pages["reference/case_file.md"]
-    other = {"damper": "## Kind 2", "structure": "## Complete example"}[kind]
-    section = _section(page, f"{{ #{kind}-case }}", other)
-    expected = [(t, k, q) for t, k, q, _, is_table in gen.key_rows(CaseSpec, skip=gen.KIND_SKIPS[kind]) if not is_table]
+    root = {k: r for k, r, _, _ in gen.case_kinds()}[kind]
+    section = _section(page, f"{{ #{kind}-case }}").split("\n## ", 1)[0]
+    expected = [(t, k, q) for t, k, q, _, is_table in gen.key_rows(root, skip=gen.KIND_SKIPS[kind]) if not is_table]
     assert len(expected) > 10
     for table, key, qual in expected:
         heading = f"### `{table}`" if table else "### Top level"
@@ -84,9 +82,9 @@ def test_case_file_page_lists_every_key_of_each_kind_with_its_unit(pages, kind):
             assert unit.split(" (")[0] == suffix_unit, (table, key, unit)
         else:
             assert unit, (table, key)
-    # the damper kind never lists the structure's tables, and vice versa
-    assert ("[structure]" in section) == (kind == "structure")
-    assert ("[damper]" in section) == (kind == "damper")
+    # a kind lists only its own tables: the damper kind never shows [structure], and so on
+    assert ("### `[structure]`" in section) == (kind == "structure")
+    assert ("### `[damper]`" in section) == (kind == "damper")
 
 
 def test_unit_suffixes():
@@ -96,6 +94,8 @@ def test_unit_suffixes():
     assert gen.unit_of_key("centrifugal_force_N") == "N"
     assert gen.unit_of_key("times_s") == "s"
     assert gen.unit_of_key("friction_coefficient") is None
+    assert gen.unit_of_key("rayleigh_alpha_per_s") == "1/s" and gen.unit_of_key("rayleigh_beta_s") == "s"
+    assert gen.unit_of_key("density_kg_per_m3") == "kg/m^3" and gen.unit_of_key("area_mm2") == "mm^2"
 
 
 def test_results_page_is_the_schema_with_units(pages):
