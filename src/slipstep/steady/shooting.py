@@ -1,0 +1,187 @@
+"""Periodic steady state by shooting: Newton on the one-period map of the march.
+
+Unknowns z = (x, v, w) at the start of a period (quasi-static: (x, w)); the acceleration is
+the consistent one, a = M^-1 (f_e - C v - K x - A^T f(x, w)). With P the discrete
+one-period map of the march (the piecewise-linear Newmark steps), the periodic orbit solves
+
+    R(z) = P(z) - z = 0,     Newton:  (Phi - I) dz = -R(z),   Phi = dP/dz
+
+Phi is the exact derivative of the discrete map, propagated through the recorded steps of
+the period (kernels/sensitivity.py): each step is linear in the previous state once its
+contact state is known, so when the state sequence of the orbit is found Newton converges
+in one more iteration. The Newton system is solved in scaled unknowns (the block scales of
+slipstep.steady.state) by least squares; a slider that sticks over the whole period has a
+row e_d of Phi (its position is a free parameter of the orbit, multiplier exactly 1): it is
+kept fixed and its multiplier reported as neutral. When Newton stalls (the change grows
+twice in a row) the march continues ``settle_periods`` periods before Newton resumes; after
+``max_iterations`` Newton iterations the solver falls back to plain marching.
+
+The Floquet multipliers are the eigenvalues of Phi at the converged orbit (neutral ones
+removed): all inside the unit circle for a stable orbit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from slipstep.errors import InputError, Status
+from slipstep.kernels.codes import C_STEPS
+from slipstep.kernels.sensitivity import period_sensitivity
+from slipstep.methods.simulation import Simulation
+from slipstep.steady.marching import (
+    check_tolerance, finish, march_one_period, march_periods, period_simulation, start,
+)
+from slipstep.steady.state import State, as_state, period_scales
+from slipstep.system import System
+
+
+def _unknowns(s: State, quasi: bool) -> np.ndarray:
+    return np.concatenate([s.x, s.w] if quasi else [s.x, s.v, s.w])
+
+
+def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
+    if quasi:
+        return State(z[:n].copy(), np.zeros(n), np.zeros(n), z[n:].copy(), states)
+    return State(z[:n].copy(), z[n:2 * n].copy(), None, z[2 * n:].copy(), states)
+
+
+def period_jacobian(sim: Simulation) -> np.ndarray:
+    """Phi = dP/dz of the period just marched by ``sim`` (from the start set by start_from)."""
+    cs = sim.compiled
+    n, nd, nq = cs.M.shape[0], cs.kt.shape[0], cs.A.shape[0]
+    quasi = sim.method.quasi_static
+    m = (n if quasi else 2 * n) + nd
+    Z = np.zeros((3 * n + nd, m))
+    iw = n if quasi else 2 * n
+    Z[:n, :n] = np.eye(n)
+    Z[3 * n:, iw:] = np.eye(nd)
+    if not quasi:
+        Z[n:2 * n, n:2 * n] = np.eye(n)
+        # consistent a0: da = -M^-1 (K dx + C dv + A^T (G dx + H dw)), f elastic at the start
+        G = np.zeros((nq, n))
+        H = np.zeros((nq, nd))
+        closed = sim.q0[cs.normal_row] > 0.0
+        for c in np.flatnonzero(closed):
+            G[cs.normal_row[c]] = cs.kn[c] * cs.A[cs.normal_row[c]]
+        for d in range(nd):
+            if closed[cs.direction_contact[d]]:
+                tr = cs.tangential_row[d]
+                G[tr] = cs.kt[d] * cs.A[tr]
+                H[tr, d] = -cs.kt[d]
+        Minv = np.linalg.inv(cs.M)
+        Z[2 * n:3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
+        Z[2 * n:3 * n, n:2 * n] = -Minv @ cs.C
+        Z[2 * n:3 * n, iw:] = -Minv @ (cs.A.T @ H)
+    scheme = sim.options.scheme
+    period_sensitivity(cs.M, cs.C, cs.K, cs.A, cs.AT, cs.normal_row, cs.kn, cs.mu, cs.first_direction,
+                       cs.n_directions, cs.tangential_row, cs.kt, scheme.beta, scheme.gamma, not quasi,
+                       sim.out.dt, sim.out.state, int(sim.out.counters[C_STEPS]), Z)
+    rows = np.r_[0:n, 3 * n:3 * n + nd] if quasi else np.r_[0:2 * n, 3 * n:3 * n + nd]
+    return Z[rows]
+
+
+def neutral_sliders(phi: np.ndarray, n_state: int, nd: int) -> np.ndarray:
+    """Unknown indices of sliders stuck over the whole period (row of Phi = unit vector)."""
+    out = []
+    for d in range(nd):
+        i = n_state + d
+        row = phi[i].copy()
+        row[i] -= 1.0
+        if np.abs(row).max(initial=0.0) == 0.0:
+            out.append(i)
+    return np.array(out, dtype=np.int64)
+
+
+def floquet(phi: np.ndarray, neutral: np.ndarray) -> np.ndarray:
+    """Eigenvalues of Phi without the neutral slider directions, by decreasing modulus."""
+    keep = np.setdiff1d(np.arange(phi.shape[0]), neutral)
+    ev = np.linalg.eigvals(phi[np.ix_(keep, keep)]) if keep.size else np.zeros(0, complex)
+    return ev[np.argsort(-np.abs(ev))]
+
+
+def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutral: np.ndarray) -> np.ndarray:
+    """dz solving (Phi - I) dz = -R in scaled unknowns (least squares), neutral sliders fixed."""
+    free = np.setdiff1d(np.arange(phi.shape[0]), neutral)
+    s = scale[free]
+    Ahat = (phi[np.ix_(free, free)] - np.eye(free.size)) * s[None, :] / s[:, None]
+    dhat = np.linalg.lstsq(Ahat, -residual[free] / s, rcond=1e-13)[0]
+    dz = np.zeros(phi.shape[0])
+    dz[free] = dhat * s
+    return dz
+
+
+def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 20, max_periods: int = 200,
+          method="piecewise-linear", min_steps_per_period: int | None = None, settle_periods: int = 3,
+          **run_options):
+    """Periodic steady state by shooting (see the module docstring); returns a SteadyState
+    whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
+    ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
+    wall = time.perf_counter()
+    check_tolerance(tolerance, max_periods)
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
+        raise InputError("max_iterations", f"is {max_iterations!r}", "give a whole number >= 1")
+    sim = period_simulation(system, method, min_steps_per_period, run_options)
+    scheme = sim.options.scheme
+    if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
+        raise InputError("scheme", f"is {scheme.name}: shooting differentiates the Newmark step",
+                         "use a Newmark scheme (slipstep.newmark(beta, gamma)) or the quasi-static method")
+    cs = sim.compiled
+    n, nd = cs.M.shape[0], cs.kt.shape[0]
+    quasi = sim.method.quasi_static
+    n_state = n if quasi else 2 * n
+    T = sim.period
+    t0 = math.ceil(max(cs.force_ramp, cs.motion_ramp) / T - 1e-9) * T  # shoot on the periodic map
+    state = as_state(initial, n, nd) if initial is not None else None
+    periods, jacobians, kernel, changes = 0, 0, 0.0, []
+    if t0 > 0:  # march through the ramp first
+        start(sim, state, 0.0)
+        status, k, ch, state, kt_ = march_periods(sim, 0, 0.0, int(round(t0 / T)))
+        periods, kernel = periods + k, kernel + kt_
+        changes += ch
+        if status not in ("OK", "NOT_STEADY"):
+            return finish(sim, status, periods, changes, state, kernel, wall, "shoot")
+    grew = 0
+    for it in range(max_iterations):
+        start(sim, state, t0)
+        status, s0, end, e = march_one_period(sim)
+        periods += 1
+        kernel += sim.kernel_time
+        changes.append(e)
+        if status != Status.OK:
+            return finish(sim, status.name, periods, changes, end, kernel, wall, "shoot", newton_iterations=it,
+                          jacobians=jacobians)
+        phi = period_jacobian(sim)
+        jacobians += 1
+        neutral = neutral_sliders(phi, n_state, nd)
+        if e <= tolerance:
+            return finish(sim, "OK", periods, changes, end, kernel, wall, "shoot", newton_iterations=it,
+                          jacobians=jacobians, floquet_multipliers=floquet(phi, neutral),
+                          neutral_directions=int(neutral.size))
+        grew = grew + 1 if len(changes) >= 2 and e > changes[-2] else 0
+        if grew >= 2 and settle_periods > 0:  # Newton stalls: let the march settle the state sequence
+            start(sim, end, t0)
+            status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, settle_periods)
+            periods, kernel = periods + k, kernel + kt_
+            changes += ch
+            grew = 0
+            if status != "NOT_STEADY":
+                return finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=it + 1,
+                              jacobians=jacobians)
+            state = end
+            continue
+        scales = period_scales(sim.out, int(sim.out.counters[C_STEPS]), cs, system.structure.dof_units, quasi)
+        z0 = _unknowns(s0, quasi)
+        dz = newton_step(phi, _unknowns(end, quasi) - z0, scales.vector(quasi, nd), neutral)
+        state = _from_unknowns(z0 + dz, n, quasi, end.states)
+    # fallback: plain marching from the last iterate
+    start(sim, state, t0)
+    status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, max(max_periods - periods, 1))
+    periods, kernel = periods + k, kernel + kt_
+    changes += ch
+    result = finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=max_iterations,
+                    jacobians=jacobians)
+    result.message = f"Newton did not converge in {max_iterations} iterations; fell back to marching: {result.message}"
+    return result
