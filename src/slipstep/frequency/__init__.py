@@ -9,13 +9,7 @@ from slipstep.frequency.linear import linear_limits, linear_response
 from slipstep.frequency.response import STEADY_SOLVERS, frf
 from slipstep.frequency.retune import retune
 from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.frequency.slow_sweep import sine_sweep
 
 __all__ = ["FRF_SCHEMA", "STEADY_SOLVERS", "frf", "harmonics", "linear_limits", "linear_response", "retune", "sine_sweep"]
 
-
-def __getattr__(name):  # the sine sweep is loaded on first use
-    if name == "sine_sweep":
-        from slipstep.frequency.sine_sweep import sine_sweep
-
-        return sine_sweep
-    raise AttributeError(name)

@@ -12,9 +12,11 @@ contact state is known, so when the state sequence of the orbit is found Newton 
 in one more iteration. The Newton system is solved in scaled unknowns (the block scales of
 slipstep.steady.state) by least squares; a slider that sticks over the whole period has a
 row e_d of Phi (its position is a free parameter of the orbit, multiplier exactly 1): it is
-kept fixed and its multiplier reported as neutral. When Newton stalls (the change grows
-twice in a row) the march continues ``settle_periods`` periods before Newton resumes; after
-``max_iterations`` Newton iterations the solver falls back to plain marching.
+kept fixed and its multiplier reported as neutral. When Newton stalls (the change decreases
+less than the best period so far), the step is halved along the last Newton direction up to
+``max_backtracks`` times, then the march continues ``settle_periods`` periods from the best
+period before Newton resumes; after ``max_iterations`` periods in Newton the solver falls back
+to plain marching.
 
 The Floquet multipliers are the eigenvalues of Phi at the converged orbit (neutral ones
 removed): all inside the unit circle for a stable orbit.
@@ -113,9 +115,9 @@ def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutra
     return dz
 
 
-def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 20, max_periods: int = 200,
+def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 30, max_periods: int = 200,
           method="piecewise-linear", min_steps_per_period: int | None = None, settle_periods: int = 3,
-          **run_options):
+          max_backtracks: int = 2, **run_options):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
@@ -143,7 +145,8 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
         changes += ch
         if status not in ("OK", "NOT_STEADY"):
             return finish(sim, status, periods, changes, state, kernel, wall, "shoot")
-    grew = 0
+    best = None  # (change, z0, dz, end state) of the best period so far
+    backtracks = newton = 0
     for it in range(max_iterations):
         start(sim, state, t0)
         status, s0, end, e = march_one_period(sim)
@@ -151,37 +154,44 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
         kernel += sim.kernel_time
         changes.append(e)
         if status != Status.OK:
-            return finish(sim, status.name, periods, changes, end, kernel, wall, "shoot", newton_iterations=it,
+            return finish(sim, status.name, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
                           jacobians=jacobians)
+        if e <= tolerance:
+            phi = period_jacobian(sim)
+            neutral = neutral_sliders(phi, n_state, nd)
+            return finish(sim, "OK", periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
+                          jacobians=jacobians + 1, floquet_multipliers=floquet(phi, neutral),
+                          neutral_directions=int(neutral.size))
+        if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
+            if backtracks < max_backtracks:
+                backtracks += 1
+                state = _from_unknowns(best[1] + 0.5 ** backtracks * best[2], n, quasi, best[3].states)
+                continue
+            if settle_periods > 0:  # Newton stalls: let the march settle the state sequence
+                start(sim, best[3], t0)
+                status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, settle_periods)
+                periods, kernel = periods + k, kernel + kt_
+                changes += ch
+                if status != "NOT_STEADY":
+                    return finish(sim, status, periods, changes, end, kernel, wall, "shoot",
+                                  newton_iterations=newton, jacobians=jacobians)
+                state, best, backtracks = end, None, 0
+                continue
         phi = period_jacobian(sim)
         jacobians += 1
+        newton += 1
         neutral = neutral_sliders(phi, n_state, nd)
-        if e <= tolerance:
-            return finish(sim, "OK", periods, changes, end, kernel, wall, "shoot", newton_iterations=it,
-                          jacobians=jacobians, floquet_multipliers=floquet(phi, neutral),
-                          neutral_directions=int(neutral.size))
-        grew = grew + 1 if len(changes) >= 2 and e > changes[-2] else 0
-        if grew >= 2 and settle_periods > 0:  # Newton stalls: let the march settle the state sequence
-            start(sim, end, t0)
-            status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, settle_periods)
-            periods, kernel = periods + k, kernel + kt_
-            changes += ch
-            grew = 0
-            if status != "NOT_STEADY":
-                return finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=it + 1,
-                              jacobians=jacobians)
-            state = end
-            continue
         scales = period_scales(sim.out, int(sim.out.counters[C_STEPS]), cs, system.structure.dof_units, quasi)
         z0 = _unknowns(s0, quasi)
         dz = newton_step(phi, _unknowns(end, quasi) - z0, scales.vector(quasi, nd), neutral)
+        best, backtracks = (e, z0, dz, end), 0
         state = _from_unknowns(z0 + dz, n, quasi, end.states)
     # fallback: plain marching from the last iterate
     start(sim, state, t0)
     status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, max(max_periods - periods, 1))
     periods, kernel = periods + k, kernel + kt_
     changes += ch
-    result = finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=max_iterations,
+    result = finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
                     jacobians=jacobians)
     result.message = f"Newton did not converge in {max_iterations} iterations; fell back to marching: {result.message}"
     return result
