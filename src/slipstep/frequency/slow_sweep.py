@@ -77,10 +77,11 @@ def cycle_envelope(t: np.ndarray, y: np.ndarray, f0: float, f1: float, duration:
 
 def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: float | None = None,
                cycles_per_point: float = 30.0, method="piecewise-linear", responses=None,
-               min_steps_per_period: int = 50, samples_per_cycle: int = 128, **run_options) -> xr.Dataset:
+               min_steps_per_period: int = 50, samples_per_cycle: int = 128, linear: bool = True,
+               **run_options) -> xr.Dataset:
     """Sweep through the range of ``frequencies`` [Hz] (upward or downward) in one march and
     return the envelope on that grid in the FRF layout (``amplitude``; the harmonic and energy
-    variables are NaN). ``duration`` [s] defaults to ``cycles_per_point`` cycles of the mean
+    variables are NaN; the linear limits are computed unless linear=False). ``duration`` [s] defaults to ``cycles_per_point`` cycles of the mean
     frequency per grid point."""
     from slipstep import __version__
     from slipstep.frequency.response import check_frequencies
@@ -119,6 +120,12 @@ def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: 
         reached = f0 + (f1 - f0) * t[-1] / D
         beyond = grid > reached if direction == "up" else grid < reached
         out["amplitude"][beyond] = np.nan
+    if linear:
+        from slipstep.frequency.linear import linear_limits
+
+        lim = linear_limits(system, grid, responses)
+        for name in ("linear_free_amplitude", "linear_stuck_amplitude"):
+            out[name].values[:] = lim[name].values
     out.attrs.update(case=system.name, solver="sine-sweep", sweep=direction, method=sim.method.name,
                      sweep_duration_s=D, sweep_rate_Hz_per_s=(f1 - f0) / D, slipstep_version=__version__)
     return finalise(out)
