@@ -24,10 +24,10 @@ import xarray as xr
 
 from slipstep.errors import InputError
 from slipstep.frequency.dataset import concat_sweeps, empty_frf, finalise
-from slipstep.frequency.harmonics import harmonics as _harmonics
+from slipstep.frequency.harmonics import amplitudes_phases, fourier_coefficients
 from slipstep.frequency.linear import linear_limits
 from slipstep.frequency.retune import retune
-from slipstep.post.energy import energy_balance
+from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.state import SteadyState
 from slipstep.system import System
@@ -52,21 +52,46 @@ def check_frequencies(frequencies) -> np.ndarray:
     return f
 
 
+def period_energies(ds: xr.Dataset, cs) -> tuple[float, float, np.ndarray]:
+    """(W_exc, D_visc, D_fric per direction) [J] over the stored period of ``ds``: the
+    trapezoid rules of slipstep.post.energy (the same discrete sums, without the Dataset)."""
+    t = ds["time"].values
+    x = ds["displacement"].values
+    fe = np.asarray(cs.constant_force, float)[None, :] + evaluate_compiled(
+        CompiledSignal(cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value,
+                       cs.force_ramp), t)
+    dx = np.diff(x, axis=0)
+    work = float((0.5 * (fe[1:] + fe[:-1]) * dx).sum())
+    if cs.B.shape[1]:
+        f = np.zeros((t.size, cs.A.shape[0]))
+        f[:, np.asarray(cs.tangential_row)] = ds["tangential_force"].values
+        f[:, np.asarray(cs.normal_row)] = ds["normal_force"].values
+        fB = f @ cs.B
+        work -= float((0.5 * (fB[1:] + fB[:-1]) * np.diff(ds["prescribed_motion"].values, axis=0)).sum())
+    visc = 0.0
+    if "velocity" in ds:
+        cv = ds["velocity"].values @ cs.C.T
+        visc = float((0.5 * (cv[1:] + cv[:-1]) * dx).sum())
+    T = ds["tangential_force"].values
+    fric = (0.5 * (T[1:] + T[:-1]) * np.diff(ds["slider"].values, axis=0)).sum(axis=0)
+    return work, visc, fric
+
+
 def point_values(steady: SteadyState, system: System, responses, n_harmonics: int) -> dict:
     """The FRF quantities of one steady state (see the module docstring)."""
     ds = steady.period
-    hm = _harmonics(ds, responses, n_harmonics)
-    eb = energy_balance(ds, system)
-    work = float(eb["external_work"][-1] + eb["motion_work"][-1])
-    visc = float(eb["damping_dissipation"][-1])
-    per_dir = eb["friction_dissipation_direction"].isel(time=-1).values
-    owner = ds["direction_contact"].values
-    per_contact = np.array([per_dir[owner == c].sum() for c in ds["contact"].values])
+    cs = system.compile()
+    T = system.period
+    y = ds["displacement"].values[:, [list(ds["dof"].values).index(r) for r in responses]]
+    A, phase = amplitudes_phases(fourier_coefficients(ds["time"].values, y, T, n_harmonics))
+    work, visc, per_dir = period_energies(ds, cs)
+    owner = np.asarray(cs.direction_contact)
+    per_contact = np.array([per_dir[owner == c].sum() for c in range(len(system.contacts))])
     scale = max(abs(work), 1e-300)
     return {
-        "amplitude": hm["amplitude"].values,
-        "harmonic_amplitude": hm["harmonic_amplitude"].values,
-        "harmonic_phase": hm["harmonic_phase"].values,
+        "amplitude": 0.5 * np.ptp(y, axis=0),
+        "harmonic_amplitude": A,
+        "harmonic_phase": phase,
         "energy_per_cycle": per_contact,
         "excitation_work": work,
         "viscous_dissipation": visc,
@@ -91,6 +116,7 @@ def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", res
         raise InputError("responses", f"{unknown} are not DOFs of the system", f"use names from {names}")
     units = [system.structure.dof_units[names.index(r)] for r in responses]
     ds = empty_frf(frequencies, responses, units, system.contact_names, n_harmonics)
+    columns = {name: ds[name].values.copy() for name in ds.data_vars}  # filled in NumPy, wrapped at the end
     steady_solver = STEADY_SOLVERS[solver]
     prev = initial
     last = None
@@ -102,11 +128,13 @@ def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", res
             else {"status": steady.status, "periods_to_steady": steady.periods}
         values["point_time"] = time.perf_counter() - start
         for name, value in values.items():
-            ds[name][i] = value
+            columns[name][i] = value
         prev = steady if steady.status in ("OK", "NOT_STEADY") else None
         last = steady
         if progress is not None:
             progress(i + 1, len(frequencies), float(f), steady)
+    for name, values in columns.items():
+        ds[name].values = values
     ds.attrs.update(method=last.method if last is not None else "", solver=solver)
     return ds, last
 
