@@ -53,7 +53,7 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         y = part["amplitude"].sel(response=response).values * factor
         ok = np.asarray(part["status"].values) == "OK"
         ax.plot(f, y, "-", color=color, marker=marker, ms=3.5, lw=1.2, label=f"{text} ({solver})")
-        unstable = part["floquet_multiplier_max"].values > 1.0
+        unstable = part["floquet_multiplier_max"].values > 1.0 + 1e-6  # beyond round-off of |mu| = 1
         for mask, style, text in ((~ok, "x", "not steady / failed"), (unstable, "s", "unstable orbit (|Floquet| > 1)")):
             if mask.any():
                 ax.plot(f[mask], y[mask], style, mfc="none", color="k", ms=7,

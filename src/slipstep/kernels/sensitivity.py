@@ -12,7 +12,8 @@ Once the contact state S of a step is known, the step is linear in the previous 
     x_{n+1} = x_n + dx,   a_{n+1} = a0 dx - a2 v_n - a3 a_n,   v_{n+1} = a1 dx + b1 v_n + b2 a_n
     w_{n+1} = w_n (stick),  u_{n+1} - T_{n+1} / k_t (slip),  u_{n+1} (lift-off)
 
-(quasi-static: r = f_e - K x_n - A^T f_b, J(S) = K + K_D(S), no v, a). Differentiating
+(quasi-static: r = f_e - K x_n - A^T f_b, J(S) = K + K_D(S), no v, a; a DOF without mass
+in a dynamic march, methods/massless.py: v_{n+1} = dx / dt, a_{n+1} = 0). Differentiating
 each line gives the step's sensitivity; the kernel carries the derivative matrix Z of
 (x, v, a, w) with respect to the unknowns through the recorded sequence of (dt, S) of the
 period, re-inverting J(S) only when S or dt changes. Steps that fell back to Newton
@@ -95,6 +96,11 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
             ddx = Jinv @ dr
             dA_new = a0 * ddx - a2 * dV - a3 * dA
             dV_new = c1 * ddx + b1 * dV + b2 * dA
+            for i in range(n):
+                if M[i, i] == 0.0:  # a massless DOF in a dynamic march: v = dx/dt, a = 0
+                    for j in range(m):
+                        dV_new[i, j] = ddx[i, j] / dt
+                        dA_new[i, j] = 0.0
             Z[iv:iv + n] = dV_new
             Z[ia:ia + n] = dA_new
         else:

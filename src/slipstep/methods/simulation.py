@@ -343,7 +343,7 @@ class Simulation(Runner):
         if self.method.quasi_static:
             a = np.zeros(n)
         elif a is None:
-            a = np.linalg.solve(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
+            a = consistent_acceleration(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
         self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
@@ -379,6 +379,14 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "linear_solver": "low-rank" if self.low_rank else "direct",
         }
+
+
+def consistent_acceleration(M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """a = M^-1 rhs on the DOFs with inertia, 0 on DOFs without (zero rows of M)."""
+    dyn = np.flatnonzero(np.any(M != 0.0, axis=1))
+    a = np.zeros(M.shape[0])
+    a[dyn] = np.linalg.solve(M[np.ix_(dyn, dyn)], rhs[dyn])
+    return a
 
 
 def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -73,7 +73,9 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
                 tr = cs.tangential_row[d]
                 G[tr] = cs.kt[d] * cs.A[tr]
                 H[tr, d] = -cs.kt[d]
-        Minv = np.linalg.inv(cs.M)
+        dyn = np.flatnonzero(np.any(cs.M != 0.0, axis=1))  # DOFs without mass keep a = 0
+        Minv = np.zeros_like(cs.M)
+        Minv[np.ix_(dyn, dyn)] = np.linalg.inv(cs.M[np.ix_(dyn, dyn)])
         Z[2 * n:3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
         Z[2 * n:3 * n, n:2 * n] = -Minv @ cs.C
         Z[2 * n:3 * n, iw:] = -Minv @ (cs.A.T @ H)
@@ -115,9 +117,9 @@ def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutra
     return dz
 
 
-def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 30, max_periods: int = 200,
+def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 60, max_periods: int = 200,
           method="piecewise-linear", min_steps_per_period: int | None = None, settle_periods: int = 3,
-          max_backtracks: int = 2, **run_options):
+          max_backtracks: int = 3, **run_options):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""

@@ -10,8 +10,11 @@ period just marched:
 
 with s_x(i) the largest half peak-to-peak range over the period among the DOFs sharing the
 unit of DOF i (m, rad), s_v(i) the same for velocities and s_w the largest half range of the
-contact tangential displacements u (at least the m-group's s_x). Every scale is floored at
-1e-12 of the system's length scale (a motionless record then compares absolute changes).
+contact tangential displacements u (at least the m-group's s_x). A group that barely moves
+(a damper's rotation in a symmetric mode) is measured against 1e-3 of the largest group
+scale instead (1 rad counted as 1 m there: round-off of the moving groups would otherwise
+look like a change of the still one), and every scale is floored at 1e-12 of the system's
+length scale (a motionless record then compares absolute changes).
 """
 
 from __future__ import annotations
@@ -98,13 +101,16 @@ def as_state(initial, n: int, nd: int) -> State:
                      "give a SteadyState, its final_state, or a dict with x, v, a, w, states")
 
 
+STILL_GROUP = 1e-3  # a group scale is at least this fraction of the largest one
+
+
 def _group_scale(values: np.ndarray, groups: np.ndarray, floor: float) -> np.ndarray:
     half = 0.5 * np.ptp(values, axis=0) if values.shape[0] else np.zeros(values.shape[1])
     out = np.empty_like(half)
     for g in np.unique(groups):
         sel = groups == g
-        out[sel] = max(half[sel].max(initial=0.0), floor)
-    return out
+        out[sel] = half[sel].max(initial=0.0)
+    return np.maximum(out, max(STILL_GROUP * out.max(initial=0.0), floor))
 
 
 @dataclass(frozen=True)
