@@ -10,7 +10,14 @@ import xarray as xr
 
 import slipstep as ss
 from slipstep.errors import InputError
-from slipstep.frequency import FRF_SCHEMA, frf, harmonics, linear_limits, retune, sine_sweep
+from slipstep.frequency import (
+    FRF_SCHEMA,
+    frf,
+    harmonics,
+    linear_limits,
+    retune,
+    sine_sweep,
+)
 from slipstep.frequency.harmonics import fourier_coefficients
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -160,3 +167,21 @@ def test_cli_frf_writes_netcdf_and_plot(tmp_path):
     assert png[:4] == b"\x89PNG" and len(png) > 20_000
     bad = _cli("frf", str(JENKINS), "--frequencies", "300:abc", cwd=tmp_path)
     assert bad.exit_code == 2 and "--frequencies" in bad.output and "Traceback" not in bad.output
+
+
+def test_docs_frf_table_is_the_declared_schema():
+    import re
+
+    text = (ROOT / "docs" / "frequency_response.md").read_text()
+    rows = re.findall(r"^\| `(\w+)` \| ([a-z, ]+) \| ([^|]+) \|", text, flags=re.MULTILINE)
+    table = {name: (tuple(d.strip() for d in dims.split(",")), units.strip()) for name, dims, units in rows}
+    assert table == {name: (dims, units) for name, (dims, units, _) in FRF_SCHEMA.items()}
+
+
+def test_readme_frf_example_runs():
+
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("## Forced response")[1].split("```python\n")[1].split("```")[0]
+    block = block.replace('"examples/jenkins.toml"', repr(str(JENKINS))).replace("np.linspace(250, 450, 61)",
+                                                                                  "np.linspace(300, 340, 5)")
+    exec(compile(block, "README", "exec"), {})

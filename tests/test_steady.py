@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from jenkins_reference import periodic_orbit
 
 import slipstep as ss
 from slipstep.errors import InputError
@@ -14,8 +15,6 @@ from slipstep.post.energy import energy_balance, friction_energy_per_period
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import march_one_period, period_simulation, start
 from slipstep.steady.shooting import _from_unknowns, _unknowns, period_jacobian
-
-from jenkins_reference import periodic_orbit
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 FINE = 2000  # steps per period for comparisons with continuous-time solutions (phase error ~ 1e-6)

@@ -14,11 +14,13 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 
-from slipstep.cli import _case_stem, _output_dir, err as _err, out as _out, user_errors as _user_errors
+from slipstep.cli import _case_stem, _output_dir
+from slipstep.cli import err as _err
+from slipstep.cli import out as _out
+from slipstep.cli import user_errors as _user_errors
 from slipstep.errors import InputError
 
 
@@ -82,14 +84,20 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
         max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
         harmonics: int = typer.Option(5, help="harmonics 0..H reported per response DOF"),
-        min_steps_per_period: Optional[int] = typer.Option(None, help="at least this many steps per period"),
-        responses: Optional[str] = typer.Option(None, help="comma list of response DOFs (default all)"),
+        min_steps_per_period: int | None = typer.Option(None, help="at least this many steps per period"),
+        responses: str | None = typer.Option(None, help="comma list of response DOFs (default all)"),
         output_dir: Path = typer.Option(Path("slipstep-out"), "--output-dir", "-o", help="folder for the results"),
         as_json: bool = typer.Option(False, "--json", help="print one JSON object (no progress bar)")):
     """Forced response of CASE against frequency: steady state per point (each from the previous
     one), harmonics, energies per cycle, both linear limits; netCDF + PNG."""
     with _user_errors():
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeRemainingColumn,
+        )
 
         from slipstep.config import load_system
         from slipstep.frequency.response import check_frequencies

@@ -10,11 +10,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import xarray as xr
 
-from slipstep.io import atomic_path  # noqa: E402
+from slipstep.io import atomic_path
 
 _DISPLAY = {"m": (1e6, "um"), "rad": (1e3, "mrad")}
 _SWEEP_STYLE = {"up": ("C0", "o", "upward sweep"), "down": ("C3", "v", "downward sweep"),

@@ -14,7 +14,14 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.methods.simulation import Simulation
-from slipstep.steady.state import State, SteadyState, as_state, period_change, period_scales, state_of
+from slipstep.steady.state import (
+    State,
+    SteadyState,
+    as_state,
+    period_change,
+    period_scales,
+    state_of,
+)
 from slipstep.system import System
 
 

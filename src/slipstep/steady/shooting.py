@@ -34,7 +34,12 @@ from slipstep.kernels.codes import C_STEPS
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.marching import (
-    check_tolerance, finish, march_one_period, march_periods, period_simulation, start,
+    check_tolerance,
+    finish,
+    march_one_period,
+    march_periods,
+    period_simulation,
+    start,
 )
 from slipstep.steady.state import State, as_state, period_scales
 from slipstep.system import System
