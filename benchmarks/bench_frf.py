@@ -81,7 +81,10 @@ def main(argv=None):
         base = None
         for label, opts in variants(case):
             ds, wall = measure(system, freqs, opts, args.tolerance, args.max_periods)
-            resp = response or str(ds["amplitude"].max("frequency").idxmax("response").values)
+            if response is None:  # the translational DOF with the largest response (the first variant's)
+                metres = ds["response"].values[ds["response_unit"].values == "m"]
+                response = str(ds["amplitude"].sel(response=metres).max("frequency").idxmax("response").values)
+            resp = response
             amp = ds["amplitude"].sel(response=resp).values
             periods = ds["periods_to_steady"].values
             ok_mask = ds["status"].values == "OK"
