@@ -185,3 +185,24 @@ def test_readme_frf_example_runs():
     block = block.replace('"examples/jenkins.toml"', repr(str(JENKINS))).replace("np.linspace(250, 450, 61)",
                                                                                   "np.linspace(300, 340, 5)")
     exec(compile(block, "README", "exec"), {})
+
+
+def test_frf_interrupted_keeps_the_points_done(monkeypatch):
+    from slipstep.frequency import response
+
+    solve = response.STEADY_SOLVERS["shoot"]
+    calls = []
+
+    def interrupted_at_third(system, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return solve(system, **kw)
+
+    monkeypatch.setitem(response.STEADY_SOLVERS, "shoot", interrupted_at_third)
+    ds = frf(ss.load_system(JENKINS), np.linspace(300, 340, 5), solver="shoot", direction="both")
+    assert ds.attrs["interrupted"] == 1
+    assert list(ds["status"].sel(sweep="up").values) == ["OK", "OK"] + ["INTERRUPTED"] * 3
+    assert (ds["status"].sel(sweep="down").values == "INTERRUPTED").all()
+    assert np.isfinite(ds["amplitude"].sel(sweep="up").values[:2]).all()
+    assert np.isnan(ds["amplitude"].sel(sweep="up").values[2:]).all()

@@ -123,7 +123,12 @@ def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", res
     for i, f in enumerate(frequencies):
         start = time.perf_counter()
         system_f = retune(system, float(f))
-        steady = steady_solver(system_f, initial=prev, **options)
+        try:
+            steady = steady_solver(system_f, initial=prev, **options)
+        except KeyboardInterrupt:  # keep the points done; the rest are marked
+            columns["status"][i:] = "INTERRUPTED"
+            ds.attrs["interrupted"] = 1
+            break
         values = point_values(steady, system_f, responses, n_harmonics) if steady.status in ("OK", "NOT_STEADY") \
             else {"status": steady.status, "periods_to_steady": steady.periods}
         values["point_time"] = time.perf_counter() - start
@@ -149,7 +154,8 @@ def frf(system: System, frequencies, *, solver: str = "march", direction: str = 
     state); responses: DOF names (default all); harmonics: H of the harmonic decomposition;
     method, tolerance and the other options go to the steady-state solver (max_periods,
     min_steps_per_period, initial, RunOptions ...); progress(done, total, frequency, steady)
-    is called after every point. Returns a Dataset in the layout of FRF_SCHEMA."""
+    is called after every point. Returns a Dataset in the layout of FRF_SCHEMA. Ctrl-C during a
+    point keeps the points done (the others get status INTERRUPTED, attribute interrupted = 1)."""
     if direction not in ("up", "down", "both"):
         raise InputError("direction", f"is {direction!r}", "use 'up', 'down' or 'both'")
     f = np.sort(check_frequencies(frequencies))
@@ -163,6 +169,16 @@ def frf(system: System, frequencies, *, solver: str = "march", direction: str = 
         ds, steady = sweep(system, grid, initial=last, **common)
         ds.attrs["sweep"] = name
         sweeps.append(ds)
+        if ds.attrs.get("interrupted"):  # Ctrl-C: no further sweep; the points done are returned
+            if direction == "both" and name == "up":
+                down = ds.copy(deep=True)
+                down["status"].values[:] = "INTERRUPTED"
+                for var in down.data_vars:
+                    if var != "status":
+                        down[var].values[:] = np.nan
+                down.attrs["sweep"] = "down"
+                sweeps.append(down)
+            break
         last = steady if steady is not None and steady.status in ("OK", "NOT_STEADY") else None
     out = sweeps[0] if len(sweeps) == 1 else concat_sweeps(*sweeps)
     if linear:

@@ -18,6 +18,9 @@ less than the best period so far), the step is halved along the last Newton dire
 period before Newton resumes; after ``max_iterations`` periods in Newton the solver falls back
 to plain marching.
 
+From the static preload (no ``initial``) the march first runs ``warmup_periods`` periods: the
+start transient visits contact-state sequences far from the orbit's, where Newton wanders.
+
 The Floquet multipliers are the eigenvalues of Phi at the converged orbit (neutral ones
 removed): all inside the unit circle for a stable orbit.
 """
@@ -124,7 +127,7 @@ def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutra
 
 def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 60, max_periods: int = 200,
           method="piecewise-linear", min_steps_per_period: int | None = None, settle_periods: int = 3,
-          max_backtracks: int = 3, **run_options):
+          max_backtracks: int = 3, warmup_periods: int = 5, **run_options):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
@@ -145,12 +148,13 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
     t0 = math.ceil(max(cs.force_ramp, cs.motion_ramp) / T - 1e-9) * T  # shoot on the periodic map
     state = as_state(initial, n, nd) if initial is not None else None
     periods, jacobians, kernel, changes = 0, 0, 0.0, []
-    if t0 > 0:  # march through the ramp first
+    warmup = int(round(t0 / T)) + (warmup_periods if initial is None else 0)
+    if warmup > 0:  # march through the ramp, and from the preload past the start transient
         start(sim, state, 0.0)
-        status, k, ch, state, kt_ = march_periods(sim, 0, 0.0, int(round(t0 / T)))
+        status, k, ch, state, kt_ = march_periods(sim, 0, tolerance, warmup)
         periods, kernel = periods + k, kernel + kt_
         changes += ch
-        if status not in ("OK", "NOT_STEADY"):
+        if status not in ("OK", "NOT_STEADY"):  # a failed march (steady already: Newton checks it in one period)
             return finish(sim, status, periods, changes, state, kernel, wall, "shoot")
     best = None  # (change, z0, dz, end state) of the best period so far
     backtracks = newton = 0
