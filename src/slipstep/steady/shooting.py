@@ -95,6 +95,23 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
     return Z[rows]
 
 
+class JacobianCache:
+    """Phi depends only on the recorded (dt, contact state) sequence of the period and on which
+    contacts are closed at its start: a period that repeats the last sequence reuses its Phi."""
+
+    def __init__(self):
+        self.key, self.phi, self.built = None, None, 0
+
+    def __call__(self, sim: Simulation) -> np.ndarray:
+        k = int(sim.out.counters[C_STEPS]) + 1
+        key = (sim.out.state[:k].tobytes(), sim.out.dt[:k].tobytes(),
+               (sim.q0[sim.compiled.normal_row] > 0.0).tobytes())
+        if key != self.key:
+            self.key, self.phi = key, period_jacobian(sim)
+            self.built += 1
+        return self.phi
+
+
 def neutral_sliders(phi: np.ndarray, n_state: int, nd: int) -> np.ndarray:
     """Unknown indices of sliders stuck over the whole period (row of Phi = unit vector)."""
     out = []
@@ -147,7 +164,8 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
     T = sim.period
     t0 = math.ceil(max(cs.force_ramp, cs.motion_ramp) / T - 1e-9) * T  # shoot on the periodic map
     state = as_state(initial, n, nd) if initial is not None else None
-    periods, jacobians, kernel, changes = 0, 0, 0.0, []
+    periods, kernel, changes = 0, 0.0, []
+    jacobian = JacobianCache()
     warmup = int(round(t0 / T)) + (warmup_periods if initial is None else 0)
     if warmup > 0:  # march through the ramp, and from the preload past the start transient
         start(sim, state, 0.0)
@@ -166,12 +184,12 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
         changes.append(e)
         if status != Status.OK:
             return finish(sim, status.name, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                          jacobians=jacobians)
+                          jacobians=jacobian.built)
         if e <= tolerance:
-            phi = period_jacobian(sim)
+            phi = jacobian(sim)
             neutral = neutral_sliders(phi, n_state, nd)
             return finish(sim, "OK", periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                          jacobians=jacobians + 1, floquet_multipliers=floquet(phi, neutral),
+                          jacobians=jacobian.built, floquet_multipliers=floquet(phi, neutral),
                           neutral_directions=int(neutral.size))
         if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
             if backtracks < max_backtracks:
@@ -185,11 +203,10 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
                 changes += ch
                 if status != "NOT_STEADY":
                     return finish(sim, status, periods, changes, end, kernel, wall, "shoot",
-                                  newton_iterations=newton, jacobians=jacobians)
+                                  newton_iterations=newton, jacobians=jacobian.built)
                 state, best, backtracks = end, None, 0
                 continue
-        phi = period_jacobian(sim)
-        jacobians += 1
+        phi = jacobian(sim)
         newton += 1
         neutral = neutral_sliders(phi, n_state, nd)
         scales = period_scales(sim.out, int(sim.out.counters[C_STEPS]), cs, system.structure.dof_units, quasi)
@@ -203,6 +220,6 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
     periods, kernel = periods + k, kernel + kt_
     changes += ch
     result = finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                    jacobians=jacobians)
+                    jacobians=jacobian.built)
     result.message = f"Newton did not converge in {max_iterations} iterations; fell back to marching: {result.message}"
     return result
