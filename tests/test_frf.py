@@ -145,6 +145,10 @@ def test_frf_bad_input():
         frf(system, [100.0], direction="sideways")
     with pytest.raises(InputError, match="responses"):
         frf(system, [100.0], responses=["y"])
+    with pytest.raises(InputError, match="harmonics"):
+        frf(system, [100.0], harmonics=-1)
+    with pytest.raises(InputError, match="settle_periods"):
+        frf(system, [100.0], solver="shoot", settle_periods=-2)
 
 
 def _cli(*args, cwd):

@@ -158,6 +158,8 @@ def frf(system: System, frequencies, *, solver: str = "march", direction: str = 
     point keeps the points done (the others get status INTERRUPTED, attribute interrupted = 1)."""
     if direction not in ("up", "down", "both"):
         raise InputError("direction", f"is {direction!r}", "use 'up', 'down' or 'both'")
+    if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)) or harmonics < 0:
+        raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
     f = np.sort(check_frequencies(frequencies))
     initial = options.pop("initial", None)
     common = dict(solver=solver, responses=responses, n_harmonics=harmonics, method=method, tolerance=tolerance,

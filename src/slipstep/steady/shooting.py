@@ -150,8 +150,10 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
-    if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
-        raise InputError("max_iterations", f"is {max_iterations!r}", "give a whole number >= 1")
+    for name, value, low in (("max_iterations", max_iterations, 1), ("settle_periods", settle_periods, 0),
+                             ("max_backtracks", max_backtracks, 0), ("warmup_periods", warmup_periods, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
     sim = period_simulation(system, method, min_steps_per_period, run_options)
     scheme = sim.options.scheme
     if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
