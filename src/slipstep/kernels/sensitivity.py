@@ -26,6 +26,43 @@ from numba import njit
 from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _sparse_rows(A):
+    """CSR of A (the contact gathers are sparse: a few DOFs per local coordinate)."""
+    nq, n = A.shape
+    count = 0
+    for r in range(nq):
+        for j in range(n):
+            if A[r, j] != 0.0:
+                count += 1
+    ptr = np.zeros(nq + 1, np.int64)
+    col = np.zeros(count, np.int64)
+    val = np.zeros(count)
+    k = 0
+    for r in range(nq):
+        for j in range(n):
+            if A[r, j] != 0.0:
+                col[k] = j
+                val[k] = A[r, j]
+                k += 1
+        ptr[r + 1] = k
+    return ptr, col, val
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_rows(ptr, col, val, X, out, add):
+    """out = A X (add: out += A X), A in CSR."""
+    m = X.shape[1]
+    for r in range(ptr.shape[0] - 1):
+        if not add:
+            for j in range(m):
+                out[r, j] = 0.0
+        for k in range(ptr[r], ptr[r + 1]):
+            c, v = col[k], val[k]
+            for j in range(m):
+                out[r, j] += v * X[c, j]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, beta, gamma, inertia,
                        dts, states, n_steps, Z):
@@ -36,7 +73,13 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
     nd = kt.shape[0]
     m = Z.shape[1]
     ix, iv, ia, iw = 0, n, 2 * n, 3 * n
+    ptr, col, val = _sparse_rows(A)
+    massless = np.zeros(n, np.bool_)
+    for i in range(n):
+        massless[i] = M[i, i] == 0.0
     Jinv = np.zeros((n, n))
+    # r's dependence on (x, v, a): dr = G [dx; dv; da] - A^T df_b, G = [-K | a2 M - b1 C | a3 M - b2 C]
+    G = np.zeros((n, 3 * n)) if inertia else np.zeros((n, n))
     prev_state = np.full(nd, -1, np.int8)
     prev_dt = -1.0
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0
@@ -60,6 +103,11 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
                 b1 = 1.0 - gamma / beta
                 b2 = dt * (1.0 - gamma / (2.0 * beta))
                 J += a0 * M + c1 * Cd
+            if dt != prev_dt:
+                G[:, 0:n] = -Kst
+                if inertia:
+                    G[:, n:2 * n] = a2 * M - b1 * Cd
+                    G[:, 2 * n:3 * n] = a3 * M - b2 * Cd
             contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, S, 1.0, J)
             Jinv = np.ascontiguousarray(np.linalg.inv(J))
             prev_dt = dt
@@ -67,8 +115,7 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
                 prev_state[d] = S[d]
         dX = Z[ix:ix + n]
         dW = Z[iw:iw + nd]
-        if nq > 0:
-            dqb[:, :] = A @ dX
+        _gather_rows(ptr, col, val, dX, dqb, False)
         dfb[:, :] = 0.0
         for c in range(kn.shape[0]):
             d0 = fdir[c]
@@ -86,29 +133,28 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
                         dfb[tr, j] = mu[c] * kn[c] * dqb[nr, j]
                     else:
                         dfb[tr, j] = -mu[c] * kn[c] * dqb[nr, j]
-        dr = -(Kst @ dX)
-        if nq > 0:
-            dr -= AT @ dfb
+        dr = G @ Z[0:3 * n] if inertia else G @ dX
+        for r in range(nq):  # dr -= A^T dfb
+            for kk in range(ptr[r], ptr[r + 1]):
+                c_, v_ = col[kk], val[kk]
+                for j in range(m):
+                    dr[c_, j] -= v_ * dfb[r, j]
+        ddx = Jinv @ dr
         if inertia:
-            dV = Z[iv:iv + n]
-            dA = Z[ia:ia + n]
-            dr += M @ (a2 * dV + a3 * dA) - Cd @ (b1 * dV + b2 * dA)
-            ddx = Jinv @ dr
-            dA_new = a0 * ddx - a2 * dV - a3 * dA
-            dV_new = c1 * ddx + b1 * dV + b2 * dA
             for i in range(n):
-                if M[i, i] == 0.0:  # a massless DOF in a dynamic march: v = dx/dt, a = 0
-                    for j in range(m):
-                        dV_new[i, j] = ddx[i, j] / dt
-                        dA_new[i, j] = 0.0
-            Z[iv:iv + n] = dV_new
-            Z[ia:ia + n] = dA_new
-        else:
-            ddx = Jinv @ dr
+                for j in range(m):
+                    if massless[i]:  # a massless DOF in a dynamic march: v = dx/dt, a = 0
+                        Z[iv + i, j] = ddx[i, j] / dt
+                        Z[ia + i, j] = 0.0
+                    else:
+                        vi, ai = Z[iv + i, j], Z[ia + i, j]
+                        Z[ia + i, j] = a0 * ddx[i, j] - a2 * vi - a3 * ai
+                        Z[iv + i, j] = c1 * ddx[i, j] + b1 * vi + b2 * ai
         Z[ix:ix + n] += ddx
         if nq == 0:
             continue
-        dq1[:, :] = dqb + A @ ddx
+        dq1[:, :] = dqb
+        _gather_rows(ptr, col, val, ddx, dq1, True)
         for c in range(kn.shape[0]):
             d0 = fdir[c]
             nr = nrow[c]
