@@ -148,11 +148,14 @@ def _summary(ds, wall: float) -> dict:
     import numpy as np
 
     status = np.asarray(ds["status"].values).astype(str)
+    from slipstep.plots_frf import default_response
+
     amp = ds["amplitude"]
     other = [d for d in amp.dims if d not in ("frequency", "response")]
     peak_each = amp.max(other) if other else amp
     values = np.nan_to_num(peak_each.values, nan=-1.0)
-    i, j = np.unravel_index(int(np.argmax(values)), values.shape)
+    j = list(ds["response"].values).index(default_response(ds))
+    i = int(np.argmax(values[:, j]))
     periods = ds["periods_to_steady"].values
     return {
         "case": ds.attrs.get("case"), "solver": ds.attrs.get("solver"), "sweep": ds.attrs.get("sweep"),

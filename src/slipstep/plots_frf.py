@@ -28,10 +28,14 @@ def _sweeps(ds: xr.Dataset):
 
 
 def default_response(ds: xr.Dataset) -> str:
-    """The response DOF with the largest amplitude (the one a designer looks at first)."""
+    """The response DOF with the largest amplitude (the one a designer looks at first), among
+    the translational DOFs (unit m) if there are any: amplitudes in m and rad do not compare."""
     amp = ds["amplitude"]
-    peak = amp.max([d for d in amp.dims if d != "response"], skipna=True).fillna(-1.0)
-    return str(ds["response"].values[int(np.argmax(peak.values))])
+    peak = amp.max([d for d in amp.dims if d != "response"], skipna=True).fillna(-1.0).values
+    metres = np.asarray(ds["response_unit"].values) == "m"
+    if metres.any():
+        peak = np.where(metres, peak, -np.inf)
+    return str(ds["response"].values[int(np.argmax(peak))])
 
 
 def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | None = None) -> Path:

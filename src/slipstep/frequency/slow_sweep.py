@@ -11,6 +11,8 @@ cycles of theta (theta(t_k) = 2 pi k); the envelope of a cycle is half the peak-
 of each response DOF within it, at the instantaneous frequency of the cycle's middle, and is
 interpolated onto the frequency grid. A sweep that is slow against the decay time of the
 resonances tends to the stepped steady-state FRF, and shows the jumps of a nonlinear one.
+The cycles of the first ``LEAD_IN`` (2 %) of the sweep hold the start transient and are left
+out, and so are the grid points inside it (NaN).
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from slipstep.frequency.dataset import empty_frf, finalise
 from slipstep.model.excitation import Signal, Tabulated
 from slipstep.model.validate import positive
 from slipstep.system import System
+
+LEAD_IN = 0.02
 
 
 def _swept(signal: Signal | None, f_fund: float, f0: float, f1: float, duration: float, samples: int, what: str):
@@ -111,9 +115,12 @@ def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: 
     t = ds_t["time"].values
     y = ds_t["displacement"].sel(dof=responses).values
     fc, env = cycle_envelope(t, y, f0, f1, D)
+    settled = np.abs(fc - f0) >= LEAD_IN * abs(f1 - f0)  # the start transient is left out
+    fc, env = fc[settled], env[settled]
     order = np.argsort(fc)
+    inside = np.abs(grid - f0) >= LEAD_IN * abs(f1 - f0)
     for j in range(len(responses)):
-        out["amplitude"][:, j] = np.interp(grid, fc[order], env[order, j])
+        out["amplitude"][:, j] = np.where(inside, np.interp(grid, fc[order], env[order, j]), np.nan)
     status = ds_t.attrs["status"]
     out["status"][:] = status
     if status != Status.OK.name:  # points beyond the failure are not reached
