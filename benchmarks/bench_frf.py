@@ -5,7 +5,8 @@ state, tolerance 1e-6 on the change of the full state over one period) is comput
 
 * march:  slipstep.steady.march_to_steady at every point (the baseline),
 * shoot:  slipstep.steady.shoot (Newton on the one-period map, exact discrete Jacobian),
-* and, where the case has a massless-DOF (quasi-static damper) method, marching with it,
+* and, where the case has DOFs held by contacts only, marching and shooting with the
+  quasi-static-dofs method (the damper without inertia inside dynamic blades),
 
 printing the whole-FRF time, the time per point, the periods simulated (total and per point),
 the points that reached the steady state, the ratio to marching, and the largest relative
@@ -47,6 +48,7 @@ def variants(case: str):
     out = [("march", dict(solver="march")), ("shoot", dict(solver="shoot"))]
     for name in QS_DAMPER_METHODS:
         out.append((f"march, {name}", dict(solver="march", method=name)))
+        out.append((f"shoot, {name}", dict(solver="shoot", method=name)))
     return out
 
 

@@ -60,3 +60,46 @@ def test_blades_shooting_equals_marching_on_the_peak():
     a_m = np.ptp(marched.period["displacement"].sel(dof=TIP).values) / 2
     assert a_s == pytest.approx(a_m, rel=1e-4)
     assert shot.periods * 3 < marched.periods
+
+
+@pytest.mark.skipif("quasi-static-dofs" not in ss.METHODS, reason="no quasi-static-dofs method yet")
+def test_blades_quasi_static_damper_shooting():
+    """The damper without inertia inside dynamic blades: its one-period Jacobian (massless
+    DOFs: v = dx/dt, a = 0) against finite differences, shooting against marching with the
+    same method on the peak, and against the fully dynamic damper (within 1 %)."""
+    from slipstep.steady.marching import march_one_period, period_simulation, start
+    from slipstep.steady.shooting import _from_unknowns, _unknowns, period_jacobian
+
+    system = retune(blades(), 330.0)
+    sim = period_simulation(system, "quasi-static-dofs", None, {})
+    n = system.n_dofs
+    start(sim, None, 0.0)
+    for _ in range(3):
+        end = march_one_period(sim)[2]
+        start(sim, end, 0.0)
+    z = _unknowns(end, False)
+    march_one_period(sim)
+    phi = period_jacobian(sim)
+    scale = np.r_[np.full(n, np.abs(z[:n]).max()), np.full(n, np.abs(z[n:2 * n]).max()),
+                  np.full(z.size - 2 * n, np.abs(z[:n]).max())]
+    fd = np.zeros_like(phi)
+    for j in range(z.size):
+        h = 1e-6 * scale[j]
+        ends = []
+        for sign in (1, -1):
+            zp = z.copy()
+            zp[j] += sign * h
+            start(sim, _from_unknowns(zp, n, False, end.states), 0.0)
+            ends.append(_unknowns(march_one_period(sim)[2], False))
+        fd[:, j] = (ends[0] - ends[1]) / (2 * h)
+    scaled = lambda J: J * scale[None, :] / scale[:, None]  # noqa: E731
+    assert np.abs(scaled(phi) - scaled(fd)).max() <= 1e-5 * np.abs(scaled(fd)).max()
+
+    shot = shoot(system, method="quasi-static-dofs", tolerance=1e-9)
+    marched = march_to_steady(system, "quasi-static-dofs", tolerance=1e-9, max_periods=3000)
+    dynamic = shoot(system, tolerance=1e-9)
+    assert shot.ok and marched.ok and dynamic.ok
+    tip = [np.ptp(r.period["displacement"].sel(dof=TIP).values) / 2 for r in (shot, marched, dynamic)]
+    assert tip[0] == pytest.approx(tip[1], rel=1e-4)
+    assert tip[0] == pytest.approx(tip[2], rel=0.01)
+    assert shot.period.attrs["steps"] < dynamic.period.attrs["steps"]  # the blades set the step, not the damper
