@@ -35,6 +35,7 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.kernels.sensitivity import period_sensitivity
+from slipstep.methods.massless import inverse_mass
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.marching import (
     check_tolerance,
@@ -81,9 +82,7 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
                 tr = cs.tangential_row[d]
                 G[tr] = cs.kt[d] * cs.A[tr]
                 H[tr, d] = -cs.kt[d]
-        dyn = np.flatnonzero(np.any(cs.M != 0.0, axis=1))  # DOFs without mass keep a = 0
-        Minv = np.zeros_like(cs.M)
-        Minv[np.ix_(dyn, dyn)] = np.linalg.inv(cs.M[np.ix_(dyn, dyn)])
+        Minv = inverse_mass(cs.M)  # 0 on DOFs without mass (a = 0 there)
         Z[2 * n:3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
         Z[2 * n:3 * n, n:2 * n] = -Minv @ cs.C
         Z[2 * n:3 * n, iw:] = -Minv @ (cs.A.T @ H)
