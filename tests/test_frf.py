@@ -212,3 +212,23 @@ def test_frf_interrupted_keeps_the_points_done(monkeypatch):
     assert (ds["status"].sel(sweep="down").values == "INTERRUPTED").all()
     assert np.isfinite(ds["amplitude"].sel(sweep="up").values[:2]).all()
     assert np.isnan(ds["amplitude"].sel(sweep="up").values[2:]).all()
+
+
+def test_plot_many_contacts_and_both_sweeps(tmp_path):
+    from slipstep.frequency.dataset import concat_sweeps, empty_frf
+    from slipstep.plots_frf import default_response, plot_frf
+
+    f = np.linspace(100, 200, 11)
+    parts = []
+    for k in range(2):
+        ds = empty_frf(f, ["x", "phi"], ["m", "rad"], [f"P{i}" for i in range(8)], 1)
+        ds["amplitude"].values[:] = np.c_[1e-5 / (1 + ((f - 150) / 10) ** 2), 1e-2 * np.ones_like(f)]
+        ds["energy_per_cycle"].values[:] = np.outer(f, np.arange(8)) * 1e-6
+        ds["status"].values[:] = "OK"
+        ds["floquet_multiplier_max"].values[:] = 0.9 + 0.3 * (f == 150)
+        ds["linear_free_amplitude"].values[:] = 2e-5
+        parts.append(ds)
+    both = concat_sweeps(*parts)
+    assert default_response(both) == "x"  # metres before radians
+    png = plot_frf(both, tmp_path / "f.png").read_bytes()
+    assert png[:4] == b"\x89PNG"

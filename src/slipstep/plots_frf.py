@@ -17,6 +17,7 @@ import xarray as xr
 from slipstep.io import atomic_path
 
 _DISPLAY = {"m": (1e6, "um"), "rad": (1e3, "mrad")}
+MAX_CONTACT_LINES = 6  # beyond this many contacts the energy panel shows their total and range
 _SWEEP_STYLE = {"up": ("C0", "o", "upward sweep"), "down": ("C3", "v", "downward sweep"),
                 None: ("C0", "o", "friction contacts")}
 
@@ -78,12 +79,20 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
     ax.legend(loc="best")
     if has_energy:
         ax = axes[1, 0]
+        contacts = list(ds["contact"].values)
         for name, part in _sweeps(ds):
-            for j, contact in enumerate(ds["contact"].values):
-                e = part["energy_per_cycle"].sel(contact=contact).values * 1e3
-                ls = "-" if name != "down" else "--"
-                ax.plot(f, e, ls, color=f"C{j}", marker=".", ms=3,
-                        label=f"{contact}" + (f" ({name})" if name else ""))
+            ls = "-" if name != "down" else "--"
+            suffix = f" ({name})" if name else ""
+            e = part["energy_per_cycle"].values * 1e3
+            if len(contacts) <= MAX_CONTACT_LINES:
+                for j, contact in enumerate(contacts):
+                    ax.plot(f, e[:, j], ls, color=f"C{j}", marker=".", ms=3, label=f"{contact}{suffix}")
+            else:  # many contacts: the total, and the range over the contacts
+                color = _SWEEP_STYLE.get(name, _SWEEP_STYLE[None])[0]
+                ax.plot(f, e.sum(axis=1), ls, color=color, marker=".", ms=3,
+                        label=f"all {len(contacts)} contacts{suffix}")
+                ax.fill_between(f, e.min(axis=1), e.max(axis=1), color=color, alpha=0.2,
+                                label=f"range over the contacts{suffix}")
         ax.set_ylabel("friction energy per cycle [mJ]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", ncol=2)
