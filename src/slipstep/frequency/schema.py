@@ -30,6 +30,13 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     "excitation_work": (("frequency",), "J", "work of the external forces and prescribed motions per cycle"),
     "viscous_dissipation": (("frequency",), "J", "energy dissipated by the damping matrix C per cycle"),
     "periods_to_steady": (("frequency",), "1", "excitation periods marched before the steady state was reached"),
+    "energy_balance_residual": (("frequency",), "1",
+                                "(excitation work - viscous - friction dissipation) / excitation work over the "
+                                "steady-state period (0 for an exactly periodic orbit)"),
+    "steady_change": (("frequency",), "1",
+                      "change of the full state over the last period relative to its amplitude "
+                      "(slipstep.steady.state.period_change)"),
+    "point_time": (("frequency",), "s", "wall time spent on the point"),
     "floquet_multiplier_max": (("frequency",), "1",
                                "largest modulus of the Floquet multipliers (< 1: stable orbit; shooting only)"),
     "linear_free_amplitude": (("frequency", "response"), "m or rad (see response_unit)",
@@ -42,13 +49,6 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     "check_energy_rel_diff": (("frequency",), "1",
                               "relative difference of the dissipated energy per cycle against the "
                               "time-marching cross-check (harmonic balance only; NaN where not checked)"),
-    "energy_balance_residual": (("frequency",), "1",
-                                "(excitation work - viscous - friction dissipation) / excitation work over the "
-                                "steady-state period (0 for an exactly periodic orbit)"),
-    "steady_change": (("frequency",), "1",
-                      "change of the full state over the last period relative to its amplitude "
-                      "(slipstep.steady.state.period_change)"),
-    "point_time": (("frequency",), "s", "wall time spent on the point"),
     "status": (("frequency",), "1", "status of the point: OK or the name of the failure"),
 }
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),
