@@ -202,7 +202,7 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
                 status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, settle_periods)
                 periods, kernel = periods + k, kernel + kt_
                 changes += ch
-                if status != "NOT_STEADY":
+                if status not in ("OK", "NOT_STEADY"):  # (steady: the next period confirms it, with Floquet)
                     return finish(sim, status, periods, changes, end, kernel, wall, "shoot",
                                   newton_iterations=newton, jacobians=jacobian.built)
                 state, best, backtracks = end, None, 0
