@@ -115,6 +115,15 @@ def _toml_commands(path: Path) -> list[str]:
     return commands
 
 
+def _toml_title(path: Path) -> str:
+    """A TOML file's ``description`` (or ``[sweep] description``), else its name."""
+    from slipstep.config import read_toml  # tomllib, or tomli on Python 3.10
+
+    data = read_toml(path)
+    text = data.get("description") or data.get("sweep", {}).get("description") or path.stem.replace("_", " ")
+    return text[:1].upper() + text[1:]
+
+
 def _toml_comment(path: Path) -> str:
     """The prose of a TOML file's leading comments (the command lines left out)."""
     prose, continued = [], False
@@ -184,24 +193,57 @@ def _page(
     return "\n".join(L)
 
 
-NAV_TITLES = {"paper_case": "The paper's damper", "method_comparison": "Methods side by side"}
+# (slug, title, text, commands): command-line runs of built-in cases, each in an empty directory
+COMMANDS = [
+    (
+        "blades_frf",
+        "Forced response of two blades with the paper's damper",
+        "The built-in assembly `blades`: two Craig-Bampton reduced frame blades with the paper's underplatform "
+        "damper between their platforms, driven out of phase at the tips. `slipstep frf` sweeps the excitation "
+        "frequency up and down, each point a periodic steady state found by shooting (Newton on the one-period "
+        "map; Floquet multipliers beyond 1 mark unstable orbits), beside the two linear limits (damper removed, "
+        "damper stuck), with the friction energy dissipated per cycle in each contact.",
+        ["slipstep frf blades -f 150:450:31 --solver shoot --direction both"],
+    ),
+]
+
+NAV_TITLES = {
+    "paper_case": "The paper's damper",
+    "method_comparison": "Methods side by side",
+    "blades_frf": "Blades: forced response",
+}
 
 
 def _entries() -> list[tuple[str, str]]:
     """(slug, title) of every gallery entry, in page order."""
     out = [(slug, title) for slug, title, _, _ in SNIPPETS]
+    out += [(slug, title) for slug, title, _, cmds in COMMANDS if _command_available(cmds)]
     for path in sorted(EXAMPLES.glob("*.py")):
         out.append(
             (path.stem, " ".join(_module_doc(path).split("\n\n")[0].split()).split(": ")[0].rstrip(".") or path.stem)
         )
     for path in sorted(EXAMPLES.glob("*.toml")):
-        out.append((path.stem, f"Case file examples/{path.name}"))
+        out.append((path.stem, _toml_title(path)))
     return out
+
+
+def _command_available(commands: list[str]) -> bool:
+    """Whether the CLI of this tree has the subcommands used (a tree without `slipstep frf` skips the entry)."""
+    import typer
+
+    from slipstep.cli import app
+
+    known = set(typer.main.get_command(app).commands)
+    return all(shlex.split(c)[1] in known for c in commands)
 
 
 def gallery_nav() -> list:
     """The mkdocs nav of the gallery: the index, then one page per entry."""
-    return ["gallery/index.md"] + [{NAV_TITLES.get(slug, title): f"gallery/{slug}.md"} for slug, title in _entries()]
+    toml = {p.stem for p in EXAMPLES.glob("*.toml")}
+    return ["gallery/index.md"] + [
+        {NAV_TITLES.get(slug, slug.replace("_", " ").capitalize() if slug in toml else title): f"gallery/{slug}.md"}
+        for slug, title in _entries()
+    ]
 
 
 def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
@@ -227,6 +269,16 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
                 slug,
                 lambda d, c=code: _run_snippet(c, d),
                 lambda out, figs, s, t=title, x=text, c=code: _page(t, x, c, "python", out, figs, s),
+            )
+        )
+    for slug, title, text, cmds in COMMANDS:
+        if not _command_available(cmds):
+            continue
+        pages.update(
+            _build(
+                slug,
+                lambda d, c=tuple(cmds): "".join(_run(_slipstep(*shlex.split(x)[1:]), d) for x in c),
+                lambda out, figs, s, t=title, x=text, c=cmds: _page(t, x, "\n".join(c), "bash", out, figs, s),
             )
         )
     for path in sorted(EXAMPLES.glob("*.py")):
@@ -285,7 +337,7 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
                 path.stem,
                 run_case,
                 lambda out, figs, s, p=path, c=commands: _page(
-                    f"Case file `examples/{p.name}`",
+                    f"{_toml_title(p)} (`examples/{p.name}`)",
                     _toml_comment(p),
                     c,
                     "bash",
