@@ -61,10 +61,16 @@ def _as_list(datasets) -> list[tuple[str, xr.Dataset]]:
 
 def save_figure(fig, path) -> Path:
     """Write ``fig`` as PNG (150 dpi, tight) and close it."""
+    from slipstep import io
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        io.save_figure(fig, path, dpi=150, bbox_inches="tight")
+    except OSError as exc:
+        raise io.output_error(path, exc) from None
+    finally:
+        plt.close(fig)
     return path
 
 

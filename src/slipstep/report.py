@@ -163,6 +163,10 @@ def write_report(system, path, periods: float = 3.0, rotor_speed_rpm: float | No
         parts.append("".join(f"<p class=\"warn\">Filter warning: {html.escape(m)}</p>" for m in warn_msgs))
     parts += ["<h2>Method advisor</h2>", f"<pre>{html.escape(advice.text())}</pre>", "<h2>Figures</h2>", fig_html,
               "</body></html>"]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("".join(parts), encoding="utf-8")
-    return path
+    from slipstep import io as sio
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise sio.output_error(path, exc) from None
+    return sio.write_text(path, "".join(parts))
