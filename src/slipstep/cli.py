@@ -492,15 +492,18 @@ def methods():
     out.print(table)
 
 
-def _register_plugins() -> None:
-    """Register every command module ``slipstep/cli_<name>.py`` (``register(app)``), in name
-    order. A module that cannot be imported is skipped with a warning on stderr, so one broken
-    plugin never takes the whole command line down."""
+def _register_plugins(target: typer.Typer | None = None) -> None:
+    """Register every command module ``slipstep/cli_<name>.py`` (its ``register(app)``) on
+    ``target`` (default: the slipstep app), in name order. A module that cannot be imported is
+    skipped with a warning on stderr, so one broken plugin never takes the command line down."""
     import importlib
 
-    package_dir = Path(__file__).parent
-    for path in sorted(package_dir.glob("cli_*.py")):
-        name = f"slipstep.{path.stem}"
+    import slipstep
+
+    target = app if target is None else target
+    stems = sorted({p.stem for d in slipstep.__path__ for p in Path(d).glob("cli_*.py")})
+    for stem in stems:
+        name = f"slipstep.{stem}"
         try:
             module = importlib.import_module(name)
         except Exception as exc:  # noqa: BLE001
@@ -508,7 +511,7 @@ def _register_plugins() -> None:
             continue
         register = getattr(module, "register", None)
         if callable(register):
-            register(app)
+            register(target)
 
 
 _register_plugins()

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import shutil
 import tempfile
@@ -116,17 +117,36 @@ def atomic_path(target: str | os.PathLike):
         raise
 
 
-def ensure_space(path, nbytes: float) -> None:
+def free_space(path) -> float:
+    """Bytes that may still be written beside ``path``: the free space of its file system,
+    capped by the file size limit of the process (ulimit -f); inf if unknown."""
+    free = math.inf
+    with contextlib.suppress(OSError):
+        free = shutil.disk_usage(Path(path).parent).free
+    with contextlib.suppress(ImportError, OSError, ValueError):
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        if soft != resource.RLIM_INFINITY:
+            free = min(free, soft)
+    return free
+
+
+def ensure_space(path, nbytes: float) -> float:
     """Refuse (OutputError) before writing about ``nbytes`` to ``path`` when its file system
-    has less free space, so that a full disk is reported before any byte is written."""
-    directory = Path(path).parent
-    try:
-        free = shutil.disk_usage(directory).free
-    except OSError:
-        return
-    if nbytes * 1.05 + 65536 > free:
-        raise OutputError(path, f"cannot be written: it needs about {format_bytes(nbytes)} and the disk has "
-                                f"{format_bytes(free)} free", "free disk space or write elsewhere")
+    has less free space or the file size limit is lower, so that a full disk is reported
+    before any byte is written; return the space left [bytes]."""
+    free = free_space(path)
+    if nbytes > free:
+        with contextlib.suppress(OSError):
+            if free < shutil.disk_usage(Path(path).parent).free:
+                raise OutputError(path, f"cannot be written: it needs about {format_bytes(nbytes)}, more than the "
+                                        f"file size limit (ulimit -f) of {format_bytes(free)}",
+                                  "raise the limit or write a smaller result")
+        raise OutputError(path, f"cannot be written: no space left on the device: it needs about "
+                                f"{format_bytes(nbytes)} and the disk has {format_bytes(free)} free",
+                          "free disk space or write elsewhere")
+    return free
 
 
 def format_bytes(n: float) -> str:

@@ -80,12 +80,25 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
 def save(ds: xr.Dataset, path) -> None:
     """Write a result to netCDF-4 (h5netcdf engine), atomically (slipstep.io.atomic_path):
     a failure (disk full, interrupt) leaves any previous file at ``path`` intact and raises
-    :class:`~slipstep.errors.OutputError` for a failure of the disk."""
+    :class:`~slipstep.errors.OutputError` for a failure of the disk.
+
+    A file that cannot fit is refused before any byte is written. When the disk (or the file
+    size limit) leaves less than twice the file, the file is built in memory and written with
+    plain writes: HDF5 itself may crash (segmentation fault) when the disk fills under it."""
+    import io
+
     from slipstep.io import atomic_path, ensure_space
 
-    ensure_space(path, ds.nbytes)
+    size = ds.nbytes * 1.02 + 262144  # the file: the data plus about 30 KB of HDF5 metadata (measured)
+    free = ensure_space(path, size)
     with atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        if free < 2 * size + 32 * 2 ** 20:
+            image = io.BytesIO()
+            ds.to_netcdf(image, engine="h5netcdf")
+            with open(tmp, "wb") as fh:
+                fh.write(image.getbuffer())
+        else:
+            ds.to_netcdf(tmp, engine="h5netcdf")
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
