@@ -280,7 +280,7 @@ class Simulation(Runner):
         self.ipar[K.PRELOAD] = 0
         self.ipar[K.LOWRANK] = int(self.low_rank)
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
@@ -475,9 +475,14 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int) -> K.Outputs:
+def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
+    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
+    the available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     k = capacity + 1
+    if k > 100_000:
+        limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
+        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
     return K.Outputs(
         t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
         q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),
