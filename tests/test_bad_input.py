@@ -236,6 +236,8 @@ CASES = [
         toml=STRUCTURE + MOTION_TABLE * 2),
     Bad("toml-table-unsorted", "`[[motion_table]] times_s = [1.0, 0.0]`", "[[motion_table]] 1: times_s",
         toml=STRUCTURE + MOTION_TABLE.replace("[0.0, 1.0]\nvalues", "[1.0, 0.0]\nvalues")),
+    Bad("toml-force-on-damper", "`[[force]]` in a `[damper]` case", "[[force]] 1",
+        toml=edit(PAPER, "[run]", '[[force]]\ncomponent = "x_G"\namplitude = 1.0\nfrequency_Hz = 10.0\n\n[run]')),
     Bad("toml-duplicate-motion-names", "`motion_names = [\"base.x\", \"base.x\"]` (the motion would go to the other "
         "column)", "motion_names",
         toml=edit(STRUCTURE, 'motion_names = ["base.x"]', 'motion_names = ["base.x", "base.x"]')),
@@ -288,6 +290,11 @@ CASES = [
     Bad("cli-negative-step-ratio", "`slipstep run paper --step-ratio -2`", "--step-ratio",
         cli=("run", "paper", "--step-ratio", "-2")),
     Bad("cli-zero-periods", "`slipstep run paper --periods 0`", "--periods", cli=("run", "paper", "--periods", "0")),
+    Bad("cli-tables-without-period", "`slipstep run tables.toml`: only `[[motion_table]]`, no `period_s`, no "
+        "`duration_s`", "[run] duration_s", cli=("run", "tables.toml"),
+        files=(("tables.toml", edit(STRUCTURE, '[[motion]]\ncomponent = "base.x"\namplitude = 1.0e-5\n'
+                                    'frequency_Hz = 50.0\n', MOTION_TABLE).encode()),)),
+    Bad("cli-zero-duration", "`slipstep run paper --duration 0`", "--duration", cli=("run", "paper", "--duration", "0")),
     Bad("cli-nan-periods", "`slipstep run paper --periods nan`", "--periods", cli=("run", "paper", "--periods", "nan")),
     Bad("cli-absurd-periods", "`slipstep run paper --periods 1e300`", "--periods",
         cli=("run", "paper", "--periods", "1e300")),

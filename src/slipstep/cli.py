@@ -232,9 +232,11 @@ def _method(cli_value: Optional[str], spec):
         raise InputError(field, exc.problem, exc.fix) from None
 
 
-def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None) -> tuple[dict, dict]:
+def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None) -> tuple[dict, dict]:
     """Command-line options over the case's \\[run] table; unset ones keep RunOptions defaults.
-    Returns (options, where each option came from: the flag or the case key)."""
+    Returns (options, where each option came from: the flag or the case key). --duration wins
+    over --periods, as duration does in RunOptions; a --periods given on the command line wins
+    over the case's duration_s."""
     opts, origin = {}, {}
     for key, cli_value, case_value in (("periods", periods, spec.periods), ("step_ratio", step_ratio, spec.step_ratio),
                                        ("steps_per_period", steps_per_period, spec.steps_per_period)):
@@ -245,8 +247,12 @@ def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None) -
             opts[key], origin[key] = case_value, f"[run] {key}"
         else:
             origin[key] = flag
-    if spec.duration_s is not None and periods is None:
+    if duration is not None:
+        opts["duration"], origin["duration"] = duration, "--duration"
+    elif spec.duration_s is not None and periods is None:
         opts["duration"], origin["duration"] = spec.duration_s, "[run] duration_s"
+    else:
+        origin["duration"] = "[run] duration_s"
     if max_memory is not None:
         from slipstep.methods.memory import parse_size
 
@@ -311,6 +317,8 @@ def run(
     step_ratio: Optional[float] = typer.Option(None, help="r in dt = r T_min/pi for dynamic methods (default 1)."),
     steps_per_period: Optional[int] = typer.Option(None, help="Steps per period of the quasi-static method "
                                                               "(default 300)."),
+    duration: Optional[float] = typer.Option(None, help="Simulated time [s] after the preload, instead of periods "
+                                                        "(default: the case's \\[run] duration_s)."),
     output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
     max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
@@ -330,7 +338,7 @@ def run(
 
         system, spec = load_case(case)
         chosen = _method(method, spec)
-        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory)
+        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration)
         directory = output_dir_option(output_dir)
         with option_names(origin):
             sim = Simulation(system, chosen, **opts)

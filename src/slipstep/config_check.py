@@ -366,6 +366,9 @@ def _components(data: dict, kind: str, table: str) -> list[str]:
 def _check_excitation(c: _Checker, data: dict, kind: str) -> None:
     for table in ("motion", "force", "motion_table", "force_table"):
         items = data.get(table) or []
+        if items and kind == "damper" and table.startswith("force"):
+            raise InputError(c.path(table, 0), f"[[{table}]] is not supported for [damper] cases",
+                             "drive the damper through platform motions ([[motion]], [[motion_table]])")
         components = _components(data, kind, table)
         seen: dict = {}
         for i, item in enumerate(items):
