@@ -124,7 +124,7 @@ def _save_traceback(exc: BaseException) -> str | None:
 
     text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
     name = f"slipstep-error-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
-    for directory in (Path.cwd(), Path(tempfile.gettempdir())):
+    for directory in (Path(tempfile.gettempdir()), Path.cwd()):
         try:
             return str(write_text(directory / name, f"slipstep {version()}\n{' '.join(sys.argv)}\n\n{text}"))
         except Exception:  # noqa: BLE001 (best effort)

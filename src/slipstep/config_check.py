@@ -52,39 +52,36 @@ def key_path(loc, data) -> str:
 
 
 def _key_path(loc, data) -> str:
-    tables: list[str] = []  # keys of the enclosing tables, dotted
-    element = ""  # '[[a.b]] 2 (P3)' when inside an array of tables
-    keys: list[str] = []  # keys below the current table / element
-    extra = ""  # index into a list value
+    tables: list[str] = []  # keys of the enclosing tables (dotted in the header)
+    element = ""  # '[[a.b]] 2 (P3)' inside an element of an array of tables
+    keys: list[str] = []  # keys below the current table or element
+    index = ""  # '[0]' into a list value
     node = data
-    for seg in loc:
-        if isinstance(node, dict) and isinstance(seg, str) and (seg in node or not extra):
-            if seg not in node:  # a missing key: the last segment
-                keys.append(seg)
-                node = None
-                continue
-            value = node[seg]
-            if isinstance(value, dict):
-                tables += keys + [seg]
-                keys = []
+    for i, seg in enumerate(loc):
+        last = i == len(loc) - 1
+        if isinstance(node, dict) and isinstance(seg, str):
+            if seg not in node:
+                if last:  # a missing key
+                    keys.append(seg)
+                continue  # else a union member tag ('float', 'list[float]')
+            node = node[seg]
+            if isinstance(node, dict):
+                tables, keys = tables + keys + [seg], []
             else:
                 keys.append(seg)
-            node = value
         elif isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
-            item = node[seg]
-            if isinstance(item, dict) and keys:
-                element = _element(".".join(tables + keys), seg, item)
-                tables, keys = [], []
+            if isinstance(node[seg], dict) and keys:
+                element, tables, keys = _element(".".join(tables + keys), seg, node[seg]), [], []
             else:
-                extra += f"[{seg}]"
-            node = item
-        # anything else: a union member tag ('float', 'list[float]') or a position past the data
+                index += f"[{seg}]"
+            node = node[seg]
+        # anything else: a union member tag or a position past the data
     if element:
         prefix = element + (f" [{'.'.join(tables)}]" if tables else "")
-        return f"{prefix}: {'.'.join(keys)}{extra}" if keys else prefix
+        return f"{prefix}: {'.'.join(keys)}{index}" if keys else prefix
     if tables:
-        return f"[{'.'.join(tables)}] {'.'.join(keys)}{extra}".rstrip()
-    return ".".join(keys) + extra or "case"
+        return f"[{'.'.join(tables)}] {'.'.join(keys)}{index}".rstrip()
+    return ".".join(keys) + index or "case"
 
 
 def _short(value, limit: int = 60) -> str:
