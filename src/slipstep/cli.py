@@ -38,7 +38,26 @@ _PASS_THROUGH = (typer.Exit, typer.Abort, TyperException, SystemExit)  # typer's
 
 
 class _Group(TyperGroup):
-    """The command group: any exception escaping a command becomes one line and an exit code."""
+    """The command group: any exception escaping a command becomes one line and an exit code;
+    ``--version`` is answered here (a typed option on the callback would make typer build its
+    pydantic adapters, 150 ms, for commands such as ``cases`` that need none)."""
+
+    def parse_args(self, ctx, args):
+        if args[:1] == ["--version"]:
+            print(f"slipstep {version()}")
+            ctx.exit(0)
+        command = self.commands.get(args[0]) if len(args) == 1 else None
+        if command is not None and not command.params and command.callback is not None:
+            # a command without options (cases, methods): called directly, without typer's parameter
+            # machinery, which imports pydantic (150 ms) to coerce the implicit --help flag
+            try:
+                command.callback()
+            except _PASS_THROUGH:
+                raise
+            except BaseException as exc:  # noqa: BLE001
+                ctx.exit(report_failure(exc))
+            ctx.exit(0)
+        return super().parse_args(ctx, args)
 
     def invoke(self, ctx):
         try:
@@ -58,7 +77,8 @@ app = typer.Typer(
         "Methods: newmark (1), newmark-adaptive (2), piecewise-linear (3), piecewise-linear-adaptive (2+3), "
         "quasi-static (4), full-newton.\n\n"
         "Exit codes: 0 ok; 1 the march stopped early (partial result written); 2 bad input; "
-        "3 I/O or environment failure; 4 internal error; 130 aborted (Ctrl-C)."
+        "3 I/O or environment failure; 4 internal error; 130 aborted (Ctrl-C).\n\n"
+        "`slipstep --version` prints the version."
     ),
     no_args_is_help=True,
     add_completion=False,
@@ -159,15 +179,8 @@ def version() -> str:
         return "0+unknown"
 
 
-def _version_callback(value: bool):
-    if value:
-        print(f"slipstep {version()}")
-        raise typer.Exit(0)
-
-
 @app.callback()
-def main(show_version: bool = typer.Option(False, "--version", callback=_version_callback, is_eager=True,
-                                           help="Print the version and exit.")):
+def main():
     """Time-marching simulation of structures with friction contacts."""
     _ignore_file_size_signal()
 
@@ -317,7 +330,7 @@ def run(
     step_ratio: Optional[float] = typer.Option(None, help="r in dt = r T_min/pi for dynamic methods (default 1)."),
     steps_per_period: Optional[int] = typer.Option(None, help="Steps per period of the quasi-static method "
                                                               "(default 300)."),
-    duration: Optional[float] = typer.Option(None, help="Simulated time [s] after the preload, instead of periods "
+    duration: Optional[float] = typer.Option(None, help="Simulated time \\[s] after the preload, instead of periods "
                                                         "(default: the case's \\[run] duration_s)."),
     output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
