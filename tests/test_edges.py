@@ -435,6 +435,12 @@ def test_light_imports_and_version():
             "'matplotlib'}; print(sorted(heavy & {m.split('.')[0] for m in sys.modules}))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=60)
     assert proc.stdout.strip() == "[]", proc.stdout + proc.stderr  # --help, cases, methods need none of them
+    for command in ("--help", "cases", "methods"):
+        code = ("import atexit, sys; from slipstep.cli import app; sys.argv = ['slipstep', %r]; heavy = {'numpy', "
+                "'numba', 'xarray', 'pydantic', 'scipy', 'matplotlib'}; atexit.register(lambda: print(sorted(heavy & "
+                "{m.split('.')[0] for m in sys.modules}), file=sys.stderr)); app()" % command)
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=60)
+        assert proc.returncode == 0 and proc.stderr.strip() == "[]", (command, proc.stderr)
     from importlib.metadata import version
 
     result = CliRunner().invoke(app, ["--version"])
