@@ -424,6 +424,22 @@ def test_memory_estimate_is_the_allocation_and_the_limit_is_checked_first():
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     per_point = sum(a.nbytes for a in out if a.shape and a.shape[0] == 1000) / 1000
     assert per_point == memory.point_bytes(n, nq, nd)
+    # the workspace estimate is what _allocate_workspace allocates (direct and low-rank solves, 60-DOF chain)
+    from slipstep.methods.simulation import _allocate_workspace, _workspace_bytes
+
+    def allocated(obj):
+        return sum(a.nbytes if isinstance(a, np.ndarray) else allocated(a) for a in obj
+                   if isinstance(a, (np.ndarray, tuple)))
+
+    k = 2e6 * np.eye(60) - 1e6 * (np.eye(60, k=1) + np.eye(60, k=-1))
+    gather = np.zeros((2, 60))
+    gather[0, -1] = gather[1, 0] = 1.0
+    chain = ss.System(ss.Structure(np.eye(60), stiffness=k), (ss.ContactElement("C", gather, 1e6, 1e6, 0.3,
+                                                                                normal_offset=1e-6),),
+                      ss.Excitation(period=0.01)).compile()
+    for compiled, low_rank in ((cs, False), (chain, False), (chain, True)):
+        assert _workspace_bytes(compiled, 20, low_rank) == pytest.approx(
+            allocated(_allocate_workspace(compiled, 20, low_rank)), rel=0.2)
     with pytest.raises(ss.InputError) as info:
         ss.Simulation(ss.load_system("paper"), "newmark", periods=1e6)  # 187 M points: refused, nothing allocated
     assert "available" in str(info.value) and "--max-memory" in str(info.value)
