@@ -8,6 +8,8 @@ contact, two per quasi-3D contact; each owns a slider and a state).
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import xarray as xr
 
@@ -87,8 +89,13 @@ def save(ds: xr.Dataset, path) -> None:
     plain writes: HDF5 itself may crash (segmentation fault) when the disk fills under it."""
     import io
 
+    from slipstep.errors import InputError
     from slipstep.io import atomic_path, ensure_space
 
+    if not isinstance(ds, xr.Dataset):
+        raise InputError("ds", f"is a {type(ds).__name__}", "give the Dataset returned by slipstep.run")
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise InputError("path", f"is {path!r}", "give a file path")
     size = ds.nbytes * 1.02 + 262144  # the file: the data plus about 30 KB of HDF5 metadata (measured)
     free = ensure_space(path, size)
     with atomic_path(path) as tmp:
@@ -110,6 +117,9 @@ def load(path, field: str = "result") -> xr.Dataset:
     and any HDF5 feature that reads outside the file: external storage, external or soft
     links, virtual datasets. The checks and the read use the same open file."""
     from slipstep.errors import InputError
+
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise InputError(field, f"is {path!r}", "give the path of a .nc result file")
 
     def refuse(problem: str) -> InputError:
         return InputError(field, f"{str(path)!r} {problem}",

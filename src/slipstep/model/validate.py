@@ -68,8 +68,11 @@ def finite(field: str, value) -> float:
 
 
 def _not_bool(field: str, value) -> None:
+    """Booleans and text are not numbers (float(True) = 1.0 and float('3') = 3.0 would pass)."""
     if isinstance(value, (bool, np.bool_)):
         raise InputError(field, f"is {value!r}, a boolean", "give a number")
+    if isinstance(value, (str, bytes)):
+        raise InputError(field, f"is {value!r}, text", "give a number, not a string")
 
 
 def _not_absurd(field: str, x: float) -> float:
