@@ -61,7 +61,8 @@ def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper)
             raise InputError("--output", f"{str(path)!r} is a directory", "give an HTML file name such as "
                              f"{str(path / (case_stem(case) + '_report.html'))!r}")
         if path.parent.exists() and not path.parent.is_dir():
-            raise InputError("--output", f"{str(path.parent)!r} is a file, not a directory", "give a path in a directory")
+            raise InputError("--output", f"{str(path.parent)!r} is a file, not a directory",
+                             "give a path in a directory")
         output_dir_option(path.parent, "--output")  # a read-only directory fails now, not after the run
         system = _load_case(case)
         xd = None if displacement_um is None else displacement_um * 1e-6

@@ -259,7 +259,8 @@ def _build_system(spec: CaseSpec) -> System:
 def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
     """A built-in case by name (``paper``) or a TOML file: (System, default run options)."""
     if not str(name_or_path).strip():
-        raise InputError("case", "is empty", f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})")
+        raise InputError("case", "is empty",
+                         f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})")
     path = case_path(name_or_path)
     spec = parse_case(read_toml(path), source=str(path))
     return build_system(spec), spec.run

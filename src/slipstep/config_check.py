@@ -160,7 +160,8 @@ def spec_error(errors: list[dict], data: dict, model, source: str) -> InputError
         return InputError(field, f"is {describe(first.get('input'))}, not a finite number", "give a finite number")
     expected = _EXPECTED.get(first["type"])
     if expected is None:
-        return InputError(field, f"{first['msg']} (got {describe(first.get('input'))})", "give a value of the right type")
+        return InputError(field, f"{first['msg']} (got {describe(first.get('input'))})",
+                          "give a value of the right type")
     return InputError(field, f"is {describe(first.get('input'))}, expected {expected}", f"give {expected}")
 
 
