@@ -35,6 +35,7 @@ from slipstep.text import escape_text
 
 EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
 _PASS_THROUGH = (typer.Exit, typer.Abort, TyperException, SystemExit)  # typer's own exits and usage errors
+_FAST_COMMANDS = ("cases", "methods")  # listings that take no argument: answered without typer's coercion
 
 
 class _Group(TyperGroup):
@@ -46,9 +47,9 @@ class _Group(TyperGroup):
         if args[:1] == ["--version"]:
             print(f"slipstep {version()}")
             ctx.exit(0)
-        command = self.commands.get(args[0]) if len(args) == 1 else None
+        command = self.commands.get(args[0]) if len(args) == 1 and args[0] in _FAST_COMMANDS else None
         if command is not None and not command.params and command.callback is not None:
-            # a command without options (cases, methods): called directly, without typer's parameter
+            # a listing without options (cases, methods): called directly, without typer's parameter
             # machinery, which imports pydantic (150 ms) to coerce the implicit --help flag
             try:
                 command.callback()
