@@ -160,11 +160,11 @@ def test_two_ctrl_c_during_save_abort_it_and_keep_previous_file(tmp_path, good_r
 
 
 def test_two_processes_writing_the_same_file_leave_it_whole_for_readers(tmp_path, good_result):
-    """Two processes save results to the same path 5 times each while this one reads it: every
+    """Two processes save results to the same path 3 times each while this one reads it: every
     read sees a whole result (one writer's or the other's), none a partial file."""
     target, _ = previous(good_result, tmp_path / "out")
     code = ("import sys, slipstep as ss; ds = ss.load_result(sys.argv[1]).assign_attrs(writer=sys.argv[3])\n"
-            "for _ in range(5): ss.save_result(ds, sys.argv[2])")
+            "for _ in range(3): ss.save_result(ds, sys.argv[2])")
     procs = [subprocess.Popen([sys.executable, "-c", code, str(good_result), str(target), name],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env(), text=True)
              for name in ("A", "B")]

@@ -22,7 +22,7 @@ import time
 
 from slipstep.kernels.codes import C_PROGRESS, C_STOP
 
-THREAD_MIN_POINTS = 10_000  # runs with fewer output points are called directly (they take milliseconds)
+THREAD_MIN_POINTS = 2_000  # runs with fewer output points are called directly (about a millisecond)
 PROGRESS_AFTER_S = 1.0
 POLL_S = 0.1
 
