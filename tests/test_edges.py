@@ -501,3 +501,24 @@ def test_atomic_path_modes_and_stale_temporaries(tmp_path):
     assert not stale.exists() and alive.exists() and target.read_text() == "three"
     with pytest.raises(OutputError, match="is a directory"):
         io.write_text(tmp_path, "x")
+
+
+def test_figures_draw_names_as_text_not_mathtext(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def figure(path):
+        fig, ax = plt.subplots()
+        ax.set_title("contact P$\\frac$1")  # a case-file name: mathtext would fail to parse it
+        fig.tight_layout()
+        io.save_figure(fig, path)
+        plt.close(fig)
+        return path
+
+    with pytest.raises(ValueError):
+        figure(tmp_path / "math.png")
+    assert io.plain_text_figures(figure)(tmp_path / "text.png").read_bytes()[:4] == b"\x89PNG"
+    assert matplotlib.rcParams["text.parse_math"]  # restored for the user's own figures
+    plt.close("all")

@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
-from slipstep.io import save_figure, write_text
+from slipstep.io import plain_text_figures, save_figure, write_text
 from slipstep.methods.registry import PAPER_METHODS, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.post.filtering import (
@@ -286,6 +286,7 @@ def plot_solves_histogram(datasets: dict, path, methods=(REFERENCE, "piecewise-l
     return Path(path)
 
 
+@plain_text_figures
 def write_outputs(rows: list[dict], datasets: dict, output_dir, title: str = "") -> dict[str, Path]:
     """Write comparison.csv, comparison.json, fig8_time_ratios.png and fig5_iterations.png."""
     out = Path(output_dir)

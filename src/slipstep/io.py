@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
 import math
 import os
 import shutil
@@ -173,6 +174,20 @@ def write_bytes(path, data: bytes) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return path
+
+
+def plain_text_figures(func):
+    """Decorator: the figures ``func`` makes draw every text as written, not as mathtext, so that a
+    name such as ``P$\\frac$1`` from a case file is a label, not a formula that fails to parse
+    (matplotlib's rcParams are restored afterwards)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        import matplotlib
+
+        with matplotlib.rc_context({"text.parse_math": False}):
+            return func(*args, **kwargs)
+
+    return wrapper
 
 
 def save_figure(fig, path, **savefig_kwargs) -> Path:

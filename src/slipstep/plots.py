@@ -25,6 +25,7 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from slipstep.io import plain_text_figures as _plain_text_figures  # noqa: E402
 from slipstep.results import STATE_NAMES  # noqa: E402
 
 STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61")  # lift-off, stick, slip+, slip-
@@ -243,6 +244,7 @@ def plot_state_timeline(ds: xr.Dataset):
     return fig
 
 
+@_plain_text_figures
 def write_figures(ds: xr.Dataset, output_dir, reference: xr.Dataset | None = None, system=None,
                   comparison: list[dict] | None = None, prefix: str = "") -> list[Path]:
     """Every figure that applies to ``ds`` as PNG files in ``output_dir``: time histories
