@@ -48,6 +48,20 @@ _EXPORTS = {
     "save_result": ("slipstep.results", "save"),
     "CompiledSystem": ("slipstep.system", "CompiledSystem"),
     "System": ("slipstep.system", "System"),
+    # substructures and assemblies (issue 11)
+    "DamperLink": ("slipstep.model.assembly", "DamperLink"),
+    "HarmonicForce": ("slipstep.model.assembly", "HarmonicForce"),
+    "LinkContact": ("slipstep.model.assembly", "LinkContact"),
+    "PlatformLink": ("slipstep.model.assembly", "PlatformLink"),
+    "assemble": ("slipstep.model.assembly", "assemble"),
+    "blade_chain": ("slipstep.model.assembly", "blade_chain"),
+    "engine_order_forces": ("slipstep.model.assembly", "engine_order_forces"),
+    "Point": ("slipstep.model.substructure", "Point"),
+    "Substructure": ("slipstep.model.substructure", "Substructure"),
+    "craig_bampton": ("slipstep.model.substructure", "craig_bampton"),
+    "frame_blade": ("slipstep.model.substructure", "frame_blade"),
+    "load_mtx": ("slipstep.model.substructure", "load_mtx"),
+    "load_npz": ("slipstep.model.substructure", "load_npz"),
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]

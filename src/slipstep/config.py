@@ -262,7 +262,12 @@ def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
         raise InputError("case", "is empty",
                          f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})")
     path = case_path(name_or_path)
-    spec = parse_case(read_toml(path), source=str(path))
+    data = read_toml(path)
+    if "substructures" in data:  # the third kind: an assembly (slipstep.config_assembly)
+        from slipstep.config_assembly import load_assembly_case
+
+        return load_assembly_case(data, path)
+    spec = parse_case(data, source=str(path))
     return build_system(spec), spec.run
 
 
