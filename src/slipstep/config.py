@@ -121,6 +121,11 @@ class CaseSpec(_Strict):
     _data: dict = PrivateAttr(default_factory=dict)  # the TOML data, for messages naming its keys
 
 
+def _loc(err) -> str:
+    """A pydantic error location as a dotted path (slipstep.config_assembly names its fields so)."""
+    return ".".join(str(p) for p in err["loc"]) or "case"
+
+
 def parse_case(data: dict, source: str = "case") -> CaseSpec:
     """Validate the TOML data of a case: the schema (pydantic: keys, types), then the checks in
     the user's terms (slipstep.config_check: names, duplicates, ranges, shapes)."""
