@@ -522,3 +522,11 @@ def test_figures_draw_names_as_text_not_mathtext(tmp_path):
     assert io.plain_text_figures(figure)(tmp_path / "text.png").read_bytes()[:4] == b"\x89PNG"
     assert matplotlib.rcParams["text.parse_math"]  # restored for the user's own figures
     plt.close("all")
+
+
+def test_lazy_public_names_survive_submodule_imports():
+    """`slipstep.advise` is a function even when the module of the same name is imported first."""
+    code = ("import importlib, slipstep; importlib.import_module('slipstep.advise'); import slipstep.report; "
+            "print(callable(slipstep.advise), type(slipstep.post).__name__, slipstep.run.__module__)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=120)
+    assert proc.stdout.split() == ["True", "module", "slipstep.methods.simulation"], proc.stdout + proc.stderr

@@ -11,6 +11,8 @@ and a script that only loads a case does not pay for numba or xarray until it ru
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 
 # public name -> (module, attribute in it); None: the module itself
 _EXPORTS = {
@@ -87,3 +89,19 @@ def __getattr__(name: str):
 
 def __dir__():
     return __all__
+
+
+class _Package(types.ModuleType):
+    """The package module: when the import system binds a submodule whose name is also a public
+    function of it (``slipstep.advise``, the module, and ``slipstep.advise()``, the function),
+    the function is bound, as the eager ``from slipstep.advise import advise`` used to do."""
+
+    def __setattr__(self, name, value):
+        target = _EXPORTS.get(name)
+        if (target is not None and target[1] is not None and isinstance(value, types.ModuleType)
+                and value.__name__ == target[0]):
+            value = getattr(value, target[1], value)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
