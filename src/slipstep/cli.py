@@ -159,15 +159,27 @@ def user_errors():
     into its one-line message and exit code (see :func:`report_failure`)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        for category in _SILENT_WARNINGS:
+            warnings.simplefilter("ignore", category)
         try:
             yield
         except _PASS_THROUGH:
+            _show_warnings(caught)
             raise
         except BaseException as exc:  # noqa: BLE001
+            _show_warnings(caught)  # before the failure line, which stays the last line
             raise typer.Exit(report_failure(exc)) from None
-        finally:
-            for w in caught:
-                say(f"warning: {' '.join(str(w.message).split())}", err, "yellow")
+        _show_warnings(caught)
+
+
+# library noise that is not the user's business (an import interrupted by Ctrl-C leaves unclosed files)
+_SILENT_WARNINGS = (ResourceWarning, DeprecationWarning, PendingDeprecationWarning, ImportWarning)
+
+
+def _show_warnings(caught: list) -> None:
+    for w in caught:
+        say(f"warning: {' '.join(str(w.message).split())}", err, "yellow")
+    caught.clear()
 
 
 def version() -> str:
