@@ -244,6 +244,14 @@ def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Pa
     return path
 
 
+# the names plugin modules (cli_frf) import from earlier versions of this module
+_case_stem = case_stem
+
+
+def _output_dir(path, option: str = "--output-dir") -> Path:
+    return output_dir_option(path, option)
+
+
 def _method(cli_value: Optional[str], spec):
     from slipstep.methods.registry import get_method
 
