@@ -71,3 +71,34 @@ def _walk(pkg: griffe.Module, obj: griffe.Object) -> None:
 class SphinxRoles(griffe.Extension):
     def on_package(self, *, pkg: griffe.Module, **kwargs) -> None:
         _walk(pkg, pkg)
+
+
+class LazyExports(griffe.Extension):
+    """The package exports its public names lazily (PEP 562: ``_EXPORTS`` maps a name to its module
+    and attribute, ``__getattr__`` imports on first use), which static analysis cannot follow: give
+    the package an alias per exported name and the export list, so its API page lists them."""
+
+    def on_package(self, *, pkg: griffe.Module, **kwargs) -> None:
+        table = _exports_table(pkg)
+        if not table:
+            return
+        for name, (module, attr) in table.items():
+            if name not in pkg.members or pkg.members[name].is_alias:
+                pkg.set_member(name, griffe.Alias(name, module if attr is None else f"{module}.{attr}", parent=pkg))
+        pkg.exports = list(table)
+
+
+def _exports_table(pkg: griffe.Module) -> dict[str, tuple[str, str | None]]:
+    import ast
+
+    if pkg.filepath is None or isinstance(pkg.filepath, list):
+        return {}
+    tree = ast.parse(pkg.filepath.read_text())
+    for node in tree.body:
+        target = getattr(node, "targets", [getattr(node, "target", None)])[0]
+        if getattr(target, "id", None) == "_EXPORTS" and node.value is not None:
+            try:
+                return ast.literal_eval(node.value)
+            except ValueError:
+                return {}
+    return {}

@@ -199,3 +199,25 @@ def _python_blocks():
 def test_python_examples_of_the_pages_run(code, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     exec(compile(code, "<docs>", "exec"), {"__name__": "__docs__"})
+
+
+def test_api_reference_sees_the_lazily_exported_public_names():
+    """The top-level API page is rendered from a static analysis of the package (griffe); the
+    package exports its names lazily, so docs/griffe_roles.py adds them: every name of
+    ``slipstep.__all__`` must resolve to its definition."""
+    griffe = pytest.importorskip("griffe")
+    import slipstep
+
+    roles = _load("griffe_roles")
+    extensions = griffe.load_extensions(roles.LazyExports, roles.SphinxRoles)
+    pkg = griffe.load("slipstep", search_paths=[str(ROOT / "src")], extensions=extensions)
+    for name in slipstep.__all__:
+        if name.startswith("__"):
+            continue
+        assert name in pkg.members, name
+        obj = pkg[name]
+        target = obj.final_target if obj.is_alias else obj  # an alias resolves to its definition
+        assert target.path.startswith("slipstep."), name
+    assert pkg["run"].final_target.path == "slipstep.methods.simulation.run"
+    # Sphinx roles became autorefs links
+    assert "[`RunOptions`][slipstep.methods.simulation.RunOptions]" in pkg["run"].docstring.value
