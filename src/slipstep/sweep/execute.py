@@ -1,0 +1,229 @@
+"""Running the cases of a sweep: one case, a batch of cases, and the two executors.
+
+Both executors call the same :func:`run_batch` on the same inputs, so the serial executor
+(debugging, one process) and the dask.distributed executor give bit-identical numbers.
+
+* :class:`SerialExecutor`: the batches one after another in this process.
+* :class:`DaskExecutor`: a ``LocalCluster`` on 127.0.0.1 (loopback only: nothing listens on
+  the network), one single-threaded worker process per core by default, or an existing
+  cluster given by its scheduler address. Each task is a batch of cases (the per-task
+  overhead of dask, about a millisecond, is paid once per batch); a task lost with a killed
+  worker is recomputed on another worker (``retries``), and the client, the only writer of
+  the store, receives the results as the batches finish.
+
+A case never raises: every failure (bad parameter values, a failed preload, an unexpected
+exception) becomes a result with its status and message.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import socket
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from slipstep.errors import InputError, SolverError
+
+STATUS_INPUT = "INPUT_ERROR"      # the case's values are not a valid case
+STATUS_PRELOAD = "PRELOAD_FAILED"  # the static preload found no equilibrium
+STATUS_ERROR = "ERROR"            # an unexpected exception (a bug): type and message kept
+
+
+@dataclass(frozen=True)
+class Payload:
+    """What every task needs, sent once per worker: the base case, the parameters' resolved
+    locations, the extra run options and the outputs."""
+
+    base: dict
+    parameters: tuple
+    extra_run: dict
+    outputs: dict
+    interfaces: str = "system"     # interfaces grouped by platform (post.loops.interfaces_from_system)
+
+
+def payload_of(plan) -> Payload:
+    return Payload(plan.base, plan.parameters, plan.extra_run, plan.outputs)
+
+
+def run_case(payload: Payload, values) -> dict:
+    """Build and run one case; returns {"status", "message", "warning", "summary",
+    "histories", "timing"}. Deterministic except "timing"."""
+    from slipstep.config import build_system, parse_case
+    from slipstep.methods.simulation import Simulation
+    from slipstep.post.summary import summarise, timings
+    from slipstep.sweep.cases import apply_values
+
+    start = time.perf_counter()
+    result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {},
+              "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            data = apply_values(payload.base, payload.parameters, values)
+            spec = parse_case(data, source="the swept case")
+            system = build_system(spec)
+            options = _run_options(spec.run, payload.extra_run)
+            method = spec.run.method or "newmark"
+            ds = Simulation(system, method, **options).run()
+            result["status"] = ds.attrs["status"]
+            result["message"] = ds.attrs["status_message"]
+            result["summary"] = summarise(ds, system)
+            result["timing"] = timings(ds)
+            if payload.outputs.get("histories"):
+                result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
+        except InputError as exc:
+            result.update(status=STATUS_INPUT, message=str(exc))
+        except SolverError as exc:
+            result.update(status=STATUS_PRELOAD, message=str(exc))
+        except Exception as exc:  # a case never aborts the sweep; the message names the exception
+            result.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}")
+    if caught:
+        result["warning"] = " | ".join(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
+    result["timing"]["case_time_s"] = time.perf_counter() - start
+    return result
+
+
+def _run_options(run, extra: dict) -> dict:
+    """RunOptions from a case's [run] table and the sweep's extra options."""
+    opts = {}
+    if run.duration_s is not None:
+        opts["duration"] = run.duration_s
+    for key in ("periods", "step_ratio", "steps_per_period"):
+        if getattr(run, key) is not None:
+            opts[key] = getattr(run, key)
+    opts.update(extra)
+    return opts
+
+
+def histories(ds, names, points: int) -> dict:
+    """The last period of each named variable on ``points`` uniform times from t_end - T to
+    t_end (post.timeline.resample_uniform: floats interpolated, states held)."""
+    from slipstep.post.periodic import last_period
+    from slipstep.post.timeline import resample_uniform
+
+    try:
+        lp = resample_uniform(last_period(ds), n=points)
+    except InputError:
+        return {}
+    return {name: np.asarray(lp[name].values) for name in names if name in lp}
+
+
+def run_batch(payload: Payload, rows) -> list[dict]:
+    """Run the cases ``rows`` = [(index, hash, values), ...]; each result carries its index,
+    hash, the worker's identity and the slipstep version."""
+    from slipstep import __version__
+
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    out = []
+    for index, digest, values in rows:
+        r = run_case(payload, values)
+        r.update(index=int(index), hash=digest, worker=worker, version=__version__)
+        out.append(r)
+    return out
+
+
+def default_batch_size(n_cases: int, workers: int) -> int:
+    """About 10 tasks per worker (load balance, retries lose little), at most 100 cases each
+    (a quasi-static paper case takes ~5 ms, so a task lasts well under a second)."""
+    return max(1, min(100, math.ceil(n_cases / (10 * max(workers, 1)))))
+
+
+def batches(rows: list, size: int) -> list[list]:
+    return [rows[k:k + size] for k in range(0, len(rows), size)]
+
+
+def machine_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        return os.cpu_count() or 1
+
+
+class SerialExecutor:
+    """The batches in order, in this process."""
+
+    name = "serial"
+    workers = 1
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def map(self, payload: Payload, tasks: list[list]) -> Iterator[list[dict]]:
+        for rows in tasks:
+            yield run_batch(payload, rows)
+
+
+class DaskExecutor:
+    """dask.distributed: a loopback LocalCluster of ``workers`` single-threaded processes
+    (default: one per core) or the cluster of ``scheduler`` (an address such as
+    tcp://10.0.0.5:8786). ``threads`` > 1 runs several cases per worker process in
+    threads (the kernels release the GIL; the set-up around them does not)."""
+
+    name = "dask"
+
+    def __init__(self, scheduler: str | None = None, workers: int | None = None, threads: int = 1,
+                 retries: int = 3):
+        self.scheduler, self.n_workers, self.threads, self.retries = scheduler, workers, threads, retries
+        self.cluster = self.client = None
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise InputError("workers", f"is {workers!r}", "give a whole number >= 1")
+        if scheduler is not None and workers is not None:
+            raise InputError("workers", "is set together with --scheduler", "size an existing cluster where it runs")
+
+    def __enter__(self):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:  # pragma: no cover
+            raise InputError("scheduler", "dask.distributed is not installed",
+                             "pip install 'dask[distributed]' or run with --serial") from None
+        if self.scheduler is None:
+            n = self.n_workers or machine_cores()
+            self.cluster = LocalCluster(n_workers=n, threads_per_worker=self.threads, processes=True,
+                                        host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR,
+                                        memory_limit=0)
+            self.client = Client(self.cluster)
+        else:
+            try:
+                self.client = Client(self.scheduler, timeout="10s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError("scheduler", f"{self.scheduler!r} cannot be reached ({exc})",
+                                 "give the address a running `dask scheduler` prints (tcp://HOST:8786)") from None
+        return self
+
+    @property
+    def workers(self) -> int:
+        return max(1, len(self.client.scheduler_info(n_workers=-1)["workers"])) if self.client else 1
+
+    def __exit__(self, *exc):
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        return False
+
+    def map(self, payload: Payload, tasks: list[list]) -> Iterator[list[dict]]:
+        from dask.distributed import as_completed
+
+        if not tasks:
+            return
+        shared = self.client.scatter(payload, broadcast=True)
+        futures = [self.client.submit(run_batch, shared, rows, pure=False, retries=self.retries,
+                                      key=f"slipstep-sweep-{rows[0][1][:12]}-{rows[0][0]}") for rows in tasks]
+        try:
+            for future in as_completed(futures):
+                result = future.result()
+                future.release()
+                yield result
+        finally:
+            for f in futures:
+                if not f.done():
+                    f.cancel()

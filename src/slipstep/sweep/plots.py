@@ -1,0 +1,260 @@
+"""Design maps and design curves from a sweep store (matplotlib, Agg backend).
+
+* :func:`design_map`    - a quantity over two parameters: filled contours (a grid) or a
+  triangulated map with the sample points (sampled sweeps), colour bar with units, the
+  optimum marked (star) and, on a grid, the best y for each x (the ridge a designer follows);
+* :func:`design_curves` - a quantity against one parameter, one curve per value of another
+  (the energy-vs-amplitude curve of a damper for several centrifugal loads).
+
+A quantity is a store variable, with a label in brackets for the labelled ones:
+``energy_per_cycle_J``, ``interface_energy_per_cycle_J[right]``, ``interface_zeta_eq[left]``.
+Parameters not on the axes are held at the values of ``at`` (default: those of the optimum),
+so the map goes through the optimum. Failed cases are drawn as grey crosses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+
+from slipstep.errors import InputError  # noqa: E402
+
+_DISPLAY = {"J": (1e3, "mJ"), "N/m": (1e-6, "N/um"), "m": (1e6, "um")}
+
+
+def quantity(ds, name: str) -> tuple[np.ndarray, str, str]:
+    """Values over ``case`` of a quantity ``name`` (``var`` or ``var[label]``), its display
+    unit and a label, values scaled to the display unit (J -> mJ, N/m -> N/um, m -> um)."""
+    from slipstep.post.summary import field_of
+
+    base, label = field_of(name)
+    if base not in ds.data_vars:
+        options = sorted(v for v in ds.data_vars if ds[v].dims[:1] == ("case",) and ds[v].dtype.kind == "f")
+        raise InputError("quantity", f"{base!r} is not in the store", f"use one of {', '.join(options)}")
+    var = ds[base]
+    dims = [d for d in var.dims if d != "case"]
+    if dims and label is None:
+        labels = [str(v) for v in ds[dims[0]].values]
+        raise InputError("quantity", f"{base!r} has one value per {dims[0]}",
+                         f"pick one: {', '.join(f'{base}[{lab}]' for lab in labels)}")
+    if dims:
+        labels = [str(v) for v in ds[dims[0]].values]
+        if label not in labels:
+            raise InputError("quantity", f"{label!r} is not a {dims[0]} of the store", f"use one of {', '.join(labels)}")
+        var = var.isel({dims[0]: labels.index(label)})
+    elif label is not None:
+        raise InputError("quantity", f"{base!r} has no [{label}]", f"write {base}")
+    units = var.attrs.get("units", "1")
+    factor, shown = _DISPLAY.get(units, (1.0, units))
+    text = var.attrs.get("long_name", base) + (f", {dims[0]} {label}" if label else "")
+    return np.asarray(var.values, float) * factor, shown, text
+
+
+def _param_label(ds, name: str) -> str:
+    if name not in ds.coords:
+        raise InputError("parameter", f"{name!r} is not a parameter of the sweep",
+                         f"use one of {', '.join(ds.attrs['parameters'])}")
+    attrs = ds[name].attrs
+    unit = attrs.get("units", "1")
+    return f"{attrs.get('long_name', name)} [{unit if unit != '1' else '-'}]"
+
+
+def _ok(ds) -> np.ndarray:
+    return np.asarray(ds["status"].values).astype(str) == "OK"
+
+
+def optimum(ds, name: str, minimize: bool = False) -> int | None:
+    """The case index of the best OK case for the quantity (largest, or smallest)."""
+    values, _, _ = quantity(ds, name)
+    good = _ok(ds) & np.isfinite(values)
+    if not good.any():
+        return None
+    masked = np.where(good, values, np.inf if minimize else -np.inf)
+    return int(np.argmin(masked) if minimize else np.argmax(masked))
+
+
+def _slice(ds, keep: list[str], at: dict | None, best: int | None) -> np.ndarray:
+    """Cases whose other parameters equal the held values (``at`` or the optimum's)."""
+    mask = np.ones(ds.sizes["case"], bool)
+    if ds.attrs.get("grid_shape") is None:
+        return mask  # sampled: every point (the other parameters vary along with them)
+    for p in ds.attrs["parameters"]:
+        if p in keep:
+            continue
+        values = ds[p].values
+        if at and p in at:
+            target = at[p]
+            nearest = values[np.argmin(np.abs(values - target))]
+            if not math.isclose(nearest, target, rel_tol=1e-9, abs_tol=1e-12):
+                raise InputError("at", f"{p} = {target:g} is not a value of the sweep",
+                                 f"use one of {', '.join(f'{v:g}' for v in np.unique(values))}")
+            target = nearest
+        elif best is not None:
+            target = values[best]
+        else:
+            target = values[0]
+        mask &= values == target
+    return mask
+
+
+def _held_text(ds, keep: list[str], mask: np.ndarray) -> str:
+    held = [p for p in ds.attrs["parameters"] if p not in keep]
+    if not held or ds.attrs.get("grid_shape") is None:
+        return ""
+    i = int(np.flatnonzero(mask)[0])
+    return ", ".join(f"{p} = {ds[p].values[i]:g} {ds[p].attrs.get('units', '')}".strip() for p in held)
+
+
+def _u(unit: str) -> str:
+    return "" if unit in ("1", "") else f" {unit}"
+
+
+def _log_axis(values: np.ndarray) -> bool:
+    v = values[np.isfinite(values)]
+    return v.size > 2 and v.min() > 0 and v.max() / v.min() >= 20
+
+
+def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
+               at: dict | None = None, minimize: bool = False, ax=None):
+    """Filled contours of quantity ``name`` over parameters ``x`` and ``y`` (module docstring).
+    Returns the matplotlib Figure."""
+    params = list(ds.attrs["parameters"])
+    if len(params) < 2:
+        raise InputError("y", "the sweep has a single parameter", "plot design curves instead")
+    x = x or params[1 if len(params) > 1 else 0]
+    y = y or params[0]
+    if x == y:
+        raise InputError("y", f"is {y!r}, the same as x", "give two different parameters")
+    values, unit, text = quantity(ds, name)
+    best = optimum(ds, name, minimize)
+    mask = _slice(ds, [x, y], at, best)
+    xs, ys, zs = ds[x].values[mask], ds[y].values[mask], values[mask]
+    ok = _ok(ds)[mask] & np.isfinite(zs)
+    own = ax is None
+    fig = plt.figure(figsize=(7.2, 5.6), layout="constrained") if own else ax.figure
+    ax = ax or fig.add_subplot()
+    grid = ds.attrs.get("grid_shape") is not None
+    finite = zs[ok]
+    levels = 14
+    if finite.size:  # every value inside the levels (a stuck loop's area is +-1e-18 J of round-off)
+        levels = MaxNLocator(14).tick_values(finite.min(), finite.max())
+        levels[0], levels[-1] = min(levels[0], finite.min()), max(levels[-1], finite.max())
+    if grid:
+        ux, uy = np.unique(xs), np.unique(ys)
+        Z = np.full((uy.size, ux.size), np.nan)
+        Z[np.searchsorted(uy, ys[ok]), np.searchsorted(ux, xs[ok])] = zs[ok]
+        filled = ax.contourf(ux, uy, Z, levels=levels, cmap="viridis")
+        ax.contour(ux, uy, Z, levels=filled.levels, colors="k", linewidths=0.4, alpha=0.5)
+        ax.plot(xs, ys, ".", color="w", ms=2.5, alpha=0.6)
+        spread = np.nanmax(Z) - np.nanmin(Z) if np.isfinite(Z).any() else 0.0
+        ridge = [(ux[j], uy[np.nanargmin(Z[:, j]) if minimize else np.nanargmax(Z[:, j])])
+                 for j in range(ux.size)  # columns that vary (not a flat, all-stuck column)
+                 if np.isfinite(Z[:, j]).sum() > 1 and np.nanmax(Z[:, j]) - np.nanmin(Z[:, j]) > 1e-6 * spread]
+        if ridge:
+            rx, ry = zip(*ridge)
+            ax.plot(rx, ry, "--", color="#ff8c00", lw=1.4, marker="o", ms=4, mec="k", mew=0.5,
+                    label=f"best {y} for each {x}")
+    else:
+        if ok.sum() < 3:
+            raise InputError("quantity", f"only {ok.sum()} successful cases to map", "run more cases")
+        filled = ax.tricontourf(xs[ok], ys[ok], zs[ok], levels=levels, cmap="viridis")
+        ax.plot(xs[ok], ys[ok], ".", color="k", ms=3, alpha=0.6, label="samples")
+    if (~ok).any():
+        ax.plot(xs[~ok], ys[~ok], "x", color="0.5", ms=6, label="failed cases")
+    bar = fig.colorbar(filled, ax=ax)
+    bar.set_label(f"{text} [{unit if unit != '1' else '-'}]")
+    if best is not None and mask[best]:
+        bx, by, bz = ds[x].values[best], ds[y].values[best], values[best]
+        ax.plot(bx, by, marker="*", ms=18, color="#ff3030", mec="k", mew=1.0, ls="none", clip_on=False, zorder=5,
+                label=f"{'minimum' if minimize else 'optimum'}: {bz:.4g}{_u(unit)} at {x} = {bx:g}, {y} = {by:g}")
+    ax.set_xlabel(_param_label(ds, x))
+    ax.set_ylabel(_param_label(ds, y))
+    if _log_axis(xs):
+        ax.set_xscale("log")
+    if _log_axis(ys):
+        ax.set_yscale("log")
+    held = _held_text(ds, [x, y], mask)
+    ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: {text}" + (f"\n({held})" if held else ""))
+    if own:
+        fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    else:
+        ax.legend(fontsize=8)
+    return fig
+
+
+def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, group: str | None = None,
+                  at: dict | None = None, minimize: bool = False, ax=None):
+    """Quantity ``name`` against parameter ``x``, one curve per value of ``group`` (grid
+    sweeps); returns the Figure."""
+    params = list(ds.attrs["parameters"])
+    x = x or params[-1]
+    if group is None and len(params) > 1:
+        group = next(p for p in params if p != x)
+    if group == x:
+        raise InputError("group", f"is {group!r}, the same as x", "give another parameter")
+    if ds.attrs.get("grid_shape") is None:
+        raise InputError("x", "design curves need a grid sweep", "use design_map for sampled sweeps")
+    values, unit, text = quantity(ds, name)
+    best = optimum(ds, name, minimize)
+    keep = [x] + ([group] if group else [])
+    mask = _slice(ds, keep, at, best)
+    ok = _ok(ds)
+    fig = ax.figure if ax is not None else plt.figure(figsize=(7.2, 4.8), constrained_layout=True)
+    ax = ax or fig.add_subplot()
+    groups = np.unique(ds[group].values[mask]) if group else [None]
+    colors = plt.cm.viridis(np.linspace(0.0, 0.9, len(groups)))
+    for g, color in zip(groups, colors):
+        sel = mask & (ds[group].values == g) if group else mask.copy()
+        order = np.argsort(ds[x].values[sel])
+        xs, zs, good = ds[x].values[sel][order], values[sel][order], ok[sel][order]
+        label = f"{group} = {g:g} {ds[group].attrs.get('units', '')}".strip() if group else None
+        ax.plot(xs[good], zs[good], marker="o", ms=4, color=color, label=label)
+        if (~good).any():
+            ax.plot(xs[~good], np.zeros((~good).sum()), "x", color="0.5", ms=6)
+    if best is not None and mask[best]:
+        ax.plot(ds[x].values[best], values[best], marker="*", ms=16, color="#ff3030", mec="k", ls="none",
+                clip_on=False, zorder=5,
+                label=f"{'minimum' if minimize else 'optimum'}: {values[best]:.4g}{_u(unit)} at {x} = "
+                      f"{ds[x].values[best]:g}" + (f", {group} = {ds[group].values[best]:g}" if group else ""))
+    ax.set_xlabel(_param_label(ds, x))
+    ax.set_ylabel(f"{text} [{unit if unit != '1' else '-'}]")
+    if _log_axis(ds[x].values):
+        ax.set_xscale("log")
+    ax.grid(alpha=0.3)
+    held = _held_text(ds, keep, mask)
+    ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: {text}" + (f"\n({held})" if held else ""))
+    ax.legend(loc="best", fontsize=8)
+    return fig
+
+
+def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
+                  group: str | None = None, at: dict | None = None, minimize: bool = False) -> list:
+    """design_map.png (two or more parameters) and design_curves.png (grid sweeps) in
+    ``output_dir``, each written through slipstep.io.atomic_path; returns the paths."""
+    from pathlib import Path
+
+    from slipstep.io import atomic_path
+
+    output_dir = Path(output_dir)
+    paths = []
+    params = list(ds.attrs["parameters"])
+    figures = []
+    if len(params) >= 2:
+        figures.append(("design_map.png", design_map(ds, name, x, y, at, minimize)))
+    if ds.attrs.get("grid_shape") is not None:
+        cx = x or params[-1]
+        cg = y if y and y != cx else None
+        figures.append(("design_curves.png", design_curves(ds, name, cx, cg, at, minimize)))
+    for filename, fig in figures:
+        path = output_dir / filename
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=130, format="png")
+        plt.close(fig)
+        paths.append(path)
+    return paths

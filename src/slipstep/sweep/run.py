@@ -1,0 +1,107 @@
+"""The sweep driver: plan, store, executor, incremental writes, resume.
+
+    report = run_sweep("examples/amplitude_sweep.toml", "amp.zarr")             # local dask cluster
+    report = run_sweep(spec, "amp.zarr", executor=SerialExecutor())             # one process
+    report = run_sweep(spec, "amp.zarr", executor=DaskExecutor("tcp://host:8786"))
+
+The client is the only writer of the store: finished batches are buffered and flushed every
+``flush_seconds`` (and at the end, and on Ctrl-C), so a killed client loses at most the
+cases of the last ``flush_seconds``, and a rerun of the same call computes only the cases
+the store does not hold yet.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from slipstep.errors import InputError
+from slipstep.sweep.cases import Plan, make_plan
+from slipstep.sweep.execute import DaskExecutor, batches, default_batch_size, payload_of
+from slipstep.sweep.spec import SweepSpec, load_spec
+from slipstep.sweep.store import SweepStore
+
+
+def plan_of(spec: SweepSpec | str | Path) -> Plan:
+    return make_plan(spec if isinstance(spec, SweepSpec) else load_spec(spec))
+
+
+def labels_of(plan: Plan) -> dict:
+    """Names along the model's dimensions, from the first case (the parameters change values,
+    not the model's topology); a first case that is not a valid case is a spec error."""
+    from slipstep.config import build_system, parse_case
+    from slipstep.post.loops import interfaces_from_system
+
+    described = ", ".join(f"{p.name} = {v:g}" for p, v in zip(plan.parameters, plan.values[0]))
+    try:
+        system = build_system(parse_case(plan.case_dict(0), source="the first case of the sweep"))
+    except InputError as exc:
+        raise InputError(exc.field, f"{exc.problem} (first case of the sweep: {described})", exc.fix) from None
+    return {"interface": list(interfaces_from_system(system)), "contact": list(system.contact_names),
+            "direction": list(system.direction_names()), "dof": list(system.structure.dof_names),
+            "motion": list(system.motion_names)}
+
+
+def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
+              overwrite: bool = False, progress: Callable[[dict], None] | None = None,
+              flush_seconds: float = 1.0) -> dict:
+    """Compute every case of ``spec`` missing from ``store`` (created if needed) and return
+    a report: cases, computed, skipped (already stored), counts by status, elapsed_s,
+    cases_per_s, mean kernel and case times, overhead_per_case_s (case time outside the
+    kernel), workers, executor. ``progress`` is called with the running counts."""
+    plan = plan_of(spec)
+    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
+        raise InputError("batch_size", f"is {batch_size!r}", "give a whole number >= 1")
+    labels = labels_of(plan)
+    sweep_store = SweepStore.open_or_create(store, plan, labels, overwrite=overwrite)
+    done = sweep_store.done()
+    todo = np.flatnonzero(~done)
+    rows = [(int(i), plan.hashes[i], plan.values[i].tolist()) for i in todo]
+    executor = executor if executor is not None else DaskExecutor()
+    start = time.perf_counter()
+    counts: Counter = Counter()
+    state = {"total": plan.n_cases, "skipped": int(done.sum()), "computed": 0, "failed": 0, "todo": len(rows),
+             "elapsed_s": 0.0}
+    kernel, case_time = [], []
+    from slipstep import __version__
+
+    with executor as ex:
+        size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.workers)
+        buffer: list[dict] = []
+        last_flush = time.perf_counter()
+        try:
+            for results in ex.map(payload_of(plan), batches(rows, size)):
+                for r in results:
+                    if r["version"] != __version__:
+                        raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
+                                         f"{__version__}", "install the same slipstep version on every worker")
+                    counts[r["status"]] += 1
+                    kernel.append(r["timing"]["kernel_time_s"])
+                    case_time.append(r["timing"]["case_time_s"])
+                buffer.extend(results)
+                state["computed"] += len(results)
+                state["failed"] = sum(v for k, v in counts.items() if k != "OK")
+                state["elapsed_s"] = time.perf_counter() - start
+                if time.perf_counter() - last_flush >= flush_seconds:
+                    sweep_store.write(buffer)
+                    buffer, last_flush = [], time.perf_counter()
+                if progress is not None:
+                    progress(dict(state))
+        finally:
+            sweep_store.write(buffer)  # also on Ctrl-C or a lost cluster: nothing computed is lost
+        workers = ex.workers
+    elapsed = time.perf_counter() - start
+    k, c = np.array(kernel, float), np.array(case_time, float)
+    return {
+        "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
+        "status_counts": dict(counts), "failed": state["failed"], "elapsed_s": elapsed,
+        "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
+        "mean_kernel_time_s": float(np.nanmean(k)) if k.size and np.isfinite(k).any() else float("nan"),
+        "mean_case_time_s": float(c.mean()) if c.size else float("nan"),
+        "overhead_per_case_s": float(np.nanmean(c - np.nan_to_num(k))) if c.size else float("nan"),
+        "batch_size": size, "workers": workers, "executor": executor.name,
+    }
