@@ -270,6 +270,7 @@ def methods():
 
 def _register_plugins() -> None:
     """Post-processing commands (plot/report/...) live in slipstep.cli_post when installed."""
+    __import__("slipstep.cli_sweep", fromlist=["register"]).register(app)  # sweep, sweep-plot
     try:
         from slipstep.cli_post import register
     except ModuleNotFoundError as exc:

@@ -61,6 +61,7 @@ FIELDS: dict[str, tuple[str, str]] = {
     "contact_N_max_N": ("N", "maximum normal force"),
 }
 
+_NEEDED = ("displacement", "tangential_displacement", "tangential_force", "normal_force", "contact_state")
 _RUN_COUNTS = ("steps", "solves", "mean_solves_per_step", "state_changes", "redone_steps", "factorisations")
 
 
@@ -92,6 +93,7 @@ def summarise(ds: xr.Dataset, interfaces=None, period: float | None = None) -> d
     for key in _RUN_COUNTS:
         value = a.get(key, math.nan)
         out[key] = float(value) if key == "mean_solves_per_step" else int(value) if value == value else math.nan
+    ds = ds[[v for v in _NEEDED if v in ds]]  # fewer variables: every xarray selection below is cheaper
     try:
         lp = last_period(ds, period)
     except InputError:  # the run stopped before one full period: loop quantities are undefined

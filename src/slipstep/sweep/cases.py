@@ -172,6 +172,30 @@ def _set(data, path: Path_, value) -> None:
     node[path[-1]] = value
 
 
+def _integer_key(path: Path_) -> bool:
+    """True when the case format (slipstep.config.CaseSpec) declares the key an integer."""
+    import typing
+
+    from pydantic import BaseModel
+
+    from slipstep.config import CaseSpec
+
+    node = CaseSpec
+    for p in path:
+        if isinstance(p, int):
+            continue
+        fields = getattr(node, "model_fields", None)
+        if fields is None or p not in fields:
+            return False
+        node = fields[p].annotation
+        while not (isinstance(node, type) and issubclass(node, BaseModel)) and typing.get_args(node):
+            args = [a for a in typing.get_args(node) if a is not type(None)]
+            if len(args) != 1:
+                return False
+            node = args[0]
+    return node is int
+
+
 def apply_values(base: dict, parameters, values) -> dict:
     """A deep copy of ``base`` with each parameter's value written at all its paths."""
     data = copy.deepcopy(base)
@@ -209,7 +233,7 @@ def unit_of(key: str, kind: str) -> str:
 def _names(spec: SweepSpec) -> list[str]:
     """Store names of the parameters: ``name`` if given, else the last key segment, extended
     leftwards (``P3_friction_coefficient``) until the names are unique."""
-    chosen = []
+    chosen, first = [], None
     for depth in range(1, 8):
         chosen = []
         for p in spec.parameters:
@@ -220,7 +244,8 @@ def _names(spec: SweepSpec) -> list[str]:
             chosen.append("_".join(segs[-depth:]).replace("+", "p"))
         if len(set(chosen)) == len(chosen):
             return chosen
-    dup = sorted({n for n in chosen if chosen.count(n) > 1})
+        first = first or chosen
+    dup = sorted({n for n in first if first.count(n) > 1})
     raise InputError("parameter.name", f"two parameters are both named {dup[0]!r}", "give each a distinct name")
 
 
@@ -275,8 +300,7 @@ def make_plan(spec: SweepSpec) -> Plan:
             paths.extend(found)
         if len(set(paths)) != len(paths):
             raise InputError(f"parameter.{i + 1}.key", "sets one location twice", "list each key once")
-        integer = all(isinstance(_get(base, q), int) and not isinstance(_get(base, q), bool) for q in paths) and \
-            all(_get(base, q) is not None for q in paths)
+        integer = all(_integer_key(q) for q in paths)
         resolved.append(ResolvedParameter(name, p.unit or unit_of(p.keys[0], kind), p.keys, tuple(paths), integer))
     seen: dict = {}
     for i, rp in enumerate(resolved):

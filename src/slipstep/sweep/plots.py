@@ -249,7 +249,7 @@ def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | Non
         figures.append(("design_map.png", design_map(ds, name, x, y, at, minimize)))
     if ds.attrs.get("grid_shape") is not None:
         cx = x or params[-1]
-        cg = y if y and y != cx else None
+        cg = group or (y if y and y != cx else None)
         figures.append(("design_curves.png", design_curves(ds, name, cx, cg, at, minimize)))
     for filename, fig in figures:
         path = output_dir / filename

@@ -50,7 +50,8 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
               overwrite: bool = False, progress: Callable[[dict], None] | None = None,
               flush_seconds: float = 1.0) -> dict:
     """Compute every case of ``spec`` missing from ``store`` (created if needed) and return
-    a report: cases, computed, skipped (already stored), counts by status, elapsed_s,
+    a report: cases, computed, skipped (already stored), counts by status, elapsed_s (the
+    cases, after startup_s: cluster start and a warm-up case per worker that loads the kernels),
     cases_per_s, mean kernel and case times, overhead_per_case_s (case time outside the
     kernel), workers, executor. ``progress`` is called with the running counts."""
     plan = plan_of(spec)
@@ -62,7 +63,7 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
     todo = np.flatnonzero(~done)
     rows = [(int(i), plan.hashes[i], plan.values[i].tolist()) for i in todo]
     executor = executor if executor is not None else DaskExecutor()
-    start = time.perf_counter()
+    started = time.perf_counter()
     counts: Counter = Counter()
     state = {"total": plan.n_cases, "skipped": int(done.sum()), "computed": 0, "failed": 0, "todo": len(rows),
              "elapsed_s": 0.0}
@@ -70,11 +71,16 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
     from slipstep import __version__
 
     with executor as ex:
+        payload = payload_of(plan)
+        if rows:
+            ex.warm_up(payload)
+        start = time.perf_counter()
+        startup = start - started
         size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.workers)
         buffer: list[dict] = []
         last_flush = time.perf_counter()
         try:
-            for results in ex.map(payload_of(plan), batches(rows, size)):
+            for results in ex.map(payload, batches(rows, size)):
                 for r in results:
                     if r["version"] != __version__:
                         raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
@@ -93,12 +99,12 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
                     progress(dict(state))
         finally:
             sweep_store.write(buffer)  # also on Ctrl-C or a lost cluster: nothing computed is lost
+        elapsed = time.perf_counter() - start
         workers = ex.workers
-    elapsed = time.perf_counter() - start
     k, c = np.array(kernel, float), np.array(case_time, float)
     return {
         "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
-        "status_counts": dict(counts), "failed": state["failed"], "elapsed_s": elapsed,
+        "status_counts": dict(counts), "failed": state["failed"], "elapsed_s": elapsed, "startup_s": startup,
         "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
         "mean_kernel_time_s": float(np.nanmean(k)) if k.size and np.isfinite(k).any() else float("nan"),
         "mean_case_time_s": float(c.mean()) if c.size else float("nan"),
