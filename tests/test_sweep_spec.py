@@ -78,6 +78,7 @@ def test_units_from_key_names():
     assert unit_of("force.1.amplitude", "structure") == "N"
     assert unit_of("damper.contacts.*.friction_coefficient", "damper") == "1"
     assert unit_of("damper.platforms.2.angle_deg", "damper") == "deg"
+    assert unit_of("structure.constant_force_N.2", "structure") == "N"
 
 
 # ---------------------------------------------------------------- sampling

@@ -133,10 +133,6 @@ def sweep_plot(
             if not sep:
                 raise InputError("at", f"{item!r} is not NAME=VALUE", "write e.g. --at centrifugal_force_N=200")
         ds = open_sweep(store)
-        for name in held:
-            if name not in ds.attrs["parameters"]:
-                raise InputError("at", f"{name!r} is not a parameter of the sweep",
-                                 f"use one of {', '.join(ds.attrs['parameters'])}")
         paths = write_figures(ds, _output_dir(output_dir), quantity, x, y, y, held, minimize)
     for path in paths:
         out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)

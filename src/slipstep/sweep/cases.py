@@ -216,7 +216,8 @@ _UNIT_SUFFIXES = [("_N_per_um", "N/um"), ("_N_per_m", "N/m"), ("_N_s_per_m", "N 
 def unit_of(key: str, kind: str) -> str:
     """The unit of a case-file key, read from its name (units are part of key names); motion
     and force amplitudes: um for [damper] cases, m / N for [structure] cases."""
-    last = _split(key)[-1]
+    named = [s for s in _split(key) if s != "*" and not re.fullmatch(r"[+-]?\d+", s)]
+    last = named[-1] if named else ""
     if last == "friction_coefficient" or last in ("periods", "steps_per_period", "step_ratio"):
         return "1"
     if last == "amplitude":

@@ -89,18 +89,28 @@ def _slice(ds, keep: list[str], at: dict | None, best: int | None) -> np.ndarray
             continue
         values = ds[p].values
         if at and p in at:
-            target = at[p]
-            nearest = values[np.argmin(np.abs(values - target))]
-            if not math.isclose(nearest, target, rel_tol=1e-9, abs_tol=1e-12):
-                raise InputError("at", f"{p} = {target:g} is not a value of the sweep",
-                                 f"use one of {', '.join(f'{v:g}' for v in np.unique(values))}")
-            target = nearest
+            target = values[np.argmin(np.abs(values - at[p]))]
         elif best is not None:
             target = values[best]
         else:
             target = values[0]
         mask &= values == target
     return mask
+
+
+def check_at(ds, at: dict | None) -> None:
+    """Each held parameter is a parameter of the sweep and its value one of the sweep's."""
+    if not at:
+        return
+    if ds.attrs.get("grid_shape") is None:
+        raise InputError("at", "holds parameters of a sampled sweep", "remove it: a sampled map shows every point")
+    for p, target in at.items():
+        if p not in ds.attrs["parameters"]:
+            raise InputError("at", f"{p!r} is not a parameter of the sweep", f"use one of {', '.join(ds.attrs['parameters'])}")
+        values = np.unique(ds[p].values)
+        if not np.isclose(values, target, rtol=1e-9, atol=1e-12).any():
+            raise InputError("at", f"{p} = {target:g} is not a value of the sweep",
+                             f"use one of {', '.join(f'{v:g}' for v in values)}")
 
 
 def _held_text(ds, keep: list[str], mask: np.ndarray) -> str:
@@ -132,6 +142,7 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
     if x == y:
         raise InputError("y", f"is {y!r}, the same as x", "give two different parameters")
     values, unit, text = quantity(ds, name)
+    check_at(ds, at)
     best = optimum(ds, name, minimize)
     mask = _slice(ds, [x, y], at, best)
     xs, ys, zs = ds[x].values[mask], ds[y].values[mask], values[mask]
@@ -201,6 +212,7 @@ def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, gr
     if ds.attrs.get("grid_shape") is None:
         raise InputError("x", "design curves need a grid sweep", "use design_map for sampled sweeps")
     values, unit, text = quantity(ds, name)
+    check_at(ds, at)
     best = optimum(ds, name, minimize)
     keep = [x] + ([group] if group else [])
     mask = _slice(ds, keep, at, best)
@@ -242,6 +254,7 @@ def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | Non
     from slipstep.io import atomic_path
 
     output_dir = Path(output_dir)
+    check_at(ds, at)
     paths = []
     params = list(ds.attrs["parameters"])
     figures = []
