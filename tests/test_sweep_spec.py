@@ -9,7 +9,7 @@ import pytest
 from slipstep.config import CASES_DIR, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep import Parameter, SweepSpec, load_spec, make_plan, resolve, spec_from_dict
-from slipstep.sweep.cases import apply_values, unit_of
+from slipstep.sweep.cases import unit_of
 
 PAPER = read_toml(CASES_DIR / "paper.toml")
 
@@ -67,7 +67,7 @@ def test_a_misspelt_final_key_is_named_by_the_case_validation():
     plan = make_plan(_spec(Parameter("damper.centrifugal_forc_N", values=(100.0,))))
     with pytest.raises(InputError) as exc:
         labels_of(plan)
-    assert exc.value.field == "damper.centrifugal_forc_N" and "first case of the sweep" in exc.value.problem
+    assert exc.value.field == "damper.centrifugal_forc_N" and "base case of the sweep" in exc.value.problem
 
 
 def test_units_from_key_names():

@@ -10,8 +10,8 @@ interrupted (rerun the same command to continue); 2 bad input.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -20,13 +20,13 @@ def sweep(
     spec: Path = typer.Argument(..., help="sweep specification (TOML): [sweep], [run], [[parameter]], [outputs]"),
     output: Path = typer.Option(..., "--output", "-o", help="the zarr store (a folder, e.g. results.zarr); "
                                 "rerunning on an existing store computes only the cases it does not hold"),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running dask scheduler "
+    scheduler: str | None = typer.Option(None, "--scheduler", help="address of a running dask scheduler "
                                             "(tcp://HOST:8786); default: a local cluster on 127.0.0.1"),
-    workers: Optional[int] = typer.Option(None, "--workers", "-w", help="worker processes of the local cluster "
+    workers: int | None = typer.Option(None, "--workers", "-w", help="worker processes of the local cluster "
                                           "(default: one per core)"),
     serial: bool = typer.Option(False, "--serial", help="run in this process, no dask (debugging; "
                                 "bit-identical numbers)"),
-    batch_size: Optional[int] = typer.Option(None, "--batch-size", help="cases per task (default: the spec's "
+    batch_size: int | None = typer.Option(None, "--batch-size", help="cases per task (default: the spec's "
                                              "sweep.batch_size, else automatic)"),
     overwrite: bool = typer.Option(False, "--overwrite", help="replace an existing store of another sweep"),
     as_json: bool = typer.Option(False, "--json", help="no progress bar; print the final report as JSON"),
@@ -56,6 +56,10 @@ def sweep(
         print(json.dumps(report))
     else:
         _print_report(report, output, out)
+    if report["missing"]:
+        err.print(f"{report['missing']} case(s) are not in the store (their tasks were lost); rerun the same "
+                  "command to compute them", style="bold red", markup=False, soft_wrap=True)
+        raise typer.Exit(1)
     if report["failed"]:
         err.print(f"{report['failed']} case(s) failed; their status and message are in the store "
                   "(variables status, status_message)", style="bold red", markup=False, soft_wrap=True)
@@ -63,8 +67,14 @@ def sweep(
 
 
 def _with_progress(run_sweep, spec, output, executor, batch_size, overwrite, console):
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
-        TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     columns = (TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("cases"),
                TextColumn("{task.fields[failed]} failed", style="red"), TextColumn("{task.fields[rate]}"),
@@ -88,11 +98,11 @@ def _print_report(r: dict, output: Path, console) -> None:
     table.add_column("quantity", style="cyan")
     table.add_column("value")
     statuses = ", ".join(f"{k} {v}" for k, v in sorted(r["status_counts"].items())) or "-"
-    ms = lambda s: "-" if s != s else f"{s * 1e3:.3g} ms"  # noqa: E731
+    ms = lambda s: "-" if math.isnan(s) else f"{s * 1e3:.3g} ms"  # noqa: E731
     rows = [("cases in the sweep", r["cases"]), ("computed now", r["computed"]),
             ("already in the store", r["skipped"]), ("status of the computed cases", statuses),
-            ("elapsed (cases)", f"{r['elapsed_s']:.3g} s, after {r['startup_s']:.3g} s of start-up "
-                                "(cluster, kernels loaded)"), ("rate", f"{r['cases_per_s']:.3g} cases/s"),
+            ("elapsed (cases)", (f"{r['elapsed_s']:.3g} s, after {r['startup_s']:.3g} s of start-up "
+                                 "(cluster, kernels loaded)")), ("rate", f"{r['cases_per_s']:.3g} cases/s"),
             ("executor", f"{r['executor']}, {r['workers']} worker(s), {r['batch_size']} cases per task"),
             ("mean kernel time per case", ms(r["mean_kernel_time_s"])),
             ("mean time per case (build, run, summary)", ms(r["mean_case_time_s"])),
@@ -107,10 +117,10 @@ def sweep_plot(
     quantity: str = typer.Option("energy_per_cycle_J", "--quantity", "-q",
                                  help="store variable, a label in brackets for labelled ones: "
                                       "'interface_energy_per_cycle_J[right]', 'interface_zeta_eq[left]'"),
-    x: Optional[str] = typer.Option(None, "-x", help="parameter on the x axis (default: the last one)"),
-    y: Optional[str] = typer.Option(None, "-y", help="parameter on the y axis of the map, and the grouping "
+    x: str | None = typer.Option(None, "-x", help="parameter on the x axis (default: the last one)"),
+    y: str | None = typer.Option(None, "-y", help="parameter on the y axis of the map, and the grouping "
                                     "of the curves (default: the first one)"),
-    at: List[str] = typer.Option([], "--at", help="hold another parameter at a value: NAME=VALUE (repeatable; "
+    at: list[str] = typer.Option([], "--at", help="hold another parameter at a value: NAME=VALUE (repeatable; "
                                  "default: the optimum's values)"),
     minimize: bool = typer.Option(False, "--minimize", help="the optimum is the smallest value"),
     output_dir: Path = typer.Option(Path("figures"), "--output-dir", "-o", help="folder for the PNG files"),

@@ -33,7 +33,7 @@ import xarray as xr
 from slipstep.errors import InputError, Status
 from slipstep.post.loops import interfaces_from_system, loop_summary
 from slipstep.post.periodic import last_period, periodicity
-from slipstep.post.timeline import STICK, SLIP_NEG, SLIP_POS, LIFT, full_slip_share, state_shares
+from slipstep.post.timeline import LIFT, SLIP_NEG, SLIP_POS, STICK, full_slip_share, state_shares
 
 # base name -> (units, long_name); one place for what the summary keys mean (all over the last
 # period; the module docstring gives the definitions)
@@ -92,7 +92,10 @@ def summarise(ds: xr.Dataset, interfaces=None, period: float | None = None) -> d
     out: dict = {"status_code": int(Status[a["status"]]) if a.get("status") in Status.__members__ else -1}
     for key in _RUN_COUNTS:
         value = a.get(key, math.nan)
-        out[key] = float(value) if key == "mean_solves_per_step" else int(value) if value == value else math.nan
+        if key == "mean_solves_per_step" or math.isnan(value):
+            out[key] = float(value)
+        else:
+            out[key] = int(value)
     ds = ds[[v for v in _NEEDED if v in ds]]  # fewer variables: every xarray selection below is cheaper
     try:
         lp = last_period(ds, period)

@@ -196,11 +196,23 @@ def _integer_key(path: Path_) -> bool:
     return node is int
 
 
+def probe_case(plan: Plan) -> dict:
+    """The base case with every swept location it does not hold set to that parameter's first
+    value (what a sweep's first case is checked on: its keys, not its values)."""
+    data = copy.deepcopy(plan.base)
+    for j, param in enumerate(plan.parameters):
+        for path in param.paths:
+            if _get(data, path) is None:
+                v = plan.values[0, j]
+                _set(data, path, round(v) if param.integer else float(v))
+    return data
+
+
 def apply_values(base: dict, parameters, values) -> dict:
     """A deep copy of ``base`` with each parameter's value written at all its paths."""
     data = copy.deepcopy(base)
     for param, value in zip(parameters, values):
-        v = int(round(float(value))) if param.integer else float(value)
+        v = round(float(value)) if param.integer else float(value)
         for path in param.paths:
             _set(data, path, v)
     return data

@@ -23,8 +23,8 @@ import os
 import socket
 import time
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from slipstep.errors import InputError, SolverError
 STATUS_INPUT = "INPUT_ERROR"      # the case's values are not a valid case
 STATUS_PRELOAD = "PRELOAD_FAILED"  # the static preload found no equilibrium
 STATUS_ERROR = "ERROR"            # an unexpected exception (a bug): type and message kept
+STATUS_TASK = "TASK_FAILED"       # the dask task failed on every try (workers lost): retried on resume
 
 
 @dataclass(frozen=True)
@@ -81,7 +82,7 @@ def run_case(payload: Payload, values) -> dict:
             result.update(status=STATUS_INPUT, message=str(exc))
         except SolverError as exc:
             result.update(status=STATUS_PRELOAD, message=str(exc))
-        except Exception as exc:  # a case never aborts the sweep; the message names the exception
+        except Exception as exc:  # noqa: BLE001 - a case never aborts the sweep; the message names it
             result.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}")
     if caught:
         result["warning"] = " | ".join(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
@@ -141,6 +142,26 @@ def _first_values(payload: Payload) -> list:
 
     return [_get(payload.base, p.paths[0]) if _get(payload.base, p.paths[0]) is not None else 0.0
             for p in payload.parameters]
+
+
+def _task_key(rows) -> str:
+    """A task key from the content of the batch (the case hashes), so that a resumed sweep,
+    whose batches may group other cases, never meets a stale task of the same name."""
+    import hashlib
+
+    digest = hashlib.sha256("".join(r[1] for r in rows).encode()).hexdigest()[:16]
+    return f"slipstep-sweep-{rows[0][0]}-{digest}"
+
+
+def task_failure(row, exc: BaseException) -> dict:
+    """The result of a case whose task failed on every try (its cases are retried on resume)."""
+    from slipstep import __version__
+
+    index, digest, _ = row
+    return {"index": int(index), "hash": digest, "status": STATUS_TASK, "warning": "", "summary": {},
+            "histories": {}, "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
+            "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan},
+            "worker": "", "version": __version__}
 
 
 def default_batch_size(n_cases: int, workers: int) -> int:
@@ -240,11 +261,14 @@ class DaskExecutor:
         if not tasks:
             return
         shared = self.client.scatter(payload, broadcast=True)
-        futures = [self.client.submit(run_batch, shared, rows, pure=False, retries=self.retries,
-                                      key=f"slipstep-sweep-{rows[0][1][:12]}-{rows[0][0]}") for rows in tasks]
+        futures = {self.client.submit(run_batch, shared, rows, pure=False, retries=self.retries,
+                                      key=_task_key(rows)): rows for rows in tasks}
         try:
-            for future in as_completed(futures):
-                result = future.result()
+            for future in as_completed(list(futures)):
+                try:
+                    result = future.result()
+                except Exception as exc:  # noqa: BLE001 - the task failed on every try (it killed its workers)
+                    result = [task_failure(row, exc) for row in futures[future]]
                 future.release()
                 yield result
         finally:

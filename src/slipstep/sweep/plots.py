@@ -14,16 +14,14 @@ so the map goes through the optimum. Failed cases are drawn as grey crosses.
 
 from __future__ import annotations
 
-import math
-
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import MaxNLocator
 
-from slipstep.errors import InputError  # noqa: E402
+from slipstep.errors import InputError
 
 _DISPLAY = {"J": (1e3, "mJ"), "N/m": (1e-6, "N/um"), "m": (1e6, "um")}
 

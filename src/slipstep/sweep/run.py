@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -31,16 +31,19 @@ def plan_of(spec: SweepSpec | str | Path) -> Plan:
 
 
 def labels_of(plan: Plan) -> dict:
-    """Names along the model's dimensions, from the first case (the parameters change values,
-    not the model's topology); a first case that is not a valid case is a spec error."""
+    """Names along the model's dimensions (the parameters change values, not the model's
+    topology), from the probe case: the base case with the keys it does not hold (defaults)
+    set to their parameter's first value. A probe that is not a valid case is an error of the
+    spec (a misspelt key, an invalid base case); invalid values of single cases are not: they
+    are recorded as those cases' INPUT_ERROR."""
     from slipstep.config import build_system, parse_case
     from slipstep.post.loops import interfaces_from_system
+    from slipstep.sweep.cases import probe_case
 
-    described = ", ".join(f"{p.name} = {v:g}" for p, v in zip(plan.parameters, plan.values[0]))
     try:
-        system = build_system(parse_case(plan.case_dict(0), source="the first case of the sweep"))
+        system = build_system(parse_case(probe_case(plan), source="the base case of the sweep"))
     except InputError as exc:
-        raise InputError(exc.field, f"{exc.problem} (first case of the sweep: {described})", exc.fix) from None
+        raise InputError(exc.field, f"{exc.problem} (base case of the sweep)", exc.fix) from None
     return {"interface": list(interfaces_from_system(system)), "contact": list(system.contact_names),
             "direction": list(system.direction_names()), "dof": list(system.structure.dof_names),
             "motion": list(system.motion_names)}
@@ -48,9 +51,10 @@ def labels_of(plan: Plan) -> dict:
 
 def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
               overwrite: bool = False, progress: Callable[[dict], None] | None = None,
-              flush_seconds: float = 1.0) -> dict:
+              flush_seconds: float = 2.0) -> dict:
     """Compute every case of ``spec`` missing from ``store`` (created if needed) and return
-    a report: cases, computed, skipped (already stored), counts by status, elapsed_s (the
+    a report: cases, computed, skipped (already stored), missing (still not in the store: lost
+    tasks, retried by a rerun), counts by status, elapsed_s (the
     cases, after startup_s: cluster start and a warm-up case per worker that loads the kernels),
     cases_per_s, mean kernel and case times, overhead_per_case_s (case time outside the
     kernel), workers, executor. ``progress`` is called with the running counts."""
@@ -101,9 +105,11 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
             sweep_store.write(buffer)  # also on Ctrl-C or a lost cluster: nothing computed is lost
         elapsed = time.perf_counter() - start
         workers = ex.workers
+    missing = int((~sweep_store.done()).sum())
     k, c = np.array(kernel, float), np.array(case_time, float)
     return {
         "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
+        "missing": missing,
         "status_counts": dict(counts), "failed": state["failed"], "elapsed_s": elapsed, "startup_s": startup,
         "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
         "mean_kernel_time_s": float(np.nanmean(k)) if k.size and np.isfinite(k).any() else float("nan"),

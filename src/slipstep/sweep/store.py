@@ -37,6 +37,7 @@ import numpy as np
 from slipstep.errors import InputError
 
 LAYOUT = 1
+RETRY_STATUS = "TASK_FAILED"  # slipstep.sweep.execute.STATUS_TASK
 CASE_CHUNK = 1024
 TIMING_FIELDS = {"kernel_time_s": ("s", "kernel time of the march (varies between runs)"),
                  "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
@@ -63,7 +64,7 @@ class SweepStore:
 
     # -- opening -------------------------------------------------------------------------------
     @classmethod
-    def open_or_create(cls, path: str | Path, plan, labels: dict, overwrite: bool = False) -> "SweepStore":
+    def open_or_create(cls, path: str | Path, plan, labels: dict, overwrite: bool = False) -> SweepStore:
         """Open the store of ``plan`` at ``path`` to resume it, or create it. An existing store of
         another sweep (different cases) is an error unless ``overwrite``."""
         from slipstep import __version__
@@ -106,8 +107,10 @@ class SweepStore:
 
     # -- state -----------------------------------------------------------------------------------
     def done(self) -> np.ndarray:
-        """True for every case already in the store (its status written)."""
-        return _text(self._arrays["status"][:]) != ""
+        """True for every case already in the store (its status written), except the cases
+        whose task was lost (TASK_FAILED): a rerun computes those again."""
+        status = _text(self._arrays["status"][:])
+        return (status != "") & (status != RETRY_STATUS)
 
     # -- writing ---------------------------------------------------------------------------------
     def write(self, results: list[dict]) -> None:
