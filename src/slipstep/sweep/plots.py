@@ -17,11 +17,11 @@ from __future__ import annotations
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-import numpy as np
-from matplotlib.ticker import MaxNLocator
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from slipstep.errors import InputError
+from slipstep.errors import InputError  # noqa: E402
 
 _DISPLAY = {"J": (1e3, "mJ"), "N/m": (1e-6, "N/um"), "m": (1e6, "um")}
 
