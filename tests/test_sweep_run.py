@@ -264,3 +264,41 @@ def test_cli_sweep_and_sweep_plot(tmp_path):
         result = runner.invoke(app, args)
         assert result.exit_code == 2, (args, result.output)
         assert message in result.output and "Traceback" not in result.output, (args, result.output)
+
+
+def test_design_maps_of_a_three_parameter_grid_and_a_sampled_sweep(tmp_path):
+    from slipstep.sweep.plots import design_curves, design_map, optimum, quantity
+
+    run = {"method": "quasi-static", "periods": 2, "steps_per_period": 60}
+    grid = SweepSpec(base="paper", run=run, parameters=(
+        Parameter("damper.centrifugal_force_N", values=(100.0, 300.0)),
+        Parameter("motion.1.amplitude", values=(5.0, 20.0, 40.0)),
+        Parameter("damper.contacts.*.friction_coefficient", values=(0.2, 0.4), name="mu")))
+    run_sweep(grid, tmp_path / "g.zarr", executor=SerialExecutor())
+    ds = open_sweep(tmp_path / "g.zarr")
+    values, unit, label = quantity(ds, "interface_energy_per_cycle_J[right]")
+    assert unit == "mJ" and "right" in label
+    np.testing.assert_allclose(values, ds.interface_energy_per_cycle_J.sel(interface="right").values * 1e3)
+    best = optimum(ds, "interface_energy_per_cycle_J[right]")
+    assert values[best] == np.nanmax(values)
+    fig = design_map(ds, "interface_energy_per_cycle_J[right]", x="amplitude", y="centrifugal_force_N")
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "motion.1.amplitude [um]" and ax.get_ylabel() == "damper.centrifugal_force_N [N]"
+    assert "mu = " in ax.get_title()  # the third parameter is held (at the optimum's value)
+    assert fig.axes[1].get_ylabel().endswith("[mJ]")  # the colour bar
+    star = [line for line in ax.lines if line.get_marker() == "*"]
+    assert len(star) == 1 and star[0].get_xdata()[0] == ds.amplitude.values[best]
+    fig = design_curves(ds, "interface_energy_per_cycle_J[right]", x="amplitude", group="mu",
+                        at={"centrifugal_force_N": 100.0})
+    assert "centrifugal_force_N = 100 N" in fig.axes[0].get_title()
+    assert len([line for line in fig.axes[0].lines if line.get_marker() == "o"]) == 2  # one curve per mu
+
+    sampled = SweepSpec(base="paper", run=run, sampling="latin-hypercube", samples=12, parameters=(
+        Parameter("damper.centrifugal_force_N", low=100.0, high=300.0),
+        Parameter("motion.1.amplitude", low=2.0, high=60.0, scale="log")))
+    run_sweep(sampled, tmp_path / "s.zarr", executor=SerialExecutor())
+    ds = open_sweep(tmp_path / "s.zarr")
+    fig = design_map(ds, "energy_per_cycle_J")
+    assert fig.axes[0].get_xscale() == "log"
+    with pytest.raises(InputError, match="not a grid"):
+        open_sweep(tmp_path / "s.zarr", grid=True)

@@ -24,6 +24,8 @@ def sweep(
                                             "(tcp://HOST:8786); default: a local cluster on 127.0.0.1"),
     workers: int | None = typer.Option(None, "--workers", "-w", help="worker processes of the local cluster "
                                           "(default: one per core)"),
+    threads: int = typer.Option(1, "--threads", help="threads per worker process of the local cluster (the "
+                                "kernels release the GIL; the Python set-up around them does not)"),
     serial: bool = typer.Option(False, "--serial", help="run in this process, no dask (debugging; "
                                 "bit-identical numbers)"),
     batch_size: int | None = typer.Option(None, "--batch-size", help="cases per task (default: the spec's "
@@ -42,7 +44,7 @@ def sweep(
             from slipstep.errors import InputError
 
             raise InputError("serial", "is set together with --scheduler/--workers", "choose one executor")
-        executor = SerialExecutor() if serial else DaskExecutor(scheduler=scheduler, workers=workers)
+        executor = SerialExecutor() if serial else DaskExecutor(scheduler=scheduler, workers=workers, threads=threads)
         try:
             if as_json:
                 report = run_sweep(spec, output, executor=executor, batch_size=batch_size, overwrite=overwrite)
@@ -76,16 +78,17 @@ def _with_progress(run_sweep, spec, output, executor, batch_size, overwrite, con
         TimeRemainingColumn,
     )
 
-    columns = (TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("cases"),
+    columns = (TextColumn("[bold]sweep{task.fields[skipped]}"), BarColumn(), MofNCompleteColumn(), TextColumn("cases"),
                TextColumn("{task.fields[failed]} failed", style="red"), TextColumn("{task.fields[rate]}"),
                TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
     with Progress(*columns, console=console, transient=False) as bar:
-        task = bar.add_task("sweep", total=None, failed=0, rate="")
+        task = bar.add_task("sweep", total=None, failed=0, rate="", skipped="")
 
         def progress(state):
             rate = state["computed"] / state["elapsed_s"] if state["elapsed_s"] > 0 else 0.0
-            bar.update(task, total=state["total"], completed=state["skipped"] + state["computed"],
-                       failed=state["failed"], rate=f"{rate:.1f} cases/s")
+            skipped = f" ({state['skipped']} of {state['total']} already in the store)" if state["skipped"] else ""
+            bar.update(task, total=state["todo"], completed=state["computed"], failed=state["failed"],
+                       rate=f"{rate:.1f} cases/s", skipped=skipped)
 
         return run_sweep(spec, output, executor=executor, batch_size=batch_size, overwrite=overwrite,
                          progress=progress)

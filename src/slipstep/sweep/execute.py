@@ -45,7 +45,6 @@ class Payload:
     parameters: tuple
     extra_run: dict
     outputs: dict
-    interfaces: str = "system"     # interfaces grouped by platform (post.loops.interfaces_from_system)
 
 
 def payload_of(plan) -> Payload:
@@ -78,6 +77,8 @@ def run_case(payload: Payload, values) -> dict:
             result["timing"] = timings(ds)
             if payload.outputs.get("histories"):
                 result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
+            # further result kinds go here, each under its own key of the result (the frequency
+            # response of the case, once slipstep.frequency has a solver: outputs.frf)
         except InputError as exc:
             result.update(status=STATUS_INPUT, message=str(exc))
         except SolverError as exc:
@@ -217,6 +218,8 @@ class DaskExecutor:
             raise InputError("workers", f"is {workers!r}", "give a whole number >= 1")
         if scheduler is not None and workers is not None:
             raise InputError("workers", "is set together with --scheduler", "size an existing cluster where it runs")
+        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+            raise InputError("threads", f"is {threads!r}", "give a whole number >= 1")
 
     def __enter__(self):
         try:

@@ -19,7 +19,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from matplotlib.ticker import LogLocator, MaxNLocator, NullFormatter, ScalarFormatter  # noqa: E402
+from matplotlib.tri import Triangulation  # noqa: E402
 
 from slipstep.errors import InputError  # noqa: E402
 
@@ -116,7 +117,28 @@ def _held_text(ds, keep: list[str], mask: np.ndarray) -> str:
     if not held or ds.attrs.get("grid_shape") is None:
         return ""
     i = int(np.flatnonzero(mask)[0])
-    return ", ".join(f"{p} = {ds[p].values[i]:g} {ds[p].attrs.get('units', '')}".strip() for p in held)
+    return ", ".join(f"{p} = {ds[p].values[i]:.4g}{_u(ds[p].attrs.get('units', '1'))}" for p in held)
+
+
+def _scale_axis(ax, which: str, values: np.ndarray) -> None:
+    """A log scale with plain tick labels (2, 5, 10, 20, ...) for values spanning 20x or more."""
+    if not _log_axis(values):
+        return
+    getattr(ax, f"set_{which}scale")("log")
+    axis = getattr(ax, f"{which}axis")
+    axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(ScalarFormatter())
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _triangulation(x: np.ndarray, y: np.ndarray) -> Triangulation:
+    """Delaunay triangles of scattered points in the plotted coordinates (log where the axis
+    is), each scaled to [0, 1] so that no parameter's unit decides the mesh."""
+    def unit(v):
+        w = np.log(v) if _log_axis(v) else np.asarray(v, float)
+        span = np.ptp(w)
+        return (w - w.min()) / span if span > 0 else w * 0.0
+    return Triangulation(x, y, Triangulation(unit(x), unit(y)).triangles)
 
 
 def _u(unit: str) -> str:
@@ -172,7 +194,7 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
     else:
         if ok.sum() < 3:
             raise InputError("quantity", f"only {ok.sum()} successful cases to map", "run more cases")
-        filled = ax.tricontourf(xs[ok], ys[ok], zs[ok], levels=levels, cmap="viridis")
+        filled = ax.tricontourf(_triangulation(xs[ok], ys[ok]), zs[ok], levels=levels, cmap="viridis")
         ax.plot(xs[ok], ys[ok], ".", color="k", ms=3, alpha=0.6, label="samples")
     if (~ok).any():
         ax.plot(xs[~ok], ys[~ok], "x", color="0.5", ms=6, label="failed cases")
@@ -181,13 +203,11 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
     if best is not None and mask[best]:
         bx, by, bz = ds[x].values[best], ds[y].values[best], values[best]
         ax.plot(bx, by, marker="*", ms=18, color="#ff3030", mec="k", mew=1.0, ls="none", clip_on=False, zorder=5,
-                label=f"{'minimum' if minimize else 'optimum'}: {bz:.4g}{_u(unit)} at {x} = {bx:g}, {y} = {by:g}")
+                label=f"{'minimum' if minimize else 'optimum'}: {bz:.4g}{_u(unit)} at {x} = {bx:.4g}, {y} = {by:.4g}")
     ax.set_xlabel(_param_label(ds, x))
     ax.set_ylabel(_param_label(ds, y))
-    if _log_axis(xs):
-        ax.set_xscale("log")
-    if _log_axis(ys):
-        ax.set_yscale("log")
+    _scale_axis(ax, "x", xs)
+    _scale_axis(ax, "y", ys)
     held = _held_text(ds, [x, y], mask)
     ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: {text}" + (f"\n({held})" if held else ""))
     if own:
@@ -223,7 +243,7 @@ def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, gr
         sel = mask & (ds[group].values == g) if group else mask.copy()
         order = np.argsort(ds[x].values[sel])
         xs, zs, good = ds[x].values[sel][order], values[sel][order], ok[sel][order]
-        label = f"{group} = {g:g} {ds[group].attrs.get('units', '')}".strip() if group else None
+        label = f"{group} = {g:.4g}{_u(ds[group].attrs.get('units', '1'))}" if group else None
         ax.plot(xs[good], zs[good], marker="o", ms=4, color=color, label=label)
         if (~good).any():
             ax.plot(xs[~good], np.zeros((~good).sum()), "x", color="0.5", ms=6)
@@ -231,11 +251,10 @@ def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, gr
         ax.plot(ds[x].values[best], values[best], marker="*", ms=16, color="#ff3030", mec="k", ls="none",
                 clip_on=False, zorder=5,
                 label=f"{'minimum' if minimize else 'optimum'}: {values[best]:.4g}{_u(unit)} at {x} = "
-                      f"{ds[x].values[best]:g}" + (f", {group} = {ds[group].values[best]:g}" if group else ""))
+                      f"{ds[x].values[best]:.4g}" + (f", {group} = {ds[group].values[best]:.4g}" if group else ""))
     ax.set_xlabel(_param_label(ds, x))
     ax.set_ylabel(f"{text} [{unit if unit != '1' else '-'}]")
-    if _log_axis(ds[x].values):
-        ax.set_xscale("log")
+    _scale_axis(ax, "x", ds[x].values)
     ax.grid(alpha=0.3)
     held = _held_text(ds, keep, mask)
     ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: {text}" + (f"\n({held})" if held else ""))

@@ -57,8 +57,6 @@ EXTRA_RUN_OPTIONS = {"tolerance": float, "state_tolerance": float, "max_iteratio
 CASE_RUN_KEYS = ("method", "periods", "duration_s", "step_ratio", "steps_per_period", "ramp_time_s")
 HISTORY_VARIABLES = ("displacement", "velocity", "acceleration", "prescribed_motion", "tangential_displacement",
                      "normal_displacement", "tangential_force", "normal_force", "slider", "contact_state")
-# result kinds a case can return besides the summary; "frf" is reserved for slipstep.frequency
-RESULT_KINDS = ("summary", "histories", "frf")
 
 
 @dataclass(frozen=True)
