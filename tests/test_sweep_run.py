@@ -222,6 +222,11 @@ def test_a_store_of_another_sweep_is_refused(tmp_path):
     assert exc.value.field == "output"
     report = run_sweep(other, tmp_path / "s.zarr", executor=SerialExecutor(), overwrite=True)
     assert report["computed"] == 2 and open_sweep(tmp_path / "s.zarr").sizes["case"] == 2
+    import zarr
+
+    zarr.open_group(str(tmp_path / "s.zarr"), mode="r+").attrs["slipstep_version"] = "0.0.1"
+    with pytest.raises(InputError, match="written by slipstep 0.0.1"):
+        run_sweep(other, tmp_path / "s.zarr", executor=SerialExecutor())
     (tmp_path / "plain").mkdir()
     with pytest.raises(InputError, match="not a slipstep sweep store"):
         run_sweep(other, tmp_path / "plain", executor=SerialExecutor(), overwrite=True)

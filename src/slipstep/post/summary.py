@@ -121,16 +121,15 @@ def _loops(ds, interfaces, period, lp) -> dict:
         out["energy_per_cycle_J"] = math.nan
         return out
     s = loop_summary(ds, interfaces, period)
-    energy = s["interface_energy_J"].values
+    v = {k: s[f"interface_{k}"].values for k in ("energy_J", "k_eq_N_per_m", "zeta_eq", "u_max_m", "u_min_m",
+                                                  "T_max_N", "T_min_N")}
     for i, name in enumerate(s["interface"].values):
-        out[f"interface_energy_per_cycle_J[{name}]"] = float(energy[i])
-        out[f"interface_k_eq_N_per_m[{name}]"] = float(s["interface_k_eq_N_per_m"].values[i])
-        out[f"interface_zeta_eq[{name}]"] = float(s["interface_zeta_eq"].values[i])
-        out[f"interface_u_amplitude_m[{name}]"] = 0.5 * float(s["interface_u_max_m"].values[i] -
-                                                             s["interface_u_min_m"].values[i])
-        out[f"interface_T_amplitude_N[{name}]"] = 0.5 * float(s["interface_T_max_N"].values[i] -
-                                                             s["interface_T_min_N"].values[i])
-    out["energy_per_cycle_J"] = float(energy.sum())
+        out[f"interface_energy_per_cycle_J[{name}]"] = float(v["energy_J"][i])
+        out[f"interface_k_eq_N_per_m[{name}]"] = float(v["k_eq_N_per_m"][i])
+        out[f"interface_zeta_eq[{name}]"] = float(v["zeta_eq"][i])
+        out[f"interface_u_amplitude_m[{name}]"] = 0.5 * float(v["u_max_m"][i] - v["u_min_m"][i])
+        out[f"interface_T_amplitude_N[{name}]"] = 0.5 * float(v["T_max_N"][i] - v["T_min_N"][i])
+    out["energy_per_cycle_J"] = float(v["energy_J"].sum())
     return out
 
 

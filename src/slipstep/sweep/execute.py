@@ -239,6 +239,12 @@ class DaskExecutor:
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError("scheduler", f"{self.scheduler!r} cannot be reached ({exc})",
                                  "give the address a running `dask scheduler` prints (tcp://HOST:8786)") from None
+            try:
+                self.client.wait_for_workers(1, timeout=30)
+            except TimeoutError:
+                self.client.close()
+                raise InputError("scheduler", f"{self.scheduler!r} has no workers (waited 30 s)",
+                                 f"start some: dask worker {self.scheduler}") from None
         return self
 
     @property

@@ -52,68 +52,75 @@ def labels_of(plan: Plan) -> dict:
 def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
               overwrite: bool = False, progress: Callable[[dict], None] | None = None,
               flush_seconds: float = 2.0) -> dict:
-    """Compute every case of ``spec`` missing from ``store`` (created if needed) and return
-    a report: cases, computed, skipped (already stored), missing (still not in the store: lost
-    tasks, retried by a rerun), counts by status, elapsed_s (the
-    cases, after startup_s: cluster start and a warm-up case per worker that loads the kernels),
-    cases_per_s, mean kernel and case times, overhead_per_case_s (case time outside the
-    kernel), workers, executor. ``progress`` is called with the running counts."""
+    """Compute every case of ``spec`` missing from ``store`` (created if needed) and return a
+    report: cases, computed, skipped (already stored), missing (still not in the store: lost
+    tasks, computed by a rerun), status_counts, failed, elapsed_s (the cases only), startup_s
+    (cluster start and one warm-up case per worker, which loads the kernels), cases_per_s,
+    mean_kernel_time_s, mean_case_time_s, overhead_per_case_s (case time outside the kernel),
+    batch_size, workers, executor. ``progress`` is called with the running counts after each
+    batch. The executor (default: a local dask cluster) is not started when nothing is missing."""
     plan = plan_of(spec)
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
         raise InputError("batch_size", f"is {batch_size!r}", "give a whole number >= 1")
-    labels = labels_of(plan)
-    sweep_store = SweepStore.open_or_create(store, plan, labels, overwrite=overwrite)
+    sweep_store = SweepStore.open_or_create(store, plan, labels_of(plan), overwrite=overwrite)
     done = sweep_store.done()
-    todo = np.flatnonzero(~done)
-    rows = [(int(i), plan.hashes[i], plan.values[i].tolist()) for i in todo]
-    executor = executor if executor is not None else DaskExecutor()
-    started = time.perf_counter()
-    counts: Counter = Counter()
+    rows = [(int(i), plan.hashes[i], plan.values[i].tolist()) for i in np.flatnonzero(~done)]
     state = {"total": plan.n_cases, "skipped": int(done.sum()), "computed": 0, "failed": 0, "todo": len(rows),
              "elapsed_s": 0.0}
-    kernel, case_time = [], []
-    from slipstep import __version__
-
-    with executor as ex:
-        payload = payload_of(plan)
-        if rows:
+    counts: Counter = Counter()
+    times: list[tuple[float, float]] = []
+    size, workers, startup, elapsed, name = 0, 0, 0.0, 0.0, getattr(executor, "name", "dask")
+    if rows:
+        executor = executor if executor is not None else DaskExecutor()
+        started = time.perf_counter()
+        with executor as ex:
+            payload = payload_of(plan)
             ex.warm_up(payload)
-        start = time.perf_counter()
-        startup = start - started
-        size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.workers)
-        buffer: list[dict] = []
-        last_flush = time.perf_counter()
-        try:
-            for results in ex.map(payload, batches(rows, size)):
-                for r in results:
-                    if r["version"] != __version__:
-                        raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
-                                         f"{__version__}", "install the same slipstep version on every worker")
-                    counts[r["status"]] += 1
-                    kernel.append(r["timing"]["kernel_time_s"])
-                    case_time.append(r["timing"]["case_time_s"])
-                buffer.extend(results)
-                state["computed"] += len(results)
-                state["failed"] = sum(v for k, v in counts.items() if k != "OK")
-                state["elapsed_s"] = time.perf_counter() - start
-                if time.perf_counter() - last_flush >= flush_seconds:
-                    sweep_store.write(buffer)
-                    buffer, last_flush = [], time.perf_counter()
-                if progress is not None:
-                    progress(dict(state))
-        finally:
-            sweep_store.write(buffer)  # also on Ctrl-C or a lost cluster: nothing computed is lost
-        elapsed = time.perf_counter() - start
-        workers = ex.workers
-    missing = int((~sweep_store.done()).sum())
-    k, c = np.array(kernel, float), np.array(case_time, float)
+            start = time.perf_counter()
+            startup = start - started
+            size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.workers)
+            if progress is not None:
+                progress(dict(state))
+            results = ex.map(payload, batches(rows, size))
+            _collect(results, sweep_store, state, counts, times, start, flush_seconds, progress)
+            elapsed, workers, name = time.perf_counter() - start, ex.workers, ex.name
+    k, c = (np.array([t[i] for t in times], float) for i in (0, 1))
     return {
         "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
-        "missing": missing,
-        "status_counts": dict(counts), "failed": state["failed"], "elapsed_s": elapsed, "startup_s": startup,
+        "missing": int((~sweep_store.done()).sum()), "status_counts": dict(counts), "failed": state["failed"],
+        "elapsed_s": elapsed, "startup_s": startup,
         "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
-        "mean_kernel_time_s": float(np.nanmean(k)) if k.size and np.isfinite(k).any() else float("nan"),
-        "mean_case_time_s": float(c.mean()) if c.size else float("nan"),
-        "overhead_per_case_s": float(np.nanmean(c - np.nan_to_num(k))) if c.size else float("nan"),
-        "batch_size": size, "workers": workers, "executor": executor.name,
+        "mean_kernel_time_s": float(np.nanmean(k)) if np.isfinite(k).any() else float("nan"),
+        "mean_case_time_s": float(np.nanmean(c)) if np.isfinite(c).any() else float("nan"),
+        "overhead_per_case_s": float(np.nanmean(c - np.nan_to_num(k))) if np.isfinite(c).any() else float("nan"),
+        "batch_size": size, "workers": workers, "executor": name,
     }
+
+
+def _collect(results, store: SweepStore, state: dict, counts: Counter, times: list, start: float,
+             flush_seconds: float, progress) -> None:
+    """Receive the batches as they finish, flush them to the store every ``flush_seconds`` and
+    once more at the end, on Ctrl-C or on any error (nothing received is lost)."""
+    from slipstep import __version__
+
+    buffer: list[dict] = []
+    last_flush = time.perf_counter()
+    try:
+        for batch in results:
+            for r in batch:
+                if r["version"] != __version__:
+                    raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
+                                     f"{__version__}", "install the same slipstep version on every worker")
+                counts[r["status"]] += 1
+                times.append((r["timing"]["kernel_time_s"], r["timing"]["case_time_s"]))
+            buffer.extend(batch)
+            state["computed"] += len(batch)
+            state["failed"] = sum(v for k, v in counts.items() if k != "OK")
+            state["elapsed_s"] = time.perf_counter() - start
+            if time.perf_counter() - last_flush >= flush_seconds:
+                store.write(buffer)
+                buffer, last_flush = [], time.perf_counter()
+            if progress is not None:
+                progress(dict(state))
+    finally:
+        store.write(buffer)

@@ -79,8 +79,12 @@ class SweepStore:
             else:
                 store = cls(path, _zarr().open_group(str(path), mode="r+"))
                 store._check_same(plan)
+                written = store.group.attrs.get("slipstep_version")
+                if written != __version__:
+                    raise InputError("output", f"{str(path)!r} was written by slipstep {written}, this is "
+                                     f"{__version__}: its numbers would mix two versions",
+                                     "give a new store path, or --overwrite to start again")
                 store.group.attrs["runs"] = store.run_index + 1
-                store.group.attrs["slipstep_version_last_run"] = __version__
                 return store
         if not path.parent.exists():
             raise InputError("output", f"the folder of {str(path)!r} does not exist", "create it or give another path")
@@ -257,6 +261,10 @@ def _create(path: Path, plan, labels: dict) -> None:
         array(name, "f8", np.nan, {"units": units, "long_name": long_name})
     array("worker", str, "", {"long_name": "host:pid of the worker that computed the case (varies between runs)"})
     array("run_index", "i8", -1, {"long_name": "invocation of the sweep that computed the case (0: the first)"})
+    for dim in ("interface", "contact", "direction"):
+        if dim in labels:
+            g.create_array(dim, shape=(len(labels[dim]),), dtype=str, fill_value="", dimension_names=[dim],
+                           attributes={"long_name": f"{dim} names"})[:] = np.array(labels[dim], dtype=str)
     points = plan.outputs["history_points"]
     if plan.outputs["histories"]:
         phase = g.create_array("phase", shape=(points,), dtype="f8", fill_value=np.nan, dimension_names=["phase"],
