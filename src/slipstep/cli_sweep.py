@@ -17,7 +17,7 @@ import typer
 
 
 def sweep(
-    spec: Path = typer.Argument(..., help="sweep specification (TOML): [sweep], [run], [[parameter]], [outputs]"),
+    spec: Path = typer.Argument(..., help="sweep specification (TOML): \\[sweep], \\[run], \\[\\[parameter]], \\[outputs]"),
     output: Path = typer.Option(..., "--output", "-o", help="the zarr store (a folder, e.g. results.zarr); "
                                 "rerunning on an existing store computes only the cases it does not hold"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of a running dask scheduler "
@@ -69,34 +69,41 @@ def sweep(
 
 
 def _with_progress(run_sweep, spec, output, executor, batch_size, overwrite, console):
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    """run_sweep with a rich progress bar, shown once there are cases to compute."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
+        TimeRemainingColumn
 
-    columns = (TextColumn("[bold]sweep{task.fields[skipped]}"), BarColumn(), MofNCompleteColumn(), TextColumn("cases"),
-               TextColumn("{task.fields[failed]} failed", style="red"), TextColumn("{task.fields[rate]}"),
-               TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
-    with Progress(*columns, console=console, transient=False) as bar:
-        task = bar.add_task("sweep", total=None, failed=0, rate="", skipped="")
+    columns = (TextColumn("[bold]sweep{task.fields[skipped]}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("cases"), TextColumn("{task.fields[failed]} failed", style="red"),
+               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
+    bar = Progress(*columns, console=console)
+    task = None
 
-        def progress(state):
-            rate = state["computed"] / state["elapsed_s"] if state["elapsed_s"] > 0 else 0.0
-            skipped = f" ({state['skipped']} of {state['total']} already in the store)" if state["skipped"] else ""
-            bar.update(task, total=state["todo"], completed=state["computed"], failed=state["failed"],
-                       rate=f"{rate:.1f} cases/s", skipped=skipped)
+    def progress(state):
+        nonlocal task
+        if task is None:
+            bar.start()
+            task = bar.add_task("sweep", total=state["todo"], failed=0, rate="", skipped="")
+        rate = state["computed"] / state["elapsed_s"] if state["elapsed_s"] > 0 else 0.0
+        skipped = f" ({state['skipped']} of {state['total']} already in the store)" if state["skipped"] else ""
+        bar.update(task, completed=state["computed"], failed=state["failed"], rate=f"{rate:.1f} cases/s",
+                   skipped=skipped)
 
+    try:
         return run_sweep(spec, output, executor=executor, batch_size=batch_size, overwrite=overwrite,
                          progress=progress)
+    finally:
+        if task is not None:
+            bar.stop()
 
 
 def _print_report(r: dict, output: Path, console) -> None:
     from rich.table import Table
 
+    if r["computed"] == 0 and r["skipped"] == r["cases"]:
+        console.print(f"all {r['cases']} cases are already in {output}: nothing to compute", markup=False,
+                      highlight=False, soft_wrap=True)
+        return
     table = Table(title=f"slipstep sweep: {output}", show_header=False)
     table.add_column("quantity", style="cyan")
     table.add_column("value")
@@ -105,7 +112,7 @@ def _print_report(r: dict, output: Path, console) -> None:
     rows = [("cases in the sweep", r["cases"]), ("computed now", r["computed"]),
             ("already in the store", r["skipped"]), ("status of the computed cases", statuses),
             ("elapsed (cases)", (f"{r['elapsed_s']:.3g} s, after {r['startup_s']:.3g} s of start-up "
-                                 "(cluster, kernels loaded)")), ("rate", f"{r['cases_per_s']:.3g} cases/s"),
+                                 "(warm-up case per worker, cluster)")), ("rate", f"{r['cases_per_s']:.3g} cases/s"),
             ("executor", f"{r['executor']}, {r['workers']} worker(s), {r['batch_size']} cases per task"),
             ("mean kernel time per case", ms(r["mean_kernel_time_s"])),
             ("mean time per case (build, run, summary)", ms(r["mean_case_time_s"])),
