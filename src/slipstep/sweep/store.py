@@ -134,9 +134,7 @@ class SweepStore:
         for base, (dim, labels, values) in grouped.items():
             arr = self._summary_array(base, dim, labels, values)
             if dim is None:
-                data = np.array([np.nan if v is None else v for v in values], dtype=arr.dtype) \
-                    if arr.dtype.kind == "f" else np.array([-1 if v is None else v for v in values], dtype=arr.dtype)
-                arr.oindex[idx] = data
+                arr.oindex[idx] = _column(values, arr.dtype)
             else:
                 positions = self._label_positions(dim, labels)
                 block = np.full((len(results), len(labels)), np.nan)
@@ -201,6 +199,14 @@ class SweepStore:
                 if name in r["histories"]:
                     block[i] = r["histories"][name]
             arr.oindex[idx] = block
+
+
+def _column(values: list, dtype) -> np.ndarray:
+    """A column of one summary field: missing values (None, and NaN in an integer field) as the
+    field's fill value (NaN, or -1 for integers)."""
+    if np.dtype(dtype).kind == "f":
+        return np.array([np.nan if v is None else v for v in values], dtype=dtype)
+    return np.array([-1 if v is None or (isinstance(v, float) and v != v) else v for v in values], dtype=dtype)
 
 
 def _text(values) -> np.ndarray:
