@@ -307,3 +307,20 @@ def test_design_maps_of_a_three_parameter_grid_and_a_sampled_sweep(tmp_path):
     assert fig.axes[0].get_xscale() == "log"
     with pytest.raises(InputError, match="not a grid"):
         open_sweep(tmp_path / "s.zarr", grid=True)
+
+
+def test_an_assembly_case_sweeps_too(tmp_path):
+    """The third kind of case file (substructures + dampers): the built-in blades case over the
+    engine-order force frequency and the damper's centrifugal load."""
+    spec = SweepSpec(base="blades", run={"method": "piecewise-linear", "periods": 2}, parameters=(
+        Parameter("dampers.damper.centrifugal_force_N", values=(100.0, 300.0)),
+        Parameter("engine_order_force.1.frequency_Hz", values=(280.0, 320.0))))
+    report = run_sweep(spec, tmp_path / "b.zarr", executor=SerialExecutor())
+    assert report["status_counts"] == {"OK": 4}
+    ds = open_sweep(tmp_path / "b.zarr", grid=True)
+    assert ds.attrs["case_kind"] == "assembly" and ds.frequency_Hz.attrs["units"] == "Hz"
+    assert (ds.energy_per_cycle_J.values > 0).all()
+    assert (ds.direction_peak_T_over_muN.values <= 1 + 1e-9).all()
+    # a lighter damper load slips for more of the period at the same forcing (300 N sticks longer)
+    assert (ds.direction_slip_share.sel(centrifugal_force_N=100.0).values
+            >= ds.direction_slip_share.sel(centrifugal_force_N=300.0).values).all()

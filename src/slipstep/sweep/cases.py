@@ -53,13 +53,14 @@ class Plan:
 
     spec: SweepSpec
     base: dict
-    kind: str                      # "damper" or "structure"
+    kind: str                      # "damper", "structure" or "assembly" (case_kind)
     parameters: tuple[ResolvedParameter, ...]
     values: np.ndarray
     grid_shape: tuple[int, ...] | None
     hashes: tuple[str, ...]
     extra_run: dict
     outputs: dict
+    base_dir: str | None = None    # the base case file's folder (an assembly's matrix files)
 
     @property
     def n_cases(self) -> int:
@@ -91,6 +92,34 @@ def base_case(spec: SweepSpec) -> dict:
     run.update({k: v for k, v in spec.run.items() if k in CASE_RUN_KEYS})
     data["run"] = run
     return data
+
+
+def base_dir_of(spec: SweepSpec) -> str | None:
+    """The folder of a base case given as a file (relative paths in the case start there)."""
+    if isinstance(spec.base, str) and Path(spec.base).suffix:
+        return str(Path(spec.base).resolve().parent)
+    return str(CASES_DIR) if isinstance(spec.base, str) else None
+
+
+def case_kind(data: dict) -> str:
+    """The kind of a case dictionary (slipstep.config): damper, structure or assembly."""
+    if "substructures" in data:
+        return "assembly"
+    return "damper" if "damper" in data else "structure"
+
+
+def build_case(data: dict, base_dir: str | None = None, source: str = "the swept case"):
+    """(System, run table) of a case dictionary of any kind, through the public config
+    functions: parse_case + build_system, or parse_assembly + build_assembly."""
+    if case_kind(data) == "assembly":
+        from slipstep.config_assembly import build_assembly, parse_assembly
+
+        spec = parse_assembly(data, source=source)
+        return build_assembly(spec, Path(base_dir) if base_dir else Path.cwd()), spec.run
+    from slipstep.config import build_system, parse_case
+
+    spec = parse_case(data, source=source)
+    return build_system(spec), spec.run
 
 
 def _split(key: str) -> list[str]:
@@ -172,15 +201,18 @@ def _set(data, path: Path_, value) -> None:
     node[path[-1]] = value
 
 
-def _integer_key(path: Path_) -> bool:
-    """True when the case format (slipstep.config.CaseSpec) declares the key an integer."""
+def _integer_key(path: Path_, kind: str = "damper") -> bool:
+    """True when the case format (slipstep.config.CaseSpec, or AssemblyCaseSpec) declares
+    the key an integer."""
     import typing
 
     from pydantic import BaseModel
 
-    from slipstep.config import CaseSpec
+    if kind == "assembly":
+        from slipstep.config_assembly import AssemblyCaseSpec as node
+    else:
+        from slipstep.config import CaseSpec as node
 
-    node = CaseSpec
     for p in path:
         if isinstance(p, int):
             continue
@@ -236,7 +268,7 @@ def unit_of(key: str, kind: str) -> str:
         first = _split(key)[0]
         if first == "force":
             return "N"
-        return "um" if kind == "damper" else "m"
+        return "um" if kind == "damper" else "N" if kind == "assembly" else "m"
     for suffix, unit in _UNIT_SUFFIXES:
         if last.endswith(suffix):
             return unit
@@ -300,7 +332,7 @@ def case_hash(case: dict, extra_run: dict, outputs: dict) -> str:
 def make_plan(spec: SweepSpec) -> Plan:
     """Resolve the key paths against the base case, draw the points, hash every case."""
     base = base_case(spec)
-    kind = "damper" if "damper" in base else "structure"
+    kind = case_kind(base)
     names = _names(spec)
     resolved = []
     for i, (p, name) in enumerate(zip(spec.parameters, names)):
@@ -313,7 +345,7 @@ def make_plan(spec: SweepSpec) -> Plan:
             paths.extend(found)
         if len(set(paths)) != len(paths):
             raise InputError(f"parameter.{i + 1}.key", "sets one location twice", "list each key once")
-        integer = all(_integer_key(q) for q in paths)
+        integer = all(_integer_key(q, kind) for q in paths)
         resolved.append(ResolvedParameter(name, p.unit or unit_of(p.keys[0], kind), p.keys, tuple(paths), integer))
     seen: dict = {}
     for i, rp in enumerate(resolved):
@@ -338,4 +370,4 @@ def make_plan(spec: SweepSpec) -> Plan:
     if len(set(hashes)) != len(hashes):
         raise InputError("parameter", "two cases of the sweep are identical (repeated points)",
                          "remove the repeated values or samples")
-    return Plan(spec, base, kind, plan_params, values, grid, hashes, extra, outputs)
+    return Plan(spec, base, kind, plan_params, values, grid, hashes, extra, outputs, base_dir_of(spec))

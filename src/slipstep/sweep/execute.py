@@ -45,19 +45,19 @@ class Payload:
     parameters: tuple
     extra_run: dict
     outputs: dict
+    base_dir: str | None = None
 
 
 def payload_of(plan) -> Payload:
-    return Payload(plan.base, plan.parameters, plan.extra_run, plan.outputs)
+    return Payload(plan.base, plan.parameters, plan.extra_run, plan.outputs, plan.base_dir)
 
 
 def run_case(payload: Payload, values) -> dict:
     """Build and run one case; returns {"status", "message", "warning", "summary",
     "histories", "timing"}. Deterministic except "timing"."""
-    from slipstep.config import build_system, parse_case
     from slipstep.methods.simulation import Simulation
     from slipstep.post.summary import summarise, timings
-    from slipstep.sweep.cases import apply_values
+    from slipstep.sweep.cases import apply_values, build_case
 
     start = time.perf_counter()
     result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {},
@@ -66,10 +66,9 @@ def run_case(payload: Payload, values) -> dict:
         warnings.simplefilter("always")
         try:
             data = apply_values(payload.base, payload.parameters, values)
-            spec = parse_case(data, source="the swept case")
-            system = build_system(spec)
-            options = _run_options(spec.run, payload.extra_run)
-            method = spec.run.method or "newmark"
+            system, run = build_case(data, payload.base_dir)
+            options = _run_options(run, payload.extra_run)
+            method = run.method or "newmark"
             ds = Simulation(system, method, **options).run()
             result["status"] = ds.attrs["status"]
             result["message"] = ds.attrs["status_message"]

@@ -36,12 +36,11 @@ def labels_of(plan: Plan) -> dict:
     set to their parameter's first value. A probe that is not a valid case is an error of the
     spec (a misspelt key, an invalid base case); invalid values of single cases are not: they
     are recorded as those cases' INPUT_ERROR."""
-    from slipstep.config import build_system, parse_case
     from slipstep.post.loops import interfaces_from_system
-    from slipstep.sweep.cases import probe_case
+    from slipstep.sweep.cases import build_case, probe_case
 
     try:
-        system = build_system(parse_case(probe_case(plan), source="the base case of the sweep"))
+        system, _ = build_case(probe_case(plan), plan.base_dir, source="the base case of the sweep")
     except InputError as exc:
         raise InputError(exc.field, f"{exc.problem} (base case of the sweep)", exc.fix) from None
     return {"interface": list(interfaces_from_system(system)), "contact": list(system.contact_names),
