@@ -129,6 +129,12 @@ def _print_ratio(r: dict) -> None:
           f"(other processes take cores from the workers: the ratio needs {r['cores']} idle cores)")
     print(f"   speed-up:    {r['speedup']:8.2f} x   target >= {TARGET_RATIO}: "
           f"{'met' if r['speedup'] >= TARGET_RATIO else 'NOT met'}")
+    c1, c2 = one["mean_case_cpu_s"], two["mean_case_cpu_s"]
+    w1, w2 = one["elapsed_s"] / one["computed"], two["elapsed_s"] / two["computed"]
+    print(f"   CPU per case on the workers: {c1 * 1e3:.2f} ms (1 worker), {c2 * 1e3:.2f} ms (2 workers); "
+          f"CPU share each worker got: {c1 / w1:.0%} (1 worker), {c2 / (2 * w2):.0%} (2 workers)")
+    print(f"   projection, not a measurement: two idle cores would give {2 * c1 / c2:.2f} x (twice the cases per "
+          "CPU-second of one worker; the client's CPU is apart, see part 1)")
     if "one_worker_two_threads" not in r:
         return
     th = r["one_worker_two_threads"]

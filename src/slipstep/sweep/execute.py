@@ -59,7 +59,7 @@ def run_case(payload: Payload, values) -> dict:
     from slipstep.post.summary import summarise, timings
     from slipstep.sweep.cases import apply_values, build_case
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.thread_time()
     result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {},
               "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan}}
     with warnings.catch_warnings(record=True) as caught:
@@ -87,6 +87,7 @@ def run_case(payload: Payload, values) -> dict:
     if caught:
         result["warning"] = " | ".join(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
     result["timing"]["case_time_s"] = time.perf_counter() - start
+    result["timing"]["case_cpu_s"] = time.thread_time() - cpu
     return result
 
 
@@ -160,7 +161,8 @@ def task_failure(row, exc: BaseException) -> dict:
     index, digest, _ = row
     return {"index": int(index), "hash": digest, "status": STATUS_TASK, "warning": "", "summary": {},
             "histories": {}, "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
-            "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan},
+            "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan,
+                       "case_cpu_s": math.nan},
             "worker": "", "version": __version__}
 
 

@@ -55,7 +55,8 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
     report: cases, computed, skipped (already stored), missing (still not in the store: lost
     tasks, computed by a rerun), status_counts, failed, elapsed_s (the cases only), startup_s
     (cluster start and one warm-up case per worker, which loads the kernels), cases_per_s,
-    mean_kernel_time_s, mean_case_time_s, overhead_per_case_s (case time outside the kernel),
+    mean_kernel_time_s, mean_case_time_s, mean_case_cpu_s (CPU of the case in its worker thread),
+    overhead_per_case_s (case time outside the kernel),
     batch_size, workers, executor. ``progress`` is called with the running counts after each
     batch. The executor (default: a local dask cluster) is not started when nothing is missing."""
     plan = plan_of(spec)
@@ -83,7 +84,7 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
             results = ex.map(payload, batches(rows, size))
             _collect(results, sweep_store, state, counts, times, start, flush_seconds, progress)
             elapsed, workers, name = time.perf_counter() - start, ex.workers, ex.name
-    k, c = (np.array([t[i] for t in times], float) for i in (0, 1))
+    k, c, u = (np.array([t[i] for t in times], float) for i in (0, 1, 2))
     return {
         "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
         "missing": int((~sweep_store.done()).sum()), "status_counts": dict(counts), "failed": state["failed"],
@@ -91,6 +92,7 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
         "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
         "mean_kernel_time_s": float(np.nanmean(k)) if np.isfinite(k).any() else float("nan"),
         "mean_case_time_s": float(np.nanmean(c)) if np.isfinite(c).any() else float("nan"),
+        "mean_case_cpu_s": float(np.nanmean(u)) if np.isfinite(u).any() else float("nan"),
         "overhead_per_case_s": float(np.nanmean(c - np.nan_to_num(k))) if np.isfinite(c).any() else float("nan"),
         "batch_size": size, "workers": workers, "executor": name,
     }
@@ -111,7 +113,7 @@ def _collect(results, store: SweepStore, state: dict, counts: Counter, times: li
                     raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
                                      f"{__version__}", "install the same slipstep version on every worker")
                 counts[r["status"]] += 1
-                times.append((r["timing"]["kernel_time_s"], r["timing"]["case_time_s"]))
+                times.append((r["timing"]["kernel_time_s"], r["timing"]["case_time_s"], r["timing"]["case_cpu_s"]))
             buffer.extend(batch)
             state["computed"] += len(batch)
             state["failed"] = sum(v for k, v in counts.items() if k != "OK")

@@ -10,7 +10,7 @@ Layout (read it with :func:`open_sweep`; every variable has ``units`` and ``long
 * the summary fields (slipstep.post.summary.FIELDS), over ``case`` or (case, interface),
   (case, contact), (case, direction);
 * optional histories ``history_<variable>`` over (case, phase, <its dimension>);
-* run-to-run varying values, apart: ``kernel_time_s``, ``wall_time_s``, ``case_time_s``,
+* run-to-run varying values, apart: ``kernel_time_s``, ``wall_time_s``, ``case_time_s``, ``case_cpu_s``,
   ``worker`` and ``run_index`` (the invocation of the sweep that computed the case).
 
 Attributes: ``slipstep_sweep`` (layout version), ``slipstep_version``, ``sweep_spec`` (the
@@ -41,7 +41,8 @@ RETRY_STATUS = "TASK_FAILED"  # slipstep.sweep.execute.STATUS_TASK
 CASE_CHUNK = 1024
 TIMING_FIELDS = {"kernel_time_s": ("s", "kernel time of the march (varies between runs)"),
                  "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
-                 "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)")}
+                 "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)"),
+                 "case_cpu_s": ("s", "CPU time of the whole case in its worker thread (varies between runs)")}
 TEXT_FIELDS = {"status": "status of the case (empty: not computed yet)", "status_message": "status message",
                "warning": "warnings raised by the case"}
 
