@@ -130,19 +130,12 @@ def run_batch(payload: Payload, rows) -> list[dict]:
     return out
 
 
-def warm_up(payload: Payload) -> float:
-    """Run the first case once and forget it: imports slipstep and loads (or compiles) the
-    kernels of the sweep's method, so the timed cases do not pay for it. Returns seconds."""
+def warm_up(payload: Payload, values) -> float:
+    """Run one case and forget it: imports slipstep and loads (or compiles) the kernels of the
+    sweep's method, so the timed cases do not pay for it. Returns seconds."""
     start = time.perf_counter()
-    run_case(payload, [p_value for p_value in _first_values(payload)])
+    run_case(payload, values)
     return time.perf_counter() - start
-
-
-def _first_values(payload: Payload) -> list:
-    from slipstep.sweep.cases import _get
-
-    return [_get(payload.base, p.paths[0]) if _get(payload.base, p.paths[0]) is not None else 0.0
-            for p in payload.parameters]
 
 
 def _task_key(rows) -> str:
@@ -166,10 +159,10 @@ def task_failure(row, exc: BaseException) -> dict:
             "worker": "", "version": __version__}
 
 
-def default_batch_size(n_cases: int, workers: int) -> int:
-    """About 10 tasks per worker (load balance, retries lose little), at most 100 cases each
-    (a quasi-static paper case takes ~5 ms, so a task lasts well under a second)."""
-    return max(1, min(100, math.ceil(n_cases / (10 * max(workers, 1)))))
+def default_batch_size(n_cases: int, slots: int) -> int:
+    """About 10 tasks per slot (worker thread: load balance, a lost task loses little), at most
+    100 cases each (a quasi-static paper case takes ~6 ms: a task lasts under a second)."""
+    return max(1, min(100, math.ceil(n_cases / (10 * max(slots, 1)))))
 
 
 def batches(rows: list, size: int) -> list[list]:
@@ -188,6 +181,7 @@ class SerialExecutor:
 
     name = "serial"
     workers = 1
+    slots = 1
 
     def __enter__(self):
         return self
@@ -195,8 +189,8 @@ class SerialExecutor:
     def __exit__(self, *exc):
         return False
 
-    def warm_up(self, payload: Payload) -> float:
-        return warm_up(payload)
+    def warm_up(self, payload: Payload, values) -> float:
+        return warm_up(payload, values)
 
     def map(self, payload: Payload, tasks: list[list]) -> Iterator[list[dict]]:
         for rows in tasks:
@@ -250,7 +244,14 @@ class DaskExecutor:
 
     @property
     def workers(self) -> int:
+        """Worker processes of the cluster."""
         return max(1, len(self.client.scheduler_info(n_workers=-1)["workers"])) if self.client else 1
+
+    @property
+    def slots(self) -> int:
+        """Cases the cluster runs at once: the threads of all its workers."""
+        info = self.client.scheduler_info(n_workers=-1)["workers"] if self.client else {}
+        return max(1, sum(w.get("nthreads", 1) for w in info.values()))
 
     def __exit__(self, *exc):
         if self.client is not None:
@@ -259,10 +260,10 @@ class DaskExecutor:
             self.cluster.close()
         return False
 
-    def warm_up(self, payload: Payload) -> float:
+    def warm_up(self, payload: Payload, values) -> float:
         """Every worker runs :func:`warm_up` (in parallel); returns the seconds it took."""
         start = time.perf_counter()
-        self.client.run(warm_up, payload)
+        self.client.run(warm_up, payload, values)
         return time.perf_counter() - start
 
     def map(self, payload: Payload, tasks: list[list]) -> Iterator[list[dict]]:

@@ -75,10 +75,10 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
         started = time.perf_counter()
         with executor as ex:
             payload = payload_of(plan)
-            ex.warm_up(payload)
+            ex.warm_up(payload, rows[0][2])
             start = time.perf_counter()
             startup = start - started
-            size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.workers)
+            size = batch_size or plan.spec.batch_size or default_batch_size(len(rows), ex.slots)
             if progress is not None:
                 progress(dict(state))
             results = ex.map(payload, batches(rows, size))
