@@ -5,7 +5,8 @@
     report = run_sweep(spec, "amp.zarr", executor=DaskExecutor("tcp://host:8786"))
 
 The client is the only writer of the store: finished batches are buffered and flushed every
-``flush_seconds`` (and at the end, and on Ctrl-C), so a killed client loses at most the
+``flush_seconds`` (default 5 s: a flush costs ~50 ms plus ~0.1 ms per case, so the client
+stays a few per cent of a core) and at the end and on Ctrl-C, so a killed client loses at most the
 cases of the last ``flush_seconds``, and a rerun of the same call computes only the cases
 the store does not hold yet.
 """
@@ -50,7 +51,7 @@ def labels_of(plan: Plan) -> dict:
 
 def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
               overwrite: bool = False, progress: Callable[[dict], None] | None = None,
-              flush_seconds: float = 2.0) -> dict:
+              flush_seconds: float = 5.0) -> dict:
     """Compute every case of ``spec`` missing from ``store`` (created if needed) and return a
     report: cases, computed, skipped (already stored), missing (still not in the store: lost
     tasks, computed by a rerun), status_counts, failed, elapsed_s (the cases only), startup_s
