@@ -90,6 +90,10 @@ def test_grid_order_first_parameter_slowest():
     assert plan.grid_shape == (2, 3)
     np.testing.assert_allclose(plan.values, [[100, 1], [100, 10], [100, 100], [200, 1], [200, 10], [200, 100]])
     assert [p.name for p in plan.parameters] == ["centrifugal_force_N", "amplitude"]
+    names = make_plan(_spec(Parameter("damper.contacts.P3.position_mm.2", values=(1.0,)),
+                            Parameter("damper.contacts.P1.friction_coefficient", values=(0.3,)),
+                            Parameter("damper.contacts.P3.friction_coefficient", values=(0.3,)))).parameters
+    assert [p.name for p in names] == ["position_mm_2", "P1_friction_coefficient", "P3_friction_coefficient"]
     assert [p.unit for p in plan.parameters] == ["N", "um"]
 
 
@@ -187,6 +191,11 @@ BAD_SPECS = [
      "parameter.name", "both named 'mass_kg'"),
     ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "m"},
                     {"key": "damper.mass_kg", "values": [2.0], "name": "n"}]}, "parameter.2.key", "parameter 1"),
+    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "status"}]}, "parameter.1.name",
+     "a variable of the sweep store"),
+    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "energy_per_cycle_J"}]}, "parameter.1.name",
+     "a variable of the sweep store"),
+    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "m/s"}]}, "parameter.1.name", "'m/s'"),
     ({"run": {"tolerence": 1e-6}}, "run.tolerence", "not a known run option"),
     ({"outputs": {"histories": ["tangential_forces"]}}, "outputs.histories.1", "not a time history"),
     ({"outputs": {"frf": True}}, "outputs.frf", "not available yet"),

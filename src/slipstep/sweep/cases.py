@@ -286,12 +286,28 @@ def _names(spec: SweepSpec) -> list[str]:
                 chosen.append(p.name)
                 continue
             segs = [s for s in _split(p.keys[0]) if s != "*"]
-            chosen.append("_".join(segs[-depth:]).replace("+", "p"))
+            start = len(segs) - depth
+            while start > 0 and re.fullmatch(r"[+-]?\d+", segs[start]):  # an index: name its list too
+                start -= 1
+            chosen.append("_".join(segs[start:]).replace("+", "p").replace(".", "_"))
         if len(set(chosen)) == len(chosen):
             return chosen
         first = first or chosen
     dup = sorted({n for n in first if first.count(n) > 1})
     raise InputError("parameter.name", f"two parameters are both named {dup[0]!r}", "give each a distinct name")
+
+
+def _check_names(names: list[str]) -> None:
+    """Parameter names become store variables: a plain name that no store variable uses."""
+    from slipstep.post.summary import FIELDS
+    from slipstep.sweep.store import RESERVED
+
+    for i, name in enumerate(names):
+        where = f"parameter.{i + 1}.name"
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.+-]*", name):
+            raise InputError(where, f"is {name!r}", "use letters, digits and _ (starting with a letter)")
+        if name in FIELDS or name in RESERVED or name.startswith("history_"):
+            raise InputError(where, f"{name!r} is a variable of the sweep store", "give the parameter another name")
 
 
 # -- the plan ------------------------------------------------------------------------------------
@@ -334,6 +350,7 @@ def make_plan(spec: SweepSpec) -> Plan:
     base = base_case(spec)
     kind = case_kind(base)
     names = _names(spec)
+    _check_names(names)
     resolved = []
     for i, (p, name) in enumerate(zip(spec.parameters, names)):
         paths = []

@@ -43,6 +43,8 @@ TIMING_FIELDS = {"kernel_time_s": ("s", "kernel time of the march (varies betwee
                  "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
                  "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)"),
                  "case_cpu_s": ("s", "CPU time of the whole case in its worker thread (varies between runs)")}
+RESERVED = {"case", "case_hash", "status", "status_message", "warning", "worker", "run_index", "phase", "interface",
+            "contact", "direction", "dof", "motion", "kernel_time_s", "wall_time_s", "case_time_s", "case_cpu_s"}
 TEXT_FIELDS = {"status": "status of the case (empty: not computed yet)", "status_message": "status message",
                "warning": "warnings raised by the case"}
 
