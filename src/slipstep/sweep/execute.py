@@ -201,7 +201,9 @@ class DaskExecutor:
     """dask.distributed: a loopback LocalCluster of ``workers`` single-threaded processes
     (default: one per core) or the cluster of ``scheduler`` (an address such as
     tcp://10.0.0.5:8786). ``threads`` > 1 runs several cases per worker process in
-    threads (the kernels release the GIL; the set-up around them does not)."""
+    threads (the kernels release the GIL; the set-up around them does not). Python's warning
+    capture is process-wide, so with threads a case's ``warning`` text may carry a warning of
+    a case run beside it; the numbers are unaffected."""
 
     name = "dask"
 
