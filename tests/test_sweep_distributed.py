@@ -132,7 +132,7 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
     try:
         deadline = time.monotonic() + 180
         while _count_done(store) < 100 and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.05)
+            time.sleep(0.2)
         os.kill(proc.pid, signal.SIGKILL)
     finally:
         proc.wait(timeout=30)

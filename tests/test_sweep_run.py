@@ -157,6 +157,17 @@ def test_summary_of_a_run_that_stopped_early_has_the_same_keys(paper):
 # ---------------------------------------------------------------- failures, resume, other sweeps
 
 
+@pytest.mark.parametrize("run, field", [({"method": "newmark-fast"}, "run.method"),
+                                        ({"step_ratio": -1.0}, "run.step_ratio"),
+                                        ({"linear_solver": "sparse"}, "run.linear_solver")])
+def test_bad_run_options_are_spec_errors(tmp_path, run, field):
+    spec = SweepSpec(base="paper", run=run, parameters=(Parameter("damper.centrifugal_force_N", values=(100.0,)),))
+    with pytest.raises(InputError) as exc:
+        run_sweep(spec, tmp_path / "x.zarr", executor=SerialExecutor())
+    assert exc.value.field == field
+    assert not (tmp_path / "x.zarr").exists()
+
+
 def test_failed_cases_are_recorded_and_do_not_stop_the_sweep(tmp_path):
     spec = SweepSpec(base="paper", run={"method": "quasi-static", "periods": 2, "steps_per_period": 100},
                      parameters=(Parameter("damper.centrifugal_angle_deg", values=(90.0, -90.0)),

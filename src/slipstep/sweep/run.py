@@ -41,12 +41,29 @@ def labels_of(plan: Plan) -> dict:
     from slipstep.sweep.cases import build_case, probe_case
 
     try:
-        system, _ = build_case(probe_case(plan), plan.base_dir, source="the base case of the sweep")
+        system, run = build_case(probe_case(plan), plan.base_dir, source="the base case of the sweep")
     except InputError as exc:
         raise InputError(exc.field, f"{exc.problem} (base case of the sweep)", exc.fix) from None
+    _check_run(run, plan.extra_run)
     return {"interface": list(interfaces_from_system(system)), "contact": list(system.contact_names),
             "direction": list(system.direction_names()), "dof": list(system.structure.dof_names),
             "motion": list(system.motion_names)}
+
+
+def _check_run(run, extra: dict) -> None:
+    """The method and run options, checked once (not once per case); errors name run.<key>."""
+    from slipstep.methods.registry import get_method
+    from slipstep.methods.simulation import RunOptions
+    from slipstep.sweep.execute import _run_options
+
+    try:
+        get_method(run.method or "newmark")
+    except InputError as exc:
+        raise InputError("run.method", exc.problem, exc.fix) from None
+    try:
+        RunOptions(**_run_options(run, extra)).validated()
+    except InputError as exc:
+        raise InputError(f"run.{exc.field}", exc.problem, exc.fix) from None
 
 
 def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
