@@ -117,9 +117,30 @@ def _print_report(r: dict, output: Path, console) -> None:
             ("mean kernel time per case", ms(r["mean_kernel_time_s"])),
             ("mean time per case (build, run, summary)", ms(r["mean_case_time_s"])),
             ("per-case overhead outside the kernel", ms(r["overhead_per_case_s"]))]
+    best = _best_case(output)
+    if best:
+        rows.append(("largest energy per cycle (all interfaces)", best))
     for name, value in rows:
         table.add_row(name, str(value))
     console.print(table)
+
+
+def _best_case(store: Path) -> str:
+    """The case of the store that dissipates most per cycle, as text ('' if none is OK)."""
+    import numpy as np
+
+    from slipstep.sweep.store import open_sweep
+
+    ds = open_sweep(store)
+    if "energy_per_cycle_J" not in ds:
+        return ""
+    energy = np.where(ds.status.values == "OK", ds.energy_per_cycle_J.values, np.nan)
+    if not np.isfinite(energy).any():
+        return ""
+    i = int(np.nanargmax(energy))
+    unit = lambda p: "" if ds[p].attrs.get("units", "1") == "1" else f" {ds[p].attrs['units']}"  # noqa: E731
+    where = ", ".join(f"{p} = {ds[p].values[i]:.4g}{unit(p)}" for p in ds.attrs["parameters"])
+    return f"{energy[i] * 1e3:.4g} mJ at {where} (case {i})"
 
 
 def sweep_plot(
