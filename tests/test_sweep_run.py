@@ -259,6 +259,10 @@ def test_cli_sweep_and_sweep_plot(tmp_path):
     assert report["computed"] == 9 and report["executor"] == "serial"
     result = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "s.zarr"), "--serial"])
     assert result.exit_code == 0 and "all 9 cases are already in" in result.output
+    result = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "t.zarr"), "--serial"])
+    assert result.exit_code == 0, result.output
+    best = int(np.nanargmax(open_sweep(tmp_path / "t.zarr").energy_per_cycle_J.values))
+    assert "computed now" in result.output and f"(case {best})" in result.output
     result = runner.invoke(app, ["sweep-plot", str(tmp_path / "s.zarr"), "-q", "interface_zeta_eq[right]",
                                  "-o", str(tmp_path / "fig")])
     assert result.exit_code == 0, result.output
