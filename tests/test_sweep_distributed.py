@@ -26,12 +26,11 @@ from slipstep.sweep import (
     run_sweep,
 )
 from slipstep.sweep.execute import payload_of, run_case
-from slipstep.sweep.store import TIMING_FIELDS
+from slipstep.sweep.store import VARYING
 
 distributed = pytest.importorskip("distributed")
 
 SRC = Path(__file__).resolve().parents[1] / "src"
-VARYING = set(TIMING_FIELDS) | {"worker", "run_index"}
 
 
 @pytest.fixture(scope="module")

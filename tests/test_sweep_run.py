@@ -15,7 +15,7 @@ from slipstep.cli import app
 from slipstep.errors import InputError, Status
 from slipstep.post.summary import FIELDS, field_of, summarise
 from slipstep.sweep import Parameter, SerialExecutor, SweepSpec, open_sweep, run_sweep
-from slipstep.sweep.store import TIMING_FIELDS
+from slipstep.sweep.store import TIMING_FIELDS, VARYING
 
 # A Jenkins element: the contact's tangential coordinate is the prescribed motion itself,
 # u = -p = -XA sin(2 pi f t), and a constant force F on the normal DOF gives N = F.
@@ -190,7 +190,7 @@ def _small_spec(**kw):
 
 def _same_values(a, b):
     """Every value that must be identical between runs (everything but the timings)."""
-    varying = set(TIMING_FIELDS) | {"worker", "run_index"}
+    varying = VARYING
     assert set(a.variables) == set(b.variables)
     for name in a.variables:
         if name in varying:
@@ -339,3 +339,35 @@ def test_an_assembly_case_sweeps_too(tmp_path):
     # a lighter damper load slips for more of the period at the same forcing (300 N sticks longer)
     assert (ds.direction_slip_share.sel(centrifugal_force_N=100.0).values
             >= ds.direction_slip_share.sel(centrifugal_force_N=300.0).values).all()
+
+
+def test_a_frequency_response_per_case(tmp_path):
+    """[outputs.frf]: slipstep.frequency.frf of every case in the store, equal to a direct call;
+    where the contact sticks the response is linear in the force and equals the
+    frequency-domain linear limit with the contact stuck."""
+    from pathlib import Path
+
+    from slipstep.frequency import frf
+    from slipstep.sweep import make_plan
+    from slipstep.sweep.cases import build_case
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    spec = slipstep.sweep.spec_from_dict({
+        "sweep": {"base": str(examples / "shroud_pair.toml")}, "run": {"method": "piecewise-linear"},
+        "parameter": [{"key": "force.1.amplitude", "values": [0.5, 1.0]}],
+        "outputs": {"frf": {"frequencies_Hz": [55.0, 45.0, 50.0], "harmonics": 2, "responses": ["y1", "y2"]}}})
+    assert run_sweep(spec, tmp_path / "f.zarr", executor=SerialExecutor())["status_counts"] == {"OK": 2}
+    ds = open_sweep(tmp_path / "f.zarr")
+    assert ds.frf_amplitude.dims == ("case", "frequency", "response") and ds.frf_amplitude.attrs["units"]
+    assert list(ds.frequency.values) == [45.0, 50.0, 55.0] and ds.frequency.attrs["units"] == "Hz"
+    assert list(ds.response.values) == ["y1", "y2"] and (ds.frf_status.values == "OK").all()
+    plan = make_plan(spec)
+    system, _ = build_case(plan.case_dict(1), plan.base_dir)
+    direct = frf(system, [45.0, 50.0, 55.0], harmonics=2, responses=["y1", "y2"], method="piecewise-linear")
+    for name in ("amplitude", "harmonic_amplitude", "energy_per_cycle", "linear_stuck_amplitude"):
+        assert np.array_equal(ds[f"frf_{name}"].values[1], direct[name].values), name
+    # the small forces keep the shroud stuck: no friction work, twice the force gives twice the response,
+    # and the response is the linear one with the contact stuck
+    assert np.abs(ds.frf_energy_per_cycle.values).max() < 1e-12
+    np.testing.assert_allclose(ds.frf_amplitude.values[1], 2 * ds.frf_amplitude.values[0], rtol=1e-6)
+    np.testing.assert_allclose(ds.frf_amplitude.values, ds.frf_linear_stuck_amplitude.values, rtol=1e-3)

@@ -198,7 +198,12 @@ BAD_SPECS = [
     ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "m/s"}]}, "parameter.1.name", "'m/s'"),
     ({"run": {"tolerence": 1e-6}}, "run.tolerence", "not a known run option"),
     ({"outputs": {"histories": ["tangential_forces"]}}, "outputs.histories.1", "not a time history"),
-    ({"outputs": {"frf": True}}, "outputs.frf", "not available yet"),
+    ({"outputs": {"frf": True}}, "outputs.frf", "is True"),
+    ({"outputs": {"frf": {"solver": "march"}}}, "outputs.frf", "no frequencies"),
+    ({"outputs": {"frf": {"frequencies_Hz": [10.0, -1.0]}}}, "outputs.frf.frequencies_Hz", "distinct and positive"),
+    ({"outputs": {"frf": {"frequencies_Hz": [10.0], "solver": "hbm"}}}, "outputs.frf.solver", "'hbm'"),
+    ({"outputs": {"frf": {"frequencies_Hz": [10.0], "direction": "both"}}}, "outputs.frf.direction", "'both'"),
+    ({"outputs": {"frf": {"frequencies_Hz": [10.0], "harmonic": 3}}}, "outputs.frf.harmonic", "not a known key"),
     ({"outputs": {"summary": False}}, "outputs.summary", "cannot be switched off"),
 ]
 

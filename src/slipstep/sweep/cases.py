@@ -306,7 +306,7 @@ def _check_names(names: list[str]) -> None:
         where = f"parameter.{i + 1}.name"
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.+-]*", name):
             raise InputError(where, f"is {name!r}", "use letters, digits and _ (starting with a letter)")
-        if name in FIELDS or name in RESERVED or name.startswith("history_"):
+        if name in FIELDS or name in RESERVED or name.startswith(("history_", "frf_")):
             raise InputError(where, f"{name!r} is a variable of the sweep store", "give the parameter another name")
 
 
@@ -382,6 +382,10 @@ def make_plan(spec: SweepSpec) -> Plan:
             values[:, j] = np.round(values[:, j])
     extra = {k: v for k, v in spec.run.items() if k not in CASE_RUN_KEYS}
     outputs = {"histories": list(spec.outputs.histories), "history_points": spec.outputs.history_points}
+    if spec.outputs.frf is not None:
+        from slipstep.sweep.spec import frf_config
+
+        outputs["frf"] = frf_config(spec.outputs.frf)
     plan_params = tuple(resolved)
     hashes = tuple(case_hash(apply_values(base, plan_params, row), extra, outputs) for row in values)
     if len(set(hashes)) != len(hashes):

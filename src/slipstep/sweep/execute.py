@@ -60,7 +60,7 @@ def run_case(payload: Payload, values) -> dict:
     from slipstep.sweep.cases import apply_values, build_case
 
     start, cpu = time.perf_counter(), time.thread_time()
-    result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {},
+    result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {}, "frf": {},
               "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan}}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -76,8 +76,8 @@ def run_case(payload: Payload, values) -> dict:
             result["timing"] = timings(ds)
             if payload.outputs.get("histories"):
                 result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
-            # further result kinds go here, each under its own key of the result (the frequency
-            # response of the case, once slipstep.frequency has a solver: outputs.frf)
+            if payload.outputs.get("frf"):
+                result["frf"] = frf_values(system, run, payload.outputs["frf"])
         except InputError as exc:
             result.update(status=STATUS_INPUT, message=str(exc))
         except SolverError as exc:
@@ -114,6 +114,18 @@ def histories(ds, names, points: int) -> dict:
     except InputError:
         return {}
     return {name: np.asarray(lp[name].values) for name in names if name in lp}
+
+
+def frf_values(system, run, cfg: dict) -> dict:
+    """The case's frequency response (slipstep.frequency.frf with the [outputs.frf] settings and
+    the sweep's method), its FRF_SCHEMA variables as arrays in ascending frequency."""
+    from slipstep.frequency import FRF_SCHEMA, frf
+
+    method = run.method if run.method and run.method not in ("quasi-static", "4") else "piecewise-linear"
+    ds = frf(system, cfg["frequencies_Hz"], solver=cfg["solver"], direction=cfg["direction"],
+             responses=cfg["responses"], harmonics=cfg["harmonics"], method=method, tolerance=cfg["tolerance"])
+    ds = ds.sortby("frequency")
+    return {name: np.asarray(ds[name].transpose(*FRF_SCHEMA[name][0]).values) for name in FRF_SCHEMA if name in ds}
 
 
 def run_batch(payload: Payload, rows) -> list[dict]:
@@ -153,7 +165,7 @@ def task_failure(row, exc: BaseException) -> dict:
 
     index, digest, _ = row
     return {"index": int(index), "hash": digest, "status": STATUS_TASK, "warning": "", "summary": {},
-            "histories": {}, "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
+            "histories": {}, "frf": {}, "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
             "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan,
                        "case_cpu_s": math.nan},
             "worker": "", "version": __version__}

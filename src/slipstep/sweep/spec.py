@@ -30,6 +30,11 @@ swept quantity and an optional ``[outputs]`` table::
     histories = ["tangential_force"]         # last period resampled on history_points points
     history_points = 64
 
+    [outputs.frf]                            # optional: slipstep.frequency.frf of every case
+    frequencies_Hz = [250.0, 275.0, 300.0]   # or start_Hz, stop_Hz, num
+    solver = "march"                         # march | shoot; direction = "up" | "down"
+    harmonics = 3                            # responses = ["8.x", ...] (default: every DOF)
+
 Sampled sweeps (latin-hypercube, sobol) give each parameter ``low`` and ``high`` (and an
 optional ``scale = "log"``) and draw ``samples`` points with ``seed`` (scipy.stats.qmc).
 Every error names the key the user wrote (``parameter.2.stop``, ``sweep.sampling``, ...).
@@ -88,7 +93,7 @@ class Outputs:
 
     histories: tuple[str, ...] = ()
     history_points: int = 64
-    frf: bool = False
+    frf: dict | None = None  # the frequency response of each case (FRF_KEYS), see frf_config
 
 
 @dataclass(frozen=True)
@@ -130,6 +135,8 @@ class SweepSpec:
                 sweep[k] = getattr(self, k)
         outputs = {"histories": list(self.outputs.histories), "history_points": self.outputs.history_points,
                    "frf": self.outputs.frf}
+        if self.outputs.frf is None:
+            del outputs["frf"]
         return {"sweep": sweep, "run": dict(self.run), "parameter": params, "outputs": outputs}
 
 
@@ -172,7 +179,7 @@ def spec_from_dict(data: dict, source: str = "sweep", root: Path | None = None) 
     if outputs.get("summary", True) is not True:
         raise InputError("outputs.summary", "cannot be switched off", "remove the key: every case returns its summary")
     out = Outputs(histories=tuple(_str_list(outputs.get("histories", []), "outputs.histories")),
-                  history_points=outputs.get("history_points", 64), frf=outputs.get("frf", False))
+                  history_points=outputs.get("history_points", 64), frf=outputs.get("frf"))
     return SweepSpec(base=base, parameters=parsed, sampling=sweep.get("sampling", "grid"),
                      run=dict(_table(data, "run")), outputs=out, samples=sweep.get("samples"),
                      seed=sweep.get("seed", 0), batch_size=sweep.get("batch_size"),
@@ -306,9 +313,51 @@ def _check_outputs(out: Outputs) -> None:
             raise InputError(f"outputs.histories.{j + 1}", f"is {name!r}, not a time history of the result",
                              f"use some of {', '.join(HISTORY_VARIABLES)}")
     _integer("outputs.history_points", out.history_points, minimum=2)
-    if out.frf is not False:
-        raise InputError("outputs.frf", "is not available yet: the frequency response of each case needs "
-                         "slipstep.frequency", "remove outputs.frf (summaries and histories are available)")
+    if out.frf is not None:
+        frf_config(out.frf)
+
+
+FRF_KEYS = ("frequencies_Hz", "start_Hz", "stop_Hz", "num", "solver", "direction", "harmonics", "responses",
+            "tolerance")
+
+
+def frf_config(table) -> dict:
+    """The [outputs.frf] table checked and completed: the frequencies [Hz] (a list, or start_Hz,
+    stop_Hz, num), solver (march | shoot), direction (up | down), harmonics H, responses (DOF
+    names, default all) and the steady-state tolerance; slipstep.frequency.frf runs it per case."""
+    import numpy as np
+
+    where = "outputs.frf"
+    if not isinstance(table, dict):
+        raise InputError(where, f"is {table!r}", "give a table: [outputs.frf] frequencies_Hz = [...]")
+    _known(table, f"{where}.", FRF_KEYS, "[outputs.frf]")
+    if "frequencies_Hz" in table:
+        if {"start_Hz", "stop_Hz", "num"} & set(table):
+            raise InputError(f"{where}.frequencies_Hz", "is given with a range", "give a list or start/stop/num")
+        freqs = [_number(f"{where}.frequencies_Hz.{j + 1}", v) for j, v in enumerate(table["frequencies_Hz"])] \
+            if isinstance(table["frequencies_Hz"], list) else None
+        if not freqs:
+            raise InputError(f"{where}.frequencies_Hz", f"is {table['frequencies_Hz']!r}", "give a list of frequencies")
+    elif {"start_Hz", "stop_Hz", "num"} <= set(table):
+        a, b = _number(f"{where}.start_Hz", table["start_Hz"]), _number(f"{where}.stop_Hz", table["stop_Hz"])
+        freqs = [float(v) for v in np.linspace(a, b, _integer(f"{where}.num", table["num"], minimum=1))]
+    else:
+        raise InputError(where, "has no frequencies", "give frequencies_Hz = [...] or start_Hz, stop_Hz, num")
+    if min(freqs) <= 0 or len(set(freqs)) != len(freqs):
+        raise InputError(f"{where}.frequencies_Hz", f"is {freqs[:6]}: frequencies must be distinct and positive",
+                         "give distinct positive frequencies [Hz]")
+    solver, direction = table.get("solver", "march"), table.get("direction", "up")
+    if solver not in ("march", "shoot"):
+        raise InputError(f"{where}.solver", f"is {solver!r}", "use march or shoot")
+    if direction not in ("up", "down"):
+        raise InputError(f"{where}.direction", f"is {direction!r}",
+                         "use up or down (a sweep stores one direction; run a second sweep for the other)")
+    responses = table.get("responses")
+    if responses is not None:
+        responses = _str_list(responses, f"{where}.responses")
+    return {"frequencies_Hz": sorted(freqs), "solver": solver, "direction": direction,
+            "harmonics": _integer(f"{where}.harmonics", table.get("harmonics", 3), minimum=0),
+            "responses": responses, "tolerance": _number(f"{where}.tolerance", table.get("tolerance", 1e-6))}
 
 
 def parameter_values(p: Parameter) -> list[float]:

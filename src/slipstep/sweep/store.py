@@ -10,8 +10,11 @@ Layout (read it with :func:`open_sweep`; every variable has ``units`` and ``long
 * the summary fields (slipstep.post.summary.FIELDS), over ``case`` or (case, interface),
   (case, contact), (case, direction);
 * optional histories ``history_<variable>`` over (case, phase, <its dimension>);
+* optional frequency responses ``frf_<name>`` (slipstep.frequency.FRF_SCHEMA) over (case,
+  frequency, ...) with the coordinates frequency [Hz], harmonic, response;
 * run-to-run varying values, apart: ``kernel_time_s``, ``wall_time_s``, ``case_time_s``, ``case_cpu_s``,
-  ``worker`` and ``run_index`` (the invocation of the sweep that computed the case).
+  ``worker``, ``run_index`` (the invocation of the sweep that computed the case) and
+  ``frf_point_time`` (all in VARYING).
 
 Attributes: ``slipstep_sweep`` (layout version), ``slipstep_version``, ``sweep_spec`` (the
 spec as JSON), ``sweep_name``, ``sampling``, ``parameters``, ``grid_shape`` (a grid sweep),
@@ -43,8 +46,11 @@ TIMING_FIELDS = {"kernel_time_s": ("s", "kernel time of the march (varies betwee
                  "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
                  "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)"),
                  "case_cpu_s": ("s", "CPU time of the whole case in its worker thread (varies between runs)")}
-RESERVED = {"case", "case_hash", "status", "status_message", "warning", "worker", "run_index", "phase", "interface",
+RESERVED = {"frequency", "harmonic", "response", "case", "case_hash", "status", "status_message", "warning", "worker",
+            "run_index", "phase", "interface",
             "contact", "direction", "dof", "motion", "kernel_time_s", "wall_time_s", "case_time_s", "case_cpu_s"}
+# what differs between identical runs: the timings, the worker, the invocation
+VARYING = set(TIMING_FIELDS) | {"worker", "run_index", "frf_point_time"}
 TEXT_FIELDS = {"status": "status of the case (empty: not computed yet)", "status_message": "status message",
                "warning": "warnings raised by the case"}
 
@@ -145,6 +151,7 @@ class SweepStore:
                     block[:, j] = [np.nan if v is None else v for v in col]
                 arr.oindex[idx, positions] = block
         self._write_histories(idx, results)
+        self._write_frf(idx, results)
         for key in TIMING_FIELDS:
             self._arrays[key].oindex[idx] = np.array([r["timing"].get(key, np.nan) for r in results], float)
         self._arrays["worker"].oindex[idx] = np.array([r.get("worker", "") for r in results], dtype=str)
@@ -190,6 +197,16 @@ class SweepStore:
                              "sweep values only: the parameters must not change the model's topology")
         return np.array([known.index(lab) for lab in labels], dtype=np.int64)
 
+    def _write_frf(self, idx: np.ndarray, results: list[dict]) -> None:
+        from slipstep.frequency import FRF_SCHEMA
+
+        if not any(r.get("frf") for r in results):
+            return
+        for name in FRF_SCHEMA:
+            arr = self._arrays.get(f"frf_{name}")
+            if arr is not None:
+                arr.oindex[idx] = _frf_block(arr, idx, results, name)
+
     def _write_histories(self, idx: np.ndarray, results: list[dict]) -> None:
         names = {n for r in results for n in r["histories"]}
         for name in sorted(names):
@@ -202,6 +219,16 @@ class SweepStore:
                 if name in r["histories"]:
                     block[i] = r["histories"][name]
             arr.oindex[idx] = block
+
+
+def _frf_block(arr, idx: np.ndarray, results: list[dict], name: str) -> np.ndarray:
+    """The rows of one FRF variable for the cases ``idx`` (missing: NaN or "")."""
+    text = arr.dtype.kind not in "fiu"
+    block = np.full((idx.size,) + arr.shape[1:], "" if text else np.nan, dtype=object if text else arr.dtype)
+    for i, r in enumerate(results):
+        if name in r.get("frf", {}):
+            block[i] = r["frf"][name]
+    return block.astype(str) if text else block
 
 
 def _column(values: list, dtype) -> np.ndarray:
@@ -293,6 +320,8 @@ def _create(path: Path, plan, labels: dict) -> None:
                        dtype="i1" if integer else "f8", fill_value=-1 if integer else np.nan,
                        dimension_names=["case", "phase"] + ([dim] if dim else []),
                        attributes={"units": units, "long_name": f"{long_name}, last period"})
+    if plan.outputs.get("frf"):
+        _create_frf(g, plan, labels)
     spec = plan.spec
     g.attrs.update({
         "slipstep_sweep": LAYOUT, "slipstep_version": __version__, "title": f"slipstep sweep: {spec.name}",
@@ -301,6 +330,33 @@ def _create(path: Path, plan, labels: dict) -> None:
         "grid_shape": list(plan.grid_shape) if plan.grid_shape else None, "case_kind": plan.kind, "n_cases": n,
         "runs": 0,
     })
+
+
+def _create_frf(g, plan, labels: dict) -> None:
+    """The FRF variables of every case: ``frf_<name>`` over (case, <its FRF_SCHEMA dims>), with
+    the frequency [Hz], harmonic and response coordinates (slipstep.frequency.schema)."""
+    from slipstep.frequency import FRF_SCHEMA
+
+    cfg = plan.outputs["frf"]
+    coords = {"frequency": np.array(cfg["frequencies_Hz"], float), "harmonic": np.arange(cfg["harmonics"] + 1),
+              "response": np.array(cfg["responses"] or labels["dof"], dtype=str)}
+    attrs = {"frequency": {"units": "Hz", "long_name": "excitation frequency of the FRF points"},
+             "harmonic": {"long_name": "harmonic number of the response (0: mean)"},
+             "response": {"long_name": "response DOFs of the FRF"}}
+    for dim, values in coords.items():
+        dtype, fill = (str, "") if values.dtype.kind == "U" else (values.dtype, -1 if values.dtype.kind == "i" else np.nan)
+        g.create_array(dim, shape=values.shape, dtype=dtype, fill_value=fill, dimension_names=[dim],
+                       attributes=attrs[dim])[:] = values
+    sizes = {**{d: v.size for d, v in coords.items()}, "contact": len(labels["contact"])}
+    n = plan.n_cases
+    for name, (dims, units, long_name) in FRF_SCHEMA.items():
+        if any(d not in sizes for d in dims):
+            continue
+        shape = (n,) + tuple(sizes[d] for d in dims)
+        text = name == "status"
+        g.create_array(f"frf_{name}", shape=shape, chunks=(min(n, 64),) + shape[1:], dtype=str if text else "f8",
+                       fill_value="" if text else np.nan, dimension_names=["case", *dims],
+                       attributes={"units": units, "long_name": f"FRF: {long_name}"})
 
 
 # -- reading -------------------------------------------------------------------------------------
