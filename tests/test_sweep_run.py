@@ -371,3 +371,10 @@ def test_a_frequency_response_per_case(tmp_path):
     assert np.abs(ds.frf_energy_per_cycle.values).max() < 1e-12
     np.testing.assert_allclose(ds.frf_amplitude.values[1], 2 * ds.frf_amplitude.values[0], rtol=1e-6)
     np.testing.assert_allclose(ds.frf_amplitude.values, ds.frf_linear_stuck_amplitude.values, rtol=1e-3)
+    from slipstep.sweep.plots import frf_curves, write_figures
+
+    fig = frf_curves(ds, response="y2")
+    lines = [line for line in fig.axes[0].lines if line.get_marker() == "o"]
+    assert len(lines) == 2 and np.allclose(lines[1].get_ydata(), ds.frf_amplitude.sel(response="y2").values[1] * 1e6)
+    assert fig.axes[0].get_xlabel() == "excitation frequency [Hz]" and fig.axes[0].get_ylabel().endswith("[um]")
+    assert [p.name for p in write_figures(ds, tmp_path)] == ["design_curves.png", "frf_curves.png"]

@@ -4,7 +4,8 @@
   triangulated map with the sample points (sampled sweeps), colour bar with units, the
   optimum marked (star) and, on a grid, the best y for each x (the ridge a designer follows);
 * :func:`design_curves` - a quantity against one parameter, one curve per value of another
-  (the energy-vs-amplitude curve of a damper for several centrifugal loads).
+  (the energy-vs-amplitude curve of a damper for several centrifugal loads);
+* :func:`frf_curves`    - the stored frequency responses of one response DOF, one per case.
 
 A quantity is a store variable, with a label in brackets for the labelled ones:
 ``energy_per_cycle_J``, ``interface_energy_per_cycle_J[right]``, ``interface_zeta_eq[left]``.
@@ -262,10 +263,49 @@ def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, gr
     return fig
 
 
+def frf_curves(ds, response: str | None = None, group: str | None = None, at: dict | None = None, ax=None):
+    """The stored frequency responses (``frf_amplitude`` of one response DOF against frequency),
+    one curve per case, or on a grid per value of ``group`` with the other parameters held at
+    ``at`` (default: their first values); returns the Figure."""
+    if "frf_amplitude" not in ds:
+        raise InputError("store", "holds no frequency responses", "add an [outputs.frf] table to the sweep")
+    responses = [str(r) for r in ds["response"].values]
+    response = response or responses[0]
+    if response not in responses:
+        raise InputError("response", f"{response!r} is not a response of the FRFs", f"use one of {', '.join(responses)}")
+    check_at(ds, at)
+    params = list(ds.attrs["parameters"])
+    group = group or params[0]
+    if group not in params:
+        raise InputError("group", f"{group!r} is not a parameter of the sweep", f"use one of {', '.join(params)}")
+    mask = _slice(ds, [group], at, None) if ds.attrs.get("grid_shape") else np.ones(ds.sizes["case"], bool)
+    amp = ds["frf_amplitude"].sel(response=response)
+    factor, unit = _DISPLAY.get(amp.attrs.get("units", "").split()[0] if amp.attrs.get("units") else "", (1.0, ""))
+    f = ds["frequency"].values
+    fig = ax.figure if ax is not None else plt.figure(figsize=(7.2, 4.8), layout="constrained")
+    ax = ax or fig.add_subplot()
+    cases = np.flatnonzero(mask)
+    colors = plt.cm.viridis(np.linspace(0.0, 0.9, max(len(cases), 1)))
+    for i, color in zip(cases, colors):
+        ok = np.asarray(ds["frf_status"].values[i]).astype(str) == "OK"
+        y = amp.values[i] * factor
+        ax.plot(f[ok], y[ok], marker="o", ms=3, color=color,
+                label=f"{group} = {ds[group].values[i]:.4g}{_u(ds[group].attrs.get('units', '1'))}")
+        if (~ok).any():
+            ax.plot(f[~ok], np.zeros((~ok).sum()), "x", color="0.5", ms=6)
+    ax.set_xlabel("excitation frequency [Hz]")
+    ax.set_ylabel(f"response amplitude of {response} [{unit or amp.attrs.get('units', '-')}]")
+    held = _held_text(ds, [group], mask)
+    ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: frequency responses" + (f"\n({held})" if held else ""))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig
+
+
 def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
                   group: str | None = None, at: dict | None = None, minimize: bool = False) -> list:
-    """design_map.png (two or more parameters) and design_curves.png (grid sweeps) in
-    ``output_dir``, each written through slipstep.io.atomic_path; returns the paths."""
+    """design_map.png (two or more parameters), design_curves.png (grid sweeps) and
+    frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written through slipstep.io.atomic_path; returns the paths."""
     from pathlib import Path
 
     from slipstep.io import atomic_path
@@ -281,6 +321,8 @@ def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | Non
         cx = x or params[-1]
         cg = group or (y if y and y != cx else None)
         figures.append(("design_curves.png", design_curves(ds, name, cx, cg, at, minimize)))
+    if "frf_amplitude" in ds:
+        figures.append(("frf_curves.png", frf_curves(ds, group=y, at=at)))
     for filename, fig in figures:
         path = output_dir / filename
         with atomic_path(path) as tmp:
