@@ -125,7 +125,8 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
         '[[parameter]]\nkey = "damper.contacts.*.friction_coefficient"\nstart = 0.1\nstop = 0.5\nnum = 10\n')
     store = tmp_path / "big.zarr"
     env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-c", "from slipstep.cli import app; app()", "sweep", str(spec_file), "-o", str(store),
+    proc = subprocess.Popen([sys.executable, "-c", "from slipstep.cli import app; app()", "sweep", str(spec_file),
+                             "-o", str(store),
                              "--scheduler", cluster.scheduler_address, "--json"], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:

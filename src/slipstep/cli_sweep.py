@@ -17,7 +17,8 @@ import typer
 
 
 def sweep(
-    spec: Path = typer.Argument(..., help="sweep specification (TOML): \\[sweep], \\[run], \\[\\[parameter]], \\[outputs]"),
+    spec: Path = typer.Argument(..., help="sweep specification (TOML): \\[sweep], \\[run], "
+                                "\\[\\[parameter]], \\[outputs]"),
     output: Path = typer.Option(..., "--output", "-o", help="the zarr store (a folder, e.g. results.zarr); "
                                 "rerunning on an existing store computes only the cases it does not hold"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of a running dask scheduler "
@@ -170,7 +171,8 @@ def sweep_plot(
             try:
                 held[name.strip()] = float(value)
             except ValueError:
-                raise InputError("at", f"{item!r} is not NAME=VALUE", "write e.g. --at centrifugal_force_N=200") from None
+                raise InputError("at", f"{item!r} is not NAME=VALUE",
+                                 "write e.g. --at centrifugal_force_N=200") from None
             if not sep:
                 raise InputError("at", f"{item!r} is not NAME=VALUE", "write e.g. --at centrifugal_force_N=200")
         ds = open_sweep(store)

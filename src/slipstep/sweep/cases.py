@@ -165,7 +165,8 @@ def _walk(node, segs: list[str], i: int, prefix: Path_, key: str) -> list[Path_]
             return _walk(node[j - 1], segs, i + 1, prefix + (j - 1,), key)
         for k in range(len(segs), i, -1):  # longest match first: names may contain dots
             label = ".".join(segs[i:k])
-            hits = [j for j, e in enumerate(node) if isinstance(e, dict) and label in (e.get("name"), e.get("component"))]
+            hits = [j for j, e in enumerate(node)
+                    if isinstance(e, dict) and label in (e.get("name"), e.get("component"))]
             if len(hits) > 1:
                 raise InputError(key, f"{label!r} matches {len(hits)} entries of {here}",
                                  f"use an index 1..{len(node)} to pick one, or * for all")

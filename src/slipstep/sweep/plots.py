@@ -46,7 +46,8 @@ def quantity(ds, name: str) -> tuple[np.ndarray, str, str]:
     if dims:
         labels = [str(v) for v in ds[dims[0]].values]
         if label not in labels:
-            raise InputError("quantity", f"{label!r} is not a {dims[0]} of the store", f"use one of {', '.join(labels)}")
+            raise InputError("quantity", f"{label!r} is not a {dims[0]} of the store",
+                             f"use one of {', '.join(labels)}")
         var = var.isel({dims[0]: labels.index(label)})
     elif label is not None:
         raise InputError("quantity", f"{base!r} has no [{label}]", f"write {base}")
@@ -106,7 +107,8 @@ def check_at(ds, at: dict | None) -> None:
         raise InputError("at", "holds parameters of a sampled sweep", "remove it: a sampled map shows every point")
     for p, target in at.items():
         if p not in ds.attrs["parameters"]:
-            raise InputError("at", f"{p!r} is not a parameter of the sweep", f"use one of {', '.join(ds.attrs['parameters'])}")
+            raise InputError("at", f"{p!r} is not a parameter of the sweep",
+                             f"use one of {', '.join(ds.attrs['parameters'])}")
         values = np.unique(ds[p].values)
         if not np.isclose(values, target, rtol=1e-9, atol=1e-12).any():
             raise InputError("at", f"{p} = {target:g} is not a value of the sweep",
@@ -272,7 +274,8 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
     responses = [str(r) for r in ds["response"].values]
     response = response or responses[0]
     if response not in responses:
-        raise InputError("response", f"{response!r} is not a response of the FRFs", f"use one of {', '.join(responses)}")
+        raise InputError("response", f"{response!r} is not a response of the FRFs",
+                         f"use one of {', '.join(responses)}")
     check_at(ds, at)
     params = list(ds.attrs["parameters"])
     group = group or params[0]
@@ -305,7 +308,8 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
 def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
                   group: str | None = None, at: dict | None = None, minimize: bool = False) -> list:
     """design_map.png (two or more parameters), design_curves.png (grid sweeps) and
-    frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written through slipstep.io.atomic_path; returns the paths."""
+    frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written through
+    slipstep.io.atomic_path; returns the paths."""
     from pathlib import Path
 
     from slipstep.io import atomic_path

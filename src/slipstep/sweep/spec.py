@@ -216,7 +216,8 @@ def validate(spec: SweepSpec) -> None:
     """Check the spec's own consistency (the key paths are checked against the base case when
     the plan is made, slipstep.sweep.cases.make_plan)."""
     if not isinstance(spec.base, (str, dict)) or (isinstance(spec.base, str) and not spec.base):
-        raise InputError("sweep.base", f"is {spec.base!r}", "give a built-in case name, a TOML case path or a case dict")
+        raise InputError("sweep.base", f"is {spec.base!r}",
+                         "give a built-in case name, a TOML case path or a case dict")
     if spec.sampling not in SAMPLINGS:
         raise InputError("sweep.sampling", f"is {spec.sampling!r}", f"use one of {', '.join(SAMPLINGS)}")
     _integer("sweep.seed", spec.seed, minimum=0)

@@ -116,7 +116,8 @@ class SweepStore:
             what = (f"{differ} of its {new.size} cases differ" if differ is not None
                     else f"it has {stored.size} cases, this sweep {new.size}")
             raise InputError("output", f"{str(self.path)!r} holds another sweep ({what}: the spec, its base case "
-                             "or the slipstep defaults changed)", "give a new store path, or --overwrite to start again")
+                             "or the slipstep defaults changed)",
+                             "give a new store path, or --overwrite to start again")
 
     # -- state -----------------------------------------------------------------------------------
     def done(self) -> np.ndarray:
@@ -134,7 +135,7 @@ class SweepStore:
         idx = np.array([r["index"] for r in results], dtype=np.int64)
         columns: dict[str, list] = {}
         for r in results:
-            for key, value in r["summary"].items():
+            for key in r["summary"]:
                 columns.setdefault(key, [None] * len(results))
         for i, r in enumerate(results):
             for key, value in r["summary"].items():
@@ -344,7 +345,10 @@ def _create_frf(g, plan, labels: dict) -> None:
              "harmonic": {"long_name": "harmonic number of the response (0: mean)"},
              "response": {"long_name": "response DOFs of the FRF"}}
     for dim, values in coords.items():
-        dtype, fill = (str, "") if values.dtype.kind == "U" else (values.dtype, -1 if values.dtype.kind == "i" else np.nan)
+        if values.dtype.kind == "U":
+            dtype, fill = str, ""
+        else:
+            dtype, fill = values.dtype, (-1 if values.dtype.kind == "i" else np.nan)
         g.create_array(dim, shape=values.shape, dtype=dtype, fill_value=fill, dimension_names=[dim],
                        attributes=attrs[dim])[:] = values
     sizes = {**{d: v.size for d, v in coords.items()}, "contact": len(labels["contact"])}
