@@ -225,3 +225,13 @@ def test_bad_spec_files(tmp_path):
     (tmp_path / "bad.toml").write_text("[sweep\n")
     with pytest.raises(InputError, match="not valid TOML"):
         load_spec(tmp_path / "bad.toml")
+
+
+def test_one_parameter_sets_several_keys():
+    keys = ["damper.contacts.P1.normal_stiffness_N_per_um", "damper.contacts.P1.tangential_stiffness_N_per_um"]
+    spec = spec_from_dict({"sweep": {"base": "paper"},
+                           "parameter": [{"key": keys, "values": [10.0, 20.0], "name": "k_P1", "unit": "N/um"}]})
+    plan = make_plan(spec)
+    contact = plan.case_dict(1)["damper"]["contacts"][0]
+    assert contact["normal_stiffness_N_per_um"] == contact["tangential_stiffness_N_per_um"] == 20.0
+    assert plan.parameters[0].name == "k_P1" and plan.parameters[0].keys == tuple(keys)
