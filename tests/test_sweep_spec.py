@@ -235,3 +235,13 @@ def test_one_parameter_sets_several_keys():
     contact = plan.case_dict(1)["damper"]["contacts"][0]
     assert contact["normal_stiffness_N_per_um"] == contact["tangential_stiffness_N_per_um"] == 20.0
     assert plan.parameters[0].name == "k_P1" and plan.parameters[0].keys == tuple(keys)
+
+
+def test_the_readme_sweep_example_is_a_valid_spec():
+    import tomllib
+
+    readme = (CASES_DIR.parents[2] / "README.md").read_text()
+    block = readme.split("## Design sweeps")[1].split("```toml\n")[1].split("```")[0]
+    plan = make_plan(spec_from_dict(tomllib.loads(block)))
+    assert plan.grid_shape == (3, 12, 3) and plan.outputs["frf"]["frequencies_Hz"] == [180.0, 200.0, 220.0]
+    assert [p.name for p in plan.parameters] == ["centrifugal_force_N", "amplitude", "friction_coefficient"]
