@@ -67,7 +67,7 @@ def test_a_misspelt_final_key_is_named_by_the_case_validation():
     plan = make_plan(_spec(Parameter("damper.centrifugal_forc_N", values=(100.0,))))
     with pytest.raises(InputError) as exc:
         labels_of(plan)
-    assert exc.value.field == "damper.centrifugal_forc_N" and "base case of the sweep" in exc.value.problem
+    assert "centrifugal_forc_N" in exc.value.field and "base case of the sweep" in exc.value.problem
 
 
 def test_units_from_key_names():

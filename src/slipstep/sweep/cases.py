@@ -253,27 +253,15 @@ def apply_values(base: dict, parameters, values) -> dict:
 
 # -- units and names -----------------------------------------------------------------------------
 
-_UNIT_SUFFIXES = [("_N_per_um", "N/um"), ("_N_per_m", "N/m"), ("_N_s_per_m", "N s/m"), ("_kg_m2", "kg m^2"),
-                  ("_kg", "kg"), ("_N", "N"), ("_mm", "mm"), ("_um", "um"), ("_m", "m"), ("_deg", "deg"),
-                  ("_Hz", "Hz"), ("_s", "s")]
-
-
 def unit_of(key: str, kind: str) -> str:
-    """The unit of a case-file key, read from its name (units are part of key names); motion
-    and force amplitudes: um for [damper] cases, m / N for [structure] cases."""
+    """The unit of a case-file key path, read from its last key's name by the case format's own
+    rule (slipstep.config_check.unit_of: motion and force amplitudes by their table); "1" for
+    a dimensionless key."""
+    from slipstep.config_check import unit_of as case_unit
+
     named = [s for s in _split(key) if s != "*" and not re.fullmatch(r"[+-]?\d+", s)]
     last = named[-1] if named else ""
-    if last == "friction_coefficient" or last in ("periods", "steps_per_period", "step_ratio"):
-        return "1"
-    if last == "amplitude":
-        first = _split(key)[0]
-        if first == "force":
-            return "N"
-        return "um" if kind == "damper" else "N" if kind == "assembly" else "m"
-    for suffix, unit in _UNIT_SUFFIXES:
-        if last.endswith(suffix):
-            return unit
-    return "1"
+    return case_unit(last, "damper" if kind == "damper" else "structure", table=named[0] if named else "") or "1"
 
 
 def _names(spec: SweepSpec) -> list[str]:

@@ -308,11 +308,11 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
 def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
                   group: str | None = None, at: dict | None = None, minimize: bool = False) -> list:
     """design_map.png (two or more parameters), design_curves.png (grid sweeps) and
-    frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written through
-    slipstep.io.atomic_path; returns the paths."""
+    frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written atomically
+    (slipstep.io.save_figure); returns the paths."""
     from pathlib import Path
 
-    from slipstep.io import atomic_path
+    from slipstep.io import save_figure
 
     output_dir = Path(output_dir)
     check_at(ds, at)
@@ -329,8 +329,7 @@ def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | Non
         figures.append(("frf_curves.png", frf_curves(ds, group=y, at=at)))
     for filename, fig in figures:
         path = output_dir / filename
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=130, format="png")
+        save_figure(fig, path, dpi=130)
         plt.close(fig)
         paths.append(path)
     return paths
