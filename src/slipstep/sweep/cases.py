@@ -82,12 +82,12 @@ def base_case(spec: SweepSpec) -> dict:
         if not path.suffix and spec.base in builtin_cases():
             path = CASES_DIR / f"{spec.base}.toml"
         elif not path.suffix:
-            raise InputError("sweep.base", f"{spec.base!r} is not a built-in case",
+            raise InputError("[sweep] base", f"{spec.base!r} is not a built-in case",
                              f"use one of {', '.join(builtin_cases())} or a TOML case file path")
         try:
             data = read_toml(path)
         except InputError as exc:
-            raise InputError("sweep.base", exc.problem, exc.fix) from None
+            raise InputError("[sweep] base", exc.problem, exc.fix) from None
     run = dict(data.get("run") or {})
     run.update({k: v for k, v in spec.run.items() if k in CASE_RUN_KEYS})
     data["run"] = run
@@ -283,7 +283,7 @@ def _names(spec: SweepSpec) -> list[str]:
             return chosen
         first = first or chosen
     dup = sorted({n for n in first if first.count(n) > 1})
-    raise InputError("parameter.name", f"two parameters are both named {dup[0]!r}", "give each a distinct name")
+    raise InputError("[[parameter]] name", f"two parameters are both named {dup[0]!r}", "give each a distinct name")
 
 
 def _check_names(names: list[str]) -> None:
@@ -292,7 +292,7 @@ def _check_names(names: list[str]) -> None:
     from slipstep.sweep.store import RESERVED
 
     for i, name in enumerate(names):
-        where = f"parameter.{i + 1}.name"
+        where = f"[[parameter]] {i + 1}: name"
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.+-]*", name):
             raise InputError(where, f"is {name!r}", "use letters, digits and _ (starting with a letter)")
         if name in FIELDS or name in RESERVED or name.startswith(("history_", "frf_")):
@@ -346,18 +346,18 @@ def make_plan(spec: SweepSpec) -> Plan:
         for key in p.keys:
             found = resolve(base, key)
             if not found:
-                raise InputError(f"parameter.{i + 1}.key", f"{key!r} matches no entry of the base case",
+                raise InputError(f"[[parameter]] {i + 1}: key", f"{key!r} matches no entry of the base case",
                                  "check the key path against the case file")
             paths.extend(found)
         if len(set(paths)) != len(paths):
-            raise InputError(f"parameter.{i + 1}.key", "sets one location twice", "list each key once")
+            raise InputError(f"[[parameter]] {i + 1}: key", "sets one location twice", "list each key once")
         integer = all(_integer_key(q, kind) for q in paths)
         resolved.append(ResolvedParameter(name, p.unit or unit_of(p.keys[0], kind), p.keys, tuple(paths), integer))
     seen: dict = {}
     for i, rp in enumerate(resolved):
         for q in rp.paths:
             if q in seen:
-                raise InputError(f"parameter.{i + 1}.key", f"sets a location parameter {seen[q] + 1} also sets",
+                raise InputError(f"[[parameter]] {i + 1}: key", f"sets a location parameter {seen[q] + 1} also sets",
                                  "sweep each location with one parameter only")
             seen[q] = i
     values, grid = sample_points(spec)
@@ -365,7 +365,7 @@ def make_plan(spec: SweepSpec) -> Plan:
         if rp.integer and spec.sampling not in ("latin-hypercube", "sobol"):
             bad = [v for v in values[:, j] if v != round(v)]
             if bad:
-                raise InputError(f"parameter.{j + 1}.values", f"{rp.keys[0]} takes whole numbers, got {bad[0]}",
+                raise InputError(f"[[parameter]] {j + 1}: values", f"{rp.keys[0]} takes whole numbers, got {bad[0]}",
                                  "give whole numbers")
         if rp.integer:
             values[:, j] = np.round(values[:, j])
@@ -378,6 +378,6 @@ def make_plan(spec: SweepSpec) -> Plan:
     plan_params = tuple(resolved)
     hashes = tuple(case_hash(apply_values(base, plan_params, row), extra, outputs) for row in values)
     if len(set(hashes)) != len(hashes):
-        raise InputError("parameter", "two cases of the sweep are identical (repeated points)",
+        raise InputError("[[parameter]]", "two cases of the sweep are identical (repeated points)",
                          "remove the repeated values or samples")
     return Plan(spec, base, kind, plan_params, values, grid, hashes, extra, outputs, base_dir_of(spec))

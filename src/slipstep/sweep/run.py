@@ -59,11 +59,11 @@ def _check_run(run, extra: dict) -> None:
     try:
         get_method(run.method or "newmark")
     except InputError as exc:
-        raise InputError("run.method", exc.problem, exc.fix) from None
+        raise InputError("[run] method", exc.problem, exc.fix) from None
     try:
         RunOptions(**_run_options(run, extra)).validated()
     except InputError as exc:
-        raise InputError(f"run.{exc.field}", exc.problem, exc.fix) from None
+        raise InputError(f"[run] {exc.field}", exc.problem, exc.fix) from None
 
 
 def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
