@@ -657,6 +657,46 @@ def frf_reference() -> str | None:
     return "\n".join(L) + "\n"
 
 
+def summary_reference() -> str | None:
+    """The per-case summary of a design sweep: slipstep.post.summary.FIELDS, with the values of the
+    paper case (quasi-static, 3 periods) computed when the page is built."""
+    try:
+        from slipstep.post import summary
+    except ImportError:  # pragma: no cover - a tree without sweeps
+        return None
+    import slipstep as ss
+
+    system = ss.load_system("paper")
+    values = summary.summarise(ss.run(system, "quasi-static", periods=3), system)
+    by_base: dict[str, list[str]] = {}
+    for key, value in values.items():
+        base, label = summary.field_of(key)
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        by_base.setdefault(base, []).append(f"{label}: {text}" if label else text)
+    doc = (summary.__doc__ or "").split("\n\n")[0]
+    L = [
+        GENERATED_NOTE,
+        "# Sweep summary quantities",
+        "",
+        " ".join(doc.split()).rstrip(".")
+        + ". `slipstep.post.summary.summarise(ds, system)` returns them as a flat dict whose "
+        "keys carry their units; a design sweep (`slipstep sweep`) stores one per case. This table is "
+        "`slipstep.post.summary.FIELDS`, the one place they are declared; labelled keys (`name[label]`) have one "
+        "value per interface (contacts grouped by platform), contact or direction. Run timings are kept apart "
+        "(`summary.timings`): they differ between identical runs.",
+        "",
+        "| key | per | unit | meaning | paper case, quasi-static (this build) |",
+        "|---|---|---|---|---|",
+    ]
+    for base, (unit, meaning) in summary.FIELDS.items():
+        per = summary.dimension_of(base) or "-"
+        key = f"{base}[{per}]" if per != "-" else base
+        example = "; ".join(by_base.get(base, [])) or "-"
+        L.append(f"| `{key}` | {per} | {unit} | {meaning.replace('|', chr(92) + '|')} | {example} |")
+    L += ["", "Definitions (from the module docstring):", "", "```text", (summary.__doc__ or "").strip(), "```", ""]
+    return "\n".join(L) + "\n"
+
+
 # --------------------------------------------------------------------------------------------
 # Methods: slipstep.methods.registry and slipstep.integrators
 # --------------------------------------------------------------------------------------------
@@ -1127,6 +1167,9 @@ def all_pages(samples=None) -> dict[str, str]:
     frf = frf_reference()
     if frf:
         pages["reference/frequency_response.md"] = frf
+    summary = summary_reference()
+    if summary:
+        pages["reference/sweep_summary.md"] = summary
     pages.update(api_pages())
     for name, target in (("CONTRIBUTING.md", "contributing.md"), ("CHANGELOG.md", "changelog.md")):
         if (ROOT / name).exists():  # one copy: the file at the top of the repository, links made site-relative

@@ -131,6 +131,16 @@ def test_frf_page_is_the_frf_schema(pages):
     assert {name: [f"({', '.join(d)})", u, m] for name, (d, u, m) in schema.FRF_SCHEMA.items()} == rows
 
 
+def test_sweep_summary_page_lists_every_summary_field(pages):
+    summary = pytest.importorskip("slipstep.post.summary")
+    rows = _rows(pages["reference/sweep_summary.md"])
+    for base, (unit, _) in summary.FIELDS.items():
+        per = summary.dimension_of(base)
+        key = f"{base}[{per}]" if per else base
+        assert key in rows and rows[key][1] == unit, key
+        assert rows[key][3] != "-", key  # a value computed on the paper case
+
+
 def test_methods_page_lists_every_method_and_scheme(pages):
     from slipstep.integrators import INTEGRATORS
     from slipstep.methods.registry import ALIASES, METHODS
@@ -221,3 +231,18 @@ def test_api_reference_sees_the_lazily_exported_public_names():
     assert pkg["run"].final_target.path == "slipstep.methods.simulation.run"
     # Sphinx roles became autorefs links
     assert "[`RunOptions`][slipstep.methods.simulation.RunOptions]" in pkg["run"].docstring.value
+
+
+def test_sweep_file_of_the_guide_is_a_valid_spec():
+    spec_module = pytest.importorskip("slipstep.sweep.spec")
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    text = (DOCS / "guide" / "forced_response.md").read_text()
+    block = text.split("## Design sweeps", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
+    spec = spec_module.spec_from_dict(tomllib.loads(block), source="guide")
+    spec_module.validate(spec)
+    assert [p.key for p in spec.parameters] == ["damper.centrifugal_force_N", "motion.1.amplitude"]
+    assert len(spec_module.parameter_values(spec.parameters[1])) == 12
