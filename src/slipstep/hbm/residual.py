@@ -59,6 +59,7 @@ class Point:
     aft_periods: int
     ft: np.ndarray | None = None  # (N, nq) the AFT force samples
     qt: np.ndarray | None = None  # (N, nq) the local displacement samples
+    tangent: tuple | None = None  # continuation: (t_Z (n_coef, nq), t_p, z_scale, p_scale, parameter), scaled
 
 
 class HarmonicBalance:

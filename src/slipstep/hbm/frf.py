@@ -1,0 +1,302 @@
+"""Frequency (and excitation-level) responses by harmonic balance, in the FRF layout.
+
+    ds = slipstep.hbm.frf(system, np.linspace(150, 450, 61), harmonics=(1, 3, 5))
+
+follows the periodic response from the first to the last frequency by pseudo-arclength
+continuation (:mod:`slipstep.hbm.continuation`: turning points and both sides of a jump are
+followed; the points are where the continuation put them, in the order computed, so the
+``frequency`` coordinate may go back and forth), or, with ``continuation=False``, solves at
+exactly the given frequencies, each from the previous solution. The result is laid out as
+``slipstep.frequency.schema.FRF_SCHEMA`` (the marched and shot FRFs overlay on it), plus a
+non-dimension coordinate ``excitation_level`` on ``frequency``. Each point carries the
+harmonic-adequacy estimate (:mod:`slipstep.hbm.adequacy`) and, at the peak and at chosen
+frequencies, the time-marching cross-check (:mod:`slipstep.hbm.crosscheck`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from slipstep.errors import InputError
+from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.hbm.adequacy import Adequacy, HarmonicAdequacyWarning, extended_set, force_content
+from slipstep.hbm.continuation import Branch, trace
+from slipstep.hbm.crosscheck import relative_differences, steady_reference
+from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak, viscous_dissipation
+from slipstep.hbm.linear import linear_response
+from slipstep.hbm.residual import HarmonicBalance
+from slipstep.system import System
+
+
+def _frequencies(values) -> np.ndarray:
+    try:
+        f = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError("frequencies", f"is {values!r}", "give a list of frequencies in Hz") from None
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise InputError("frequencies", f"is {values!r}", "give one or more positive frequencies in Hz")
+    return f
+
+
+def response_indices(system: System, responses) -> np.ndarray:
+    """DOF indices of the reported responses: the given names, or every DOF (up to 50), or the
+    forced DOFs of a larger model."""
+    names = list(system.structure.dof_names)
+    if responses is None:
+        if len(names) <= 50 or system.excitation.force is None:
+            return np.arange(len(names))
+        amp = np.abs(np.array([h.amplitude for h in system.excitation.force.harmonics])).sum(axis=0)
+        return np.flatnonzero(amp > 0)
+    if isinstance(responses, str):
+        responses = [responses]
+    out = []
+    for r in responses:
+        if r not in names:
+            raise InputError("responses", f"{r!r} is not a DOF name", f"use one of {names[:10]}{' ...' if len(names) > 10 else ''}")
+        out.append(names.index(r))
+    return np.array(out, dtype=np.int64)
+
+
+def _sequential(hb, parameter, values, fixed, progress):
+    branch = Branch()
+    Z = None
+    for v in values:
+        w, lv = (v, fixed) if parameter == "omega" else (fixed, v)
+        pt = hb.solve(w, lv, Z)
+        branch.points.append(pt)
+        branch.steps += 1
+        if progress:
+            progress(pt)
+        if pt.converged:
+            Z = pt.Z
+        else:
+            branch.status, branch.message = "NOT_CONVERGED", f"Newton did not converge at {parameter} = {v:.6g}"
+    return branch
+
+
+def _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, progress, tol, max_dp):
+    hb = HarmonicBalance(system, harmonics, samples)
+    if continuation and len(values) > 1:
+        span = abs(values[-1] - values[0])
+        dp = max_dp if max_dp is not None else span / max(len(values) - 1, 1)
+        branch = trace(hb, parameter, values[0], values[-1], fixed, max_dp=dp, tol=tol, progress=progress)
+    else:
+        branch = _sequential(hb, parameter, values, fixed, progress)
+    return hb, branch
+
+
+def _response(system, parameter, values, fixed, *, harmonics, samples, responses, continuation, check,
+              check_at, check_options, adequacy, adequacy_tolerance, auto_harmonics, max_harmonics, progress, tol,
+              max_dp, sweep):
+    if not isinstance(system, System):
+        raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+    resp = response_indices(system, responses)
+    if check not in (True, False, "peak", "none", "all"):
+        raise InputError("check", f"is {check!r}", "use 'peak' (the default), 'all' or 'none'")
+    start = time.perf_counter()
+    callback = (lambda pt: progress(pt)) if progress else None
+    hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp)
+    estimates = np.full(len(branch.points), np.nan)
+    if adequacy:
+        ad = Adequacy(hb, resp)
+        estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
+        worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
+        h_max = int(hb.h.max())
+        if worst > adequacy_tolerance and auto_harmonics and 2 * h_max + 1 <= max_harmonics:
+            return _response(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
+                             responses=responses, continuation=continuation, check=check, check_at=check_at,
+                             check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
+                             auto_harmonics=auto_harmonics, max_harmonics=max_harmonics, progress=progress, tol=tol,
+                             max_dp=max_dp, sweep=sweep)
+        if worst > adequacy_tolerance:
+            i = int(np.nanargmax(estimates))
+            warnings.warn(
+                f"harmonic balance with harmonics {[int(v) for v in hb.h[1:]]}: the response would change by about "
+                f"{worst:.2%} with more harmonics (at {branch.points[i].omega / (2 * np.pi):.6g} Hz, level "
+                f"{branch.points[i].level:.3g}), above the tolerance {adequacy_tolerance:.2%}. Raise the harmonics (e.g. harmonics="
+                f"{2 * h_max + 1}) or pass auto_harmonics=True", HarmonicAdequacyWarning, stacklevel=3)
+    solve_time = time.perf_counter() - start
+    ds = _dataset(hb, branch, resp, estimates, parameter, fixed)
+    ds.attrs.update({"sweep": sweep, "solve_time_s": solve_time,
+                     "time_per_point_s": solve_time / max(len(branch.points), 1)})
+    if check in (True, "peak", "all") and len(branch.points):
+        _cross_check(ds, hb, branch, resp, check, check_at, check_options or {})
+    ds.attrs["wall_time_s"] = time.perf_counter() - start
+    return ds
+
+
+def frf(system: System, frequencies, *, harmonics=5, samples: int | None = None, level: float = 1.0,
+        responses=None, continuation: bool = True, check="peak", check_frequencies=(), check_options=None,
+        adequacy: bool = True, adequacy_tolerance: float = 0.01, auto_harmonics: bool = False,
+        max_harmonics: int = 127, progress=None, tol: float = 1e-10, max_df: float | None = None) -> xr.Dataset:
+    """Frequency response of ``system`` by harmonic balance over ``frequencies`` [Hz].
+
+    harmonics: int H (0..H) or a set such as (1, 3, 5); samples: AFT samples per period.
+    level: scale of the harmonic excitation. responses: DOF names reported (default all).
+    continuation: pseudo-arclength from the first to the last frequency (step capped at the
+    grid spacing or ``max_df`` Hz), else Newton at each given frequency. check: 'peak' (the
+    FRF peak and ``check_frequencies``), 'all' or 'none': the time-marching cross-check,
+    options ``check_options`` (method, tolerance, max_periods, steps_per_period, run options).
+    adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
+    threshold, and whether to raise H (up to ``max_harmonics``) and recompute instead of warning.
+    progress: a callable called with each solved point (slipstep.hbm.Point)."""
+    f = _frequencies(frequencies)
+    fund = system.excitation.fundamental_frequency if isinstance(system, System) else None
+    if isinstance(system, System) and fund is None:
+        raise InputError("excitation", "has no harmonic force or motion", "give [[force]] or [[motion]] harmonics")
+    level = _positive_level(level)
+    sweep = "down" if f.size > 1 and f[-1] < f[0] else "up"
+    return _response(system, "omega", 2 * np.pi * f, level, harmonics=harmonics, samples=samples, responses=responses,
+                     continuation=continuation, check=check, check_at=2 * np.pi * np.atleast_1d(check_frequencies),
+                     check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
+                     auto_harmonics=auto_harmonics, max_harmonics=max_harmonics, progress=progress, tol=tol,
+                     max_dp=None if max_df is None else 2 * np.pi * max_df, sweep=sweep)
+
+
+def level_response(system: System, frequency_hz: float, levels, **options) -> xr.Dataset:
+    """Response at one frequency against the excitation level (continuation over lambda from
+    levels[0] to levels[-1]); the same layout, with ``excitation_level`` varying along the
+    ``frequency`` dimension (whose values are then all ``frequency_hz``). Options as :func:`frf`
+    (``check_frequencies`` becomes ``check_levels``)."""
+    lv = np.atleast_1d(np.asarray(levels, dtype=float))
+    if lv.ndim != 1 or lv.size == 0 or not np.all(np.isfinite(lv)) or np.any(lv < 0):
+        raise InputError("levels", f"is {levels!r}", "give one or more excitation levels >= 0 (1: as given)")
+    _frequencies([frequency_hz])
+    check_levels = np.atleast_1d(options.pop("check_levels", ()))
+    opts = dict(harmonics=5, samples=None, responses=None, continuation=True, check="peak", check_options=None,
+                adequacy=True, adequacy_tolerance=0.01, auto_harmonics=False, max_harmonics=127, progress=None,
+                tol=1e-10, max_dp=None)
+    unknown = set(options) - set(opts)
+    if unknown:
+        raise InputError("options", f"unknown option(s) {sorted(unknown)}", f"use only {sorted(opts)}")
+    opts.update(options)
+    return _response(system, "level", lv, 2 * np.pi * float(frequency_hz), check_at=check_levels,
+                     sweep="up" if lv[-1] >= lv[0] else "down", **opts)
+
+
+def _positive_level(level) -> float:
+    try:
+        v = float(level)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v) or v < 0:
+        raise InputError("level", f"is {level!r}", "give an excitation scale factor >= 0 (1: as given)")
+    return v
+
+
+# ---- the Dataset -----------------------------------------------------------------------------
+
+
+def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, parameter, fixed) -> xr.Dataset:
+    system, pts = hb.system, branch.points
+    npt, nr = len(pts), resp.size
+    names = [system.structure.dof_names[i] for i in resp]
+    units = [system.structure.dof_units[i] for i in resp]
+    h_all = np.arange(int(hb.h.max()) + 1)
+    freq = np.array([p.omega for p in pts]) / (2 * np.pi)
+    level = np.array([p.level for p in pts])
+    nc = len(system.contacts)
+    data = {name: np.full(tuple({"frequency": npt, "harmonic": h_all.size, "response": nr, "contact": nc}[d]
+                                for d in dims), np.nan)
+            for name, (dims, _, _) in FRF_SCHEMA.items() if name != "status"}
+    status = []
+    for i, p in enumerate(pts):
+        X = p.X[:, resp]
+        data["amplitude"][i] = half_peak_to_peak(hb.h, X)
+        amp = np.abs(X)
+        amp[0] = X[0].real
+        data["harmonic_amplitude"][i, hb.h] = amp
+        ph = np.angle(X)
+        ph[0] = 0.0
+        data["harmonic_phase"][i, hb.h] = ph
+        data["energy_per_cycle"][i] = contact_energy(hb, p.Z, p.F)
+        data["excitation_work"][i] = excitation_work(hb, p)
+        data["viscous_dissipation"][i] = viscous_dissipation(hb, p)
+        ok = p.converged and p.aft_periods > 0
+        status.append("OK" if ok else "NOT_CONVERGED")
+    if "harmonic_truncation_estimate" in data:
+        data["harmonic_truncation_estimate"][:] = estimates
+    for key, stuck in (("linear_free_amplitude", False), ("linear_stuck_amplitude", True)):
+        try:
+            Xl, ms = linear_response(system, freq, stuck)
+            data[key][:] = level[:, None] * np.array([half_peak_to_peak(np.array(ms), Xl[i][:, resp])
+                                                      for i in range(npt)]).reshape(npt, nr)
+        except np.linalg.LinAlgError:
+            pass
+    variables = {}
+    for name, (dims, unit, long_name) in FRF_SCHEMA.items():
+        values = np.array(status, dtype=object).astype(str) if name == "status" else data[name]
+        variables[name] = xr.Variable(dims, values, {"units": unit, "long_name": long_name})
+    coords = {
+        "frequency": ("frequency", freq, {"units": "Hz", "long_name": "excitation frequency"}),
+        "harmonic": ("harmonic", h_all, {"units": "1", "long_name": "harmonic number"}),
+        "response": ("response", names),
+        "response_unit": ("response", units),
+        "contact": ("contact", list(system.contact_names)),
+        "excitation_level": ("frequency", level, {"units": "1", "long_name": "scale of the harmonic excitation"}),
+    }
+    from slipstep import __version__
+
+    attrs = {
+        "title": f"slipstep frequency response: {system.name}, harmonic balance",
+        "case": system.name, "solver": "hbm", "method": "",
+        "harmonics": [int(x) for x in hb.h], "samples": int(hb.basis.samples),
+        "continuation": parameter if len(pts) > 1 else "none",
+        "continuation_status": branch.status, "continuation_message": branch.message,
+        "continuation_steps": branch.steps, "failed_correctors": branch.failed_correctors,
+        "turning_points": branch.turning_points,
+        "newton_iterations": int(sum(p.iterations for p in pts)),
+        "max_harmonic_truncation_estimate": float(np.nanmax(estimates)) if np.any(np.isfinite(estimates)) else math.nan,
+        "max_force_content_outside": float(max((force_content(hb, p) for p in pts), default=0.0)),
+        "steady_tolerance": math.nan, "slipstep_version": __version__,
+    }
+    return xr.Dataset(variables, coords=coords, attrs=attrs)
+
+
+def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:
+    pts = branch.points
+    ok = [i for i, p in enumerate(pts) if p.converged]
+    if not ok:
+        return []
+    if check == "all":
+        return ok
+    amp = ds["amplitude"].values.max(axis=1)
+    idx = [ok[int(np.nanargmax(amp[ok]))]]
+    for v in np.atleast_1d(check_at):
+        j = ok[int(np.argmin(np.abs(parameter_values[ok] - v)))]
+        if j not in idx:
+            idx.append(j)
+    return idx
+
+
+def _cross_check(ds, hb, branch, resp, check, check_at, options):
+    param = np.array([p.omega for p in branch.points]) if ds.attrs["continuation"] != "level" else \
+        np.array([p.level for p in branch.points])
+    if ds.attrs["continuation"] == "none" and len(branch.points) == 1:
+        param = np.array([p.omega for p in branch.points])
+    idx = _check_indices(ds, branch, param, check, check_at)
+    opts = dict(options)
+    summary = []
+    for i in idx:
+        p = branch.points[i]
+        f_hz = p.omega / (2 * np.pi)
+        ref = steady_reference(hb.system, f_hz, p.level, resp, **opts)
+        a, e = relative_differences(ds["amplitude"].values[i], ds["energy_per_cycle"].values[i], ref,
+                                    float(ds["excitation_work"].values[i]))
+        ds["check_amplitude_rel_diff"].values[i] = a
+        ds["check_energy_rel_diff"].values[i] = e
+        ds["periods_to_steady"].values[i] = np.nan
+        summary.append({"index": i, "frequency_Hz": f_hz, "level": p.level, "amplitude_rel_diff": a,
+                        "energy_rel_diff": e, "march_amplitude": float(ref.amplitude.max()),
+                        "march_energy_J": float(ref.energy.sum()), "march_periods": ref.periods,
+                        "march_status": ref.status})
+        ds.attrs["method"] = ref.method
+    ds.attrs["steady_tolerance"] = float(opts.get("tolerance", 1e-6))
+    ds.attrs["check_points"] = len(summary)
+    ds.attrs["check_summary"] = json.dumps(summary)
