@@ -12,5 +12,6 @@ as the time marching (issue 13): the designers' usual tool, cross-checked by the
 """
 
 from slipstep.hbm.residual import HarmonicBalance, Point
+from slipstep.hbm.frf import frf, level_response
 
-__all__ = ["HarmonicBalance", "Point"]
+__all__ = ["HarmonicBalance", "Point", "frf", "level_response"]

@@ -8,7 +8,8 @@ lift-off), the balance only the retained ones. Two numbers per point:
   max over local coordinates: a cheap indicator, blind to how much the structure filters it;
 
 * ``truncation_estimate`` (the criterion of the warning): the relative change of the
-  response if the balance were extended to the set H' = {0, 1, ..., 2 h_max + 1}, estimated
+  response if the balance were extended to the set H' = {0, 1, ..., 2 h_max + 1} (and twice
+  the AFT samples, so that the sampling error is part of the estimate), estimated
   by one corrector step of the extended balance from the current solution (the new harmonics
   start at zero, so the step's right-hand side is exactly the response the neglected force
   harmonics G_h F_h would produce, plus their feedback on the retained ones). The step is
@@ -66,7 +67,7 @@ class Adequacy:
     def __init__(self, hb: HarmonicBalance, responses: np.ndarray):
         self.hb = hb
         h_ext = extended_set(hb.h)
-        samples = max(hb.basis.samples, default_samples(int(h_ext.max())))
+        samples = max(2 * hb.basis.samples, default_samples(int(h_ext.max())))  # and finer sampling
         self.ext = HarmonicBalance(hb.system, h_ext, samples, preload=(hb.x_pre, hb.w_pre))
         self.index = np.searchsorted(self.ext.h, hb.h)  # positions of the retained harmonics
         self.responses = responses
