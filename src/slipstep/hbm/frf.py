@@ -22,6 +22,7 @@ import warnings
 
 import numpy as np
 import xarray as xr
+from threadpoolctl import threadpool_limits
 
 from slipstep.errors import InputError
 from slipstep.frequency.schema import FRF_SCHEMA
@@ -101,11 +102,13 @@ def _response(system, parameter, values, fixed, *, harmonics, samples, responses
         raise InputError("check", f"is {check!r}", "use 'peak' (the default), 'all' or 'none'")
     start = time.perf_counter()
     callback = (lambda pt: progress(pt)) if progress else None
-    hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp)
-    estimates = np.full(len(branch.points), np.nan)
-    if adequacy:
-        ad = Adequacy(hb, resp)
-        estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
+    with threadpool_limits(limits=1, user_api="blas"):
+        hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol,
+                                   max_dp)
+        estimates = np.full(len(branch.points), np.nan)
+        if adequacy:
+            ad = Adequacy(hb, resp)
+            estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
         worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
         h_max = int(hb.h.max())
         if worst > adequacy_tolerance and auto_harmonics and 2 * h_max + 1 <= max_harmonics:
