@@ -8,17 +8,19 @@ lift-off), the balance only the retained ones. Two numbers per point:
   max over local coordinates: a cheap indicator, blind to how much the structure filters it;
 
 * ``truncation_estimate`` (the criterion of the warning): the relative change of the
-  response if the balance were extended to the set H' = {0, 1, ..., 2 h_max + 1} (and twice
+  response if the balance were extended to the set H' = {0, 1, ..., max(2 h_max + 1, h_max + 8)}
+  (and twice
   the AFT samples, so that the sampling error is part of the estimate), estimated
-  by one corrector step of the extended balance from the current solution (the new harmonics
-  start at zero, so the step's right-hand side is exactly the response the neglected force
-  harmonics G_h F_h would produce, plus their feedback on the retained ones). The step is
-  the pseudo-arclength corrector of :mod:`slipstep.hbm.continuation` with the branch's
-  tangent t (so it stays defined at turning points, where dR/dZ is singular; it measures the
-  distance between the two branches normal to the curve) or, for a point solved at a fixed
-  parameter, a step at that fixed parameter p (Omega or the excitation level):
+  by solving the extended balance from the current solution (the new harmonics start at
+  zero, so the first step's right-hand side is exactly the response the neglected force
+  harmonics G_h F_h would produce, plus their feedback on the retained ones; the first one
+  or two steps usually converge it). The iteration is the pseudo-arclength corrector of
+  :mod:`slipstep.hbm.continuation` with the branch's tangent t (so it stays defined at
+  turning points, where dR/dZ is singular; it measures the distance between the two branches
+  normal to the curve), with Newton at the fixed parameter as the fallback (and for points
+  solved at a fixed parameter p, Omega or the excitation level):
 
-      [dR'/dZ  dR'/dp; t^T] [dZ; dp] = [-R'(Z_ext, p); 0],   Z' = Z_ext + dZ, p' = p + dp,
+      [dR'/dZ  dR'/dp; t^T] [dZ; dp] = [-R'(Z, p); t^T (y - y_0)],   until R' = 0,
       estimate = max( max_j |A_j(Z', p') - A_j(Z)| / max_j A_j(Z),  |E(Z', p') - E(Z)| / |E(Z)| )
 
   A: half peak-to-peak amplitude of the response DOFs j, E: total friction energy per cycle
@@ -44,8 +46,9 @@ class HarmonicAdequacyWarning(UserWarning):
 
 
 def extended_set(h: np.ndarray) -> np.ndarray:
-    """The harmonics of the extended balance: all of 0..2 h_max + 1 (and the retained ones)."""
-    return np.unique(np.concatenate([np.arange(2 * int(h.max()) + 2), h]))
+    """The harmonics of the extended balance: all of 0..max(2 h_max + 1, h_max + 8)."""
+    top = max(2 * int(h.max()) + 1, int(h.max()) + 8)
+    return np.unique(np.concatenate([np.arange(top + 1), h]))
 
 
 def force_content(hb: HarmonicBalance, point: Point) -> float:
@@ -79,34 +82,54 @@ class Adequacy:
             out[2 * j - 1], out[2 * j] = Z[2 * i - 1], Z[2 * i]
         return out
 
-    def estimate(self, point: Point) -> float:
-        """Relative change of response amplitude / friction energy after one extended Newton step."""
-        ext, hb = self.ext, self.hb
-        if hb.nq == 0:
-            return 0.0
+    def extended_solution(self, point: Point, iterations: int = 8):
+        """(Z', omega', level') of the extended balance near ``point``: corrector steps with the
+        branch's tangent (fixed parameter without one); if they do not converge within
+        ``iterations`` (a strongly non-smooth point), Newton with backtracking at fixed parameter."""
+        ext = self.ext
         Z = self._embed(point.Z)
-        R, J, dw, dl = ext.evaluate(Z, point.omega, point.level)
-        n = R.size
+        omega, level = point.omega, point.level
         if point.tangent is not None:
             tz, tp, zs, ps, parameter = point.tangent
             row = np.concatenate([self._embed(tz).ravel(), [tp]])
         else:
             zs, ps, parameter = 1.0, 1.0, "omega"
-            row = np.zeros(n + 1)
-            row[n] = 1.0
-        Jp = dw if parameter == "omega" else dl
-        A = np.zeros((n + 1, n + 1))
-        A[:n, :n], A[:n, n], A[n] = J * zs, Jp * ps, row
-        try:
-            step = np.linalg.solve(A, -np.concatenate([R, [0.0]]))
-        except np.linalg.LinAlgError:
+            row = np.zeros(Z.size + 1)
+            row[-1] = 1.0
+        y0 = np.concatenate([Z.ravel() / zs, [(omega if parameter == "omega" else level) / ps]])
+        y = y0.copy()
+        n = Z.size
+        for _ in range(iterations):
+            Zi = (y[:n] * zs).reshape(Z.shape)
+            p = y[n] * ps
+            w_i, l_i = (p, level) if parameter == "omega" else (omega, p)
+            R, J, dw, dl = ext.evaluate(Zi, w_i, l_i)
+            g = row @ (y - y0)
+            if np.linalg.norm(R) <= 1e-10 * ext.scale(Zi) and abs(g) <= 1e-12:
+                return Zi, w_i, l_i
+            A = np.zeros((n + 1, n + 1))
+            A[:n, :n], A[:n, n], A[n] = J * zs, (dw if parameter == "omega" else dl) * ps, row
+            try:
+                y = y + np.linalg.solve(A, -np.concatenate([R, [g]]))
+            except np.linalg.LinAlgError:
+                break
+            if not np.all(np.isfinite(y)):
+                break
+        fixed = ext.solve(omega, level, Z)
+        if not fixed.converged:
+            return None
+        return fixed.Z, omega, level
+
+    def estimate(self, point: Point) -> float:
+        """Relative change of response amplitude / friction energy in the extended balance
+        (inf when the extended balance finds no solution near the point)."""
+        ext, hb = self.ext, self.hb
+        if hb.nq == 0:
+            return 0.0
+        sol = self.extended_solution(point)
+        if sol is None:
             return float("inf")
-        Z1 = Z + (step[:n] * zs).reshape(Z.shape)
-        omega, level = point.omega, point.level
-        if parameter == "omega":
-            omega += step[n] * ps
-        else:
-            level += step[n] * ps
+        Z1, omega, level = sol
         ext.linear.at(omega, level)
         F1, _ = ext.aft.evaluate(Z1, False)
         X1 = ext.dofs(Z1, F1)

@@ -19,8 +19,9 @@ Fq, Fw, Wq, Ww are read off the kernels' piecewise-linear law (:func:`tangent_ta
 law evaluated at unit vectors; nothing about the law is restated here). For this law every
 slider either keeps its value (stick: Ww = 1, Wq = 0) or is reset from the current sample
 (slip, lift-off: Ww = 0), so dw_{k-1} of direction d is Wq(S_s) dq_s of the last reset sample
-s before k, going round the cycle (s from the previous period for the samples before the
-first reset; no reset in the whole cycle: dw = 0, the slider stays at w_init). With
+s before k, in the converged cycle or in any earlier period of the march (q is periodic, so
+dq_s = E_s dZ there too: a slider that slipped only while the cycle settled, then stuck for
+good, "shakedown", keeps its dependence on that sample; no reset since w_init: dw = 0). With
 dq_k = E_k dZ:
 
     dF/dZ = P [ Fq(S_k) E_k + sum_d Fw(S_k)[:, d] Wq(S_s)[d, :] E_s ]_k
@@ -121,18 +122,29 @@ def row_tables(cs):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def march_cycle(args, qt, w_init, max_periods, w_tol, ft, wt, st):
+def march_cycle(args, qt, w_init, max_periods, w_tol, resets, ft, wt, st, src0, src0_state):
     """March the law over the samples qt (N, nq) from w_init until the sliders repeat after a
     period (max |w_N - w_0| <= w_tol). Writes the last period's forces ft, sliders wt and
-    states st; returns the periods marched (negative: not converged within max_periods)."""
+    states st, and per direction the sample and state of its last slider reset (resets[state, d]:
+    the state sets the slider from the current sample) before that period began (src0 = -1:
+    none since w_init); returns the periods marched (negative: not
+    converged within max_periods)."""
     n = qt.shape[0]
     nd = w_init.shape[0]
     w_start = w_init.copy()
     w_old = w_init.copy()
+    last = np.full(nd, -1, np.int64)
+    last_state = np.zeros(nd, np.int8)
     for p in range(1, max_periods + 1):
+        for d in range(nd):
+            src0[d] = last[d]
+            src0_state[d] = last_state[d]
         for k in range(n):
             apply_law(args, qt[k], w_old, ft[k], wt[k], st[k])
             for d in range(nd):
+                if resets[st[k, d], d]:
+                    last[d] = k
+                    last_state[d] = st[k, d]
                 w_old[d] = wt[k, d]
         change = 0.0
         for d in range(nd):
@@ -144,18 +156,16 @@ def march_cycle(args, qt, w_init, max_periods, w_tol, ft, wt, st):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cycle_derivative(E, st, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Y):
+def cycle_derivative(E, st, src0, src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Y):
     """Y[k, r, l, j] = d f_k[r] / d Z[j, row_start[c(r)] + l]: the time-sample rows of the
-    Jacobian of the converged cycle (see the module docstring), l over the rows of r's contact."""
+    Jacobian of the converged cycle (see the module docstring), l over the rows of r's contact.
+    src0, src0_state: each direction's last slider reset before the cycle (any earlier period)."""
     n, ncoef = E.shape
     nq = dir_of_row.shape[0]
     nd = st.shape[1]
     Y[:] = 0.0
-    src = np.full(nd, -1, np.int64)
-    for k in range(n):  # the last reset of each direction in the cycle (source before the first)
-        for d in range(nd):
-            if Ww[st[k, d], d, d] == 0.0:
-                src[d] = k
+    src = src0.copy()
+    src_state = src0_state.copy()
     for k in range(n):
         for r in range(nq):
             s_r = st[k, dir_of_row[r]]
@@ -171,7 +181,7 @@ def cycle_derivative(E, st, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_star
                 if b == 0.0 or src[d] < 0:
                     continue
                 ks = src[d]
-                ss_ = st[ks, d]
+                ss_ = src_state[d]
                 for l in range(r1 - r0):
                     cwl = b * Wq[ss_, d, r0 + l]
                     if cwl != 0.0:
@@ -180,6 +190,7 @@ def cycle_derivative(E, st, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_star
         for d in range(nd):
             if Ww[st[k, d], d, d] == 0.0:
                 src[d] = k
+                src_state[d] = st[k, d]
 
 
 class AFT:
@@ -196,10 +207,14 @@ class AFT:
         self.w_tol = 1e-12 * cs.length_scale
         self.tables = tangent_tables(self.args, self.nq, self.nd)
         self.rows = row_tables(cs)
+        Ww = self.tables[3]
+        self.resets = np.ascontiguousarray(np.diagonal(Ww, axis1=1, axis2=2) == 0.0)  # (4, nd)
         n = basis.samples
         self.ft = np.zeros((n, self.nq))
         self.wt = np.zeros((n, self.nd))
         self.st = np.zeros((n, self.nd), np.int8)
+        self.src0 = np.zeros(self.nd, np.int64)
+        self.src0_state = np.zeros(self.nd, np.int8)
         self.periods = 0
         width = int(np.max(np.diff(self.rows[2]), initial=1))
         self._Y = np.zeros((n, self.nq, width, basis.n_coef))
@@ -210,7 +225,9 @@ class AFT:
         b = self.basis
         qt = np.ascontiguousarray(b.inverse @ Z)
         self.qt = qt
-        self.periods = march_cycle(self.args, qt, self.w_init, self.max_periods, self.w_tol, self.ft, self.wt, self.st)
+        self.periods = march_cycle(self.args, qt, self.w_init, self.max_periods, self.w_tol, self.resets, self.ft,
+                                   self.wt, self.st,
+                                   self.src0, self.src0_state)
         F = b.forward @ self.ft
         if not jacobian:
             return F, None
@@ -222,7 +239,8 @@ class AFT:
         Fq, Fw, Wq, Ww = self.tables
         dir_of_row, contact_of_row, row_start = self.rows
         Y = self._Y
-        cycle_derivative(b.inverse, self.st, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Y)
+        cycle_derivative(b.inverse, self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row,
+                         row_start, Y)
         n, _, width, ncoef = Y.shape
         D = (b.forward @ Y.reshape(n, -1)).reshape(ncoef, nq, width, ncoef)  # [i, r, l, j]
         J = np.zeros((ncoef, nq, ncoef, nq))

@@ -57,6 +57,8 @@ class _Problem:
 
     def solve(self, p, Z0):
         w, lv = self.args(p)
+        if self.parameter == "omega":
+            return solve_point(self.hb, w, lv, Z0)
         return self.hb.solve(w, lv, Z0)
 
 
@@ -74,6 +76,21 @@ def _tangent(J, Jp, t_prev, zs, ps):
     if t @ t_prev < 0:
         t = -t
     return t
+
+
+def solve_point(hb: HarmonicBalance, omega: float, level: float, Z0: np.ndarray | None = None) -> Point:
+    """Newton at (omega, level); if it fails, a homotopy in the excitation level at fixed omega,
+    from 1 % of the level (where the contacts are near their static state and Newton from the
+    preload converges) up to the level itself."""
+    pt = hb.solve(omega, level, Z0)
+    if pt.converged or level == 0:
+        return pt
+    branch = trace(hb, "level", 0.01 * level, level, omega, max_dp=0.1 * level, max_steps=500)
+    last = branch.points[-1] if branch.points else pt
+    if branch.status == "OK" and last.converged:
+        last.tangent = None
+        return last
+    return pt
 
 
 def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, *,

@@ -27,7 +27,7 @@ from threadpoolctl import threadpool_limits
 from slipstep.errors import InputError
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.adequacy import Adequacy, HarmonicAdequacyWarning, extended_set, force_content
-from slipstep.hbm.continuation import Branch, trace
+from slipstep.hbm.continuation import Branch, solve_point, trace
 from slipstep.hbm.crosscheck import relative_differences, steady_reference
 from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak, viscous_dissipation
 from slipstep.hbm.linear import linear_response
@@ -69,7 +69,7 @@ def _sequential(hb, parameter, values, fixed, progress):
     Z = None
     for v in values:
         w, lv = (v, fixed) if parameter == "omega" else (fixed, v)
-        pt = hb.solve(w, lv, Z)
+        pt = solve_point(hb, w, lv, Z) if parameter == "omega" else hb.solve(w, lv, Z)
         branch.points.append(pt)
         branch.steps += 1
         if progress:
@@ -111,7 +111,7 @@ def _response(system, parameter, values, fixed, *, harmonics, samples, responses
             estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
         worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
         h_max = int(hb.h.max())
-        if worst > adequacy_tolerance and auto_harmonics and 2 * h_max + 1 <= max_harmonics:
+        if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
             return _response(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
                              responses=responses, continuation=continuation, check=check, check_at=check_at,
                              check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
@@ -123,7 +123,7 @@ def _response(system, parameter, values, fixed, *, harmonics, samples, responses
                 f"harmonic balance with harmonics {[int(v) for v in hb.h[1:]]}: the response would change by about "
                 f"{worst:.2%} with more harmonics (at {branch.points[i].omega / (2 * np.pi):.6g} Hz, level "
                 f"{branch.points[i].level:.3g}), above the tolerance {adequacy_tolerance:.2%}. Raise the harmonics (e.g. harmonics="
-                f"{2 * h_max + 1}) or pass auto_harmonics=True", HarmonicAdequacyWarning, stacklevel=3)
+                f"{int(extended_set(hb.h).max())}) or pass auto_harmonics=True", HarmonicAdequacyWarning, stacklevel=3)
     solve_time = time.perf_counter() - start
     ds = _dataset(hb, branch, resp, estimates, parameter, fixed)
     ds.attrs.update({"sweep": sweep, "solve_time_s": solve_time,
