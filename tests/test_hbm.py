@@ -180,3 +180,28 @@ def test_tabulated_excitation_is_rejected():
     with pytest.raises(ss.InputError) as err:
         frf(bad, [100.0], check="none")
     assert err.value.field == "force_table"
+
+
+def test_paper_case_dissipated_energy():
+    """The rigid damper held only by its contacts (K = 0: the h = 0 balance needs the contact
+    stiffness on both sides) under the paper's platform motion: the energy per period of
+    physics.md section 6 (left 2.52 mJ = contacts 1 + 2, right 2.70 mJ), to 1 %."""
+    ds = frf(ss.load_system("paper"), [200.0], harmonics=7, continuation=False, check="none", adequacy=False)
+    e = ds.energy_per_cycle.values[0]
+    assert ds.status.values[0] == "OK"
+    assert e[0] + e[1] == pytest.approx(2.52e-3, rel=0.01)
+    assert e[2] == pytest.approx(2.70e-3, rel=0.01)
+    W, Dv = ds.excitation_work.values[0], ds.viscous_dissipation.values[0]
+    assert W == pytest.approx(Dv + e.sum(), rel=1e-6)  # the motions' work goes into friction
+
+
+def test_blades_continuation_passes_the_peak():
+    system = ss.load_system("blades")
+    ds = frf(system, np.linspace(300.0, 420.0, 13), harmonics=3, check="none", adequacy=False, responses=["blade1.8.x"])
+    f, amp = ds.frequency.values, ds.amplitude.values[:, 0]
+    assert ds.attrs["continuation_status"] == "OK" and np.all(ds.status.values == "OK")
+    assert f[-1] == pytest.approx(420.0, rel=1e-14)
+    i = int(np.argmax(amp))
+    assert 0 < i < f.size - 1  # an interior peak, between the free (253 Hz) and stuck (366 Hz) modes
+    assert amp[i] < ds.linear_stuck_amplitude.values[:, 0].max()
+    assert np.all(ds.energy_per_cycle.values[i] > 0)
