@@ -99,3 +99,56 @@ def summary_table(ds):
     for name, value in rows:
         table.add_row(name, str(value))
     return table
+
+
+def parse_frequencies(text: str):
+    """'a:b:n' -> n frequencies from a to b [Hz] (b < a: a downward sweep); 'f1,f2,...' -> a list."""
+    import numpy as np
+
+    s = str(text).strip()
+    try:
+        if ":" in s:
+            a, b, n = s.split(":")
+            n = int(n)
+            if n < 1:
+                raise ValueError
+            values = np.linspace(float(a), float(b), n)
+        else:
+            values = np.array([float(v) for v in s.split(",") if v.strip()])
+    except ValueError:
+        values = np.array([])
+    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values <= 0):
+        raise InputError("--frequencies", f"is {text!r}", "give START:STOP:COUNT in Hz (e.g. 150:450:61) or a list 200,300")
+    return values
+
+
+def run_command(system, frequencies, *, harmonics, samples=None, check_frequencies=(), check="peak", responses=None,
+                output, plot_path=None, console=None, progress=True, as_json=False, level=1.0):
+    """The body of ``slipstep frf CASE --solver hbm``: the HBM FRF with a progress bar over the
+    continuation steps, saved (netCDF, atomically) to ``output``, the summary returned (and,
+    unless ``as_json``, printed as a table with the cross-check beside the answer), the
+    figure written to ``plot_path`` when given. Returns (Dataset, summary dict)."""
+    from slipstep.hbm.frf import frf
+    from slipstep.io import atomic_path
+
+    hs = parse_harmonics(harmonics) if isinstance(harmonics, str) else harmonics
+    kwargs = dict(harmonics=hs, samples=samples, check=check, check_frequencies=check_frequencies,
+                  responses=responses, level=level)
+    if progress and not as_json:
+        with ContinuationProgress(float(frequencies[0]), float(frequencies[-1]), console=console) as bar:
+            ds = frf(system, frequencies, progress=bar, **kwargs)
+    else:
+        ds = frf(system, frequencies, **kwargs)
+    with atomic_path(output) as tmp:
+        ds.to_netcdf(tmp, engine="h5netcdf")
+    if plot_path is not None:
+        from slipstep.hbm.plot import plot_frf
+
+        plot_frf(ds, plot_path)
+    s = summary(ds)
+    s["output"] = str(output)
+    if plot_path is not None:
+        s["figure"] = str(plot_path)
+    if not as_json and console is not None:
+        console.print(summary_table(ds))
+    return ds, s
