@@ -67,8 +67,9 @@ def main(argv=None):
     results = {}
     warnings.simplefilter("ignore")
     balances = {key: HarmonicBalance(system, key[0], key[1]) for key in TMDSIMPY}
-    for key, hb in balances.items():  # warm-up (compile / cache load)
+    for key, hb in balances.items():  # warm-up (compile / cache load, imports of the Dataset path)
         hbm_grid(hb, freqs[:2])
+    frf(system, freqs[:3], harmonics=3, check="none")
     runs = {key: [] for key in TMDSIMPY}
     for _ in range(repeats):
         for key, hb in balances.items():

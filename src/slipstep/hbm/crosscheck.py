@@ -92,11 +92,22 @@ def _march_own(system, responses, method, tolerance, max_periods, steps_per_peri
         periods = min(2 * periods, max_periods)
 
 
+def hbm_initial_state(hb, point) -> dict:
+    """The state at t = 0 of a harmonic balance solution, to start a march from: x(0), v(0)
+    from the DOF phasors, the sliders and states before the AFT cycle's first sample."""
+    h, w = hb.basis.h, point.omega
+    x0 = np.real(point.X.sum(axis=0))
+    v0 = np.real((1j * h[:, None] * w * point.X).sum(axis=0))
+    return {"x": x0, "v": v0, "w": hb.aft.wt[-1].copy(), "states": hb.aft.st[-1].copy()}
+
+
 def steady_reference(system: System, frequency_hz: float, level: float, responses: np.ndarray, *,
                      method: str = "piecewise-linear", tolerance: float = 1e-6, max_periods: int = 400,
-                     steps_per_period: int = 2000, **run_options) -> SteadyReference:
+                     steps_per_period: int = 2000, initial: dict | None = None, **run_options) -> SteadyReference:
     """The marched periodic steady state of ``system`` at (frequency_hz, level): amplitudes of
-    the response DOFs (indices ``responses``) and friction energy per cycle per contact."""
+    the response DOFs (indices ``responses``) and friction energy per cycle per contact.
+    ``initial``: a start state (:func:`hbm_initial_state`; used by slipstep.steady only, the
+    fallback marches from the static preload)."""
     from slipstep.post.energy import friction_energy_per_period
 
     sys_f = retuned(system, frequency_hz, level)
@@ -106,8 +117,8 @@ def steady_reference(system: System, frequency_hz: float, level: float, response
     except ImportError:
         march_to_steady = None
     if march_to_steady is not None:
-        st = march_to_steady(sys_f, method, tolerance=tolerance, max_periods=max_periods,
-                             max_step=T / steps_per_period, **run_options)
+        st = march_to_steady(sys_f, method, tolerance=tolerance, max_periods=max_periods, initial=initial,
+                             min_steps_per_period=steps_per_period, **run_options)
         last = st.period
         periods, status, message = int(st.periods), str(getattr(st.status, "name", st.status)), str(st.message)
         x = last.displacement.values

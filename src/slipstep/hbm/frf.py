@@ -28,7 +28,7 @@ from slipstep.errors import InputError
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.adequacy import Adequacy, HarmonicAdequacyWarning, extended_set, force_content
 from slipstep.hbm.continuation import Branch, solve_point, trace
-from slipstep.hbm.crosscheck import relative_differences, steady_reference
+from slipstep.hbm.crosscheck import hbm_initial_state, relative_differences, steady_reference
 from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak, viscous_dissipation
 from slipstep.hbm.linear import linear_response
 from slipstep.hbm.residual import HarmonicBalance
@@ -92,7 +92,13 @@ def _solve_branch(system, parameter, values, fixed, harmonics, samples, continua
     return hb, branch
 
 
-def _response(system, parameter, values, fixed, *, harmonics, samples, responses, continuation, check,
+def _response(system, parameter, values, fixed, **options):
+    """Solve, estimate, cross-check and lay out (BLAS on one thread: small dense systems)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _response_body(system, parameter, values, fixed, **options)
+
+
+def _response_body(system, parameter, values, fixed, *, harmonics, samples, responses, continuation, check,
               check_at, check_options, adequacy, adequacy_tolerance, auto_harmonics, max_harmonics, progress, tol,
               max_dp, sweep):
     if not isinstance(system, System):
@@ -102,17 +108,15 @@ def _response(system, parameter, values, fixed, *, harmonics, samples, responses
         raise InputError("check", f"is {check!r}", "use 'peak' (the default), 'all' or 'none'")
     start = time.perf_counter()
     callback = (lambda pt: progress(pt)) if progress else None
-    with threadpool_limits(limits=1, user_api="blas"):
-        hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol,
-                                   max_dp)
-        estimates = np.full(len(branch.points), np.nan)
-        if adequacy:
-            ad = Adequacy(hb, resp)
-            estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
+    hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp)
+    estimates = np.full(len(branch.points), np.nan)
+    if adequacy:
+        ad = Adequacy(hb, resp)
+        estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
         worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
         h_max = int(hb.h.max())
         if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
-            return _response(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
+            return _response_body(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
                              responses=responses, continuation=continuation, check=check, check_at=check_at,
                              check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
                              auto_harmonics=auto_harmonics, max_harmonics=max_harmonics, progress=progress, tol=tol,
@@ -145,7 +149,8 @@ def frf(system: System, frequencies, *, harmonics=5, samples: int | None = None,
     continuation: pseudo-arclength from the first to the last frequency (step capped at the
     grid spacing or ``max_df`` Hz), else Newton at each given frequency. check: 'peak' (the
     FRF peak and ``check_frequencies``), 'all' or 'none': the time-marching cross-check,
-    options ``check_options`` (method, tolerance, max_periods, steps_per_period, run options).
+    options ``check_options`` (method, tolerance, max_periods, steps_per_period, start_from_hbm:
+    march from the HBM state at t = 0 (default) rather than the static preload, run options).
     adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
     threshold, and whether to raise H (up to ``max_harmonics``) and recompute instead of warning.
     progress: a callable called with each solved point (slipstep.hbm.Point)."""
@@ -285,10 +290,15 @@ def _cross_check(ds, hb, branch, resp, check, check_at, options):
         param = np.array([p.omega for p in branch.points])
     idx = _check_indices(ds, branch, param, check, check_at)
     opts = dict(options)
+    start_from_hbm = bool(opts.pop("start_from_hbm", True))
     summary = []
     for i in idx:
         p = branch.points[i]
         f_hz = p.omega / (2 * np.pi)
+        if start_from_hbm:
+            hb.linear.at(p.omega, p.level)
+            hb.aft.evaluate(p.Z, False)
+            opts["initial"] = hbm_initial_state(hb, p)
         ref = steady_reference(hb.system, f_hz, p.level, resp, **opts)
         a, e = relative_differences(ds["amplitude"].values[i], ds["energy_per_cycle"].values[i], ref,
                                     float(ds["excitation_work"].values[i]))
