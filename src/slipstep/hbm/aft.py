@@ -26,8 +26,10 @@ dq_k = E_k dZ:
 
     dF/dZ = P [ Fq(S_k) E_k + sum_d Fw(S_k)[:, d] Wq(S_s)[d, :] E_s ]_k
 
-assembled per contact (contacts are independent) and contracted over k with one matrix
-product. It is the exact derivative of the discrete AFT wherever no sample sits exactly on
+assembled per contact (contacts are independent): the first term is P diag(a) E, whose
+entries are the DFT of the sample weights a_k at h_i -+ h_j (one FFT per tangent entry), the
+second one outer product P_I c_I (x) E_s per stick interval I (its source s is constant).
+It is the exact derivative of the discrete AFT wherever no sample sits exactly on
 a state boundary (checked against finite differences in tests/test_hbm_aft.py).
 """
 
@@ -156,41 +158,56 @@ def march_cycle(args, qt, w_init, max_periods, w_tol, resets, ft, wt, st, src0, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cycle_derivative(E, st, src0, src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Y):
-    """Y[k, r, l, j] = d f_k[r] / d Z[j, row_start[c(r)] + l]: the time-sample rows of the
-    Jacobian of the converged cycle (see the module docstring), l over the rows of r's contact.
-    src0, src0_state: each direction's last slider reset before the cycle (any earlier period)."""
-    n, ncoef = E.shape
+def cycle_coefficients(st, src0, src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Ac, Mc, src):
+    """The time-sample tangents of the converged cycle (see the module docstring), per row r
+    and column l of r's contact:  df_k[r] = sum_l Ac[k, r, l] dq_k[r0 + l] + Mc[k, r, l] dq_s[r0 + l]
+    with s = src[k, r] (-1: no memory term), the last slider reset of r's direction before k
+    (src0, src0_state: its last reset before the cycle, in any earlier period)."""
+    n = st.shape[0]
     nq = dir_of_row.shape[0]
     nd = st.shape[1]
-    Y[:] = 0.0
-    src = src0.copy()
-    src_state = src0_state.copy()
+    Ac[:] = 0.0
+    Mc[:] = 0.0
+    last = src0.copy()
+    last_state = src0_state.copy()
     for k in range(n):
         for r in range(nq):
-            s_r = st[k, dir_of_row[r]]
+            d = dir_of_row[r]
+            s_r = st[k, d]
             c = contact_of_row[r]
             r0, r1 = row_start[c], row_start[c + 1]
             for l in range(r1 - r0):
-                a = Fq[s_r, r, r0 + l]
-                if a != 0.0:
-                    for j in range(ncoef):
-                        Y[k, r, l, j] += a * E[k, j]
-            for d in range(nd):
-                b = Fw[s_r, r, d]
-                if b == 0.0 or src[d] < 0:
-                    continue
-                ks = src[d]
-                ss_ = src_state[d]
+                Ac[k, r, l] = Fq[s_r, r, r0 + l]
+            b = Fw[s_r, r, d]
+            if b != 0.0 and last[d] >= 0:
+                src[k, r] = last[d]
                 for l in range(r1 - r0):
-                    cwl = b * Wq[ss_, d, r0 + l]
-                    if cwl != 0.0:
-                        for j in range(ncoef):
-                            Y[k, r, l, j] += cwl * E[ks, j]
+                    Mc[k, r, l] = b * Wq[last_state[d], d, r0 + l]
+            else:
+                src[k, r] = -1
         for d in range(nd):
             if Ww[st[k, d], d, d] == 0.0:
-                src[d] = k
-                src_state[d] = st[k, d]
+                last[d] = k
+                last_state[d] = st[k, d]
+
+
+def product_indices(h: np.ndarray, n: int):
+    """For the real basis of harmonics h (fourier.Basis order) the indices and weights that turn
+    the DFT of a sample weight a_k into P diag(a) E (phi_i phi_j = (alpha cos((h_i - h_j) t) +
+    beta cos((h_i + h_j) t) + gamma sin((h_i + h_j) t) + delta sin((h_i - h_j) t)) / 2)."""
+    hh = np.concatenate([[0], np.repeat(h[1:], 2)])
+    kind = np.concatenate([[0], np.tile([0, 1], h.size - 1)])  # 0 cos, 1 sin
+    hi, hj = hh[:, None], hh[None, :]
+    ki, kj = kind[:, None], kind[None, :]
+    cc, ss = (ki == 0) & (kj == 0), (ki == 1) & (kj == 1)
+    alpha = np.where(cc | ss, 1.0, 0.0)
+    beta = np.where(cc, 1.0, np.where(ss, -1.0, 0.0))
+    gamma = np.where(ki != kj, 1.0, 0.0)
+    delta = np.where((ki == 0) & (kj == 1), -1.0, np.where((ki == 1) & (kj == 0), 1.0, 0.0))
+    weight = np.full(hh.size, 2.0 / n)
+    weight[0] = 1.0 / n
+    w = 0.5 * weight[:, None]
+    return ((hi - hj) % n, (hi + hj) % n, w * alpha, w * beta, w * gamma, w * delta)
 
 
 class AFT:
@@ -217,7 +234,15 @@ class AFT:
         self.src0_state = np.zeros(self.nd, np.int8)
         self.periods = 0
         width = int(np.max(np.diff(self.rows[2]), initial=1))
-        self._Y = np.zeros((n, self.nq, width, basis.n_coef))
+        self._Ac = np.zeros((n, self.nq, width))
+        self._Mc = np.zeros((n, self.nq, width))
+        self._src = np.zeros((n, self.nq), np.int64)
+        self._products = product_indices(basis.h, n)
+        Fw = self.tables[1]
+        own = np.zeros((self.nq, self.nd), bool)
+        own[np.arange(self.nq), self.rows[0]] = True
+        if np.abs(Fw[:, ~own]).max(initial=0.0) > 0:
+            raise NotImplementedError("a contact force row depends on another direction's slider")
 
     def evaluate(self, Z: np.ndarray, jacobian: bool = True):
         """F (n_coef, nq) of the converged cycle at coefficients Z (n_coef, nq); with
@@ -234,18 +259,35 @@ class AFT:
         return F, self.jacobian()
 
     def jacobian(self) -> np.ndarray:
-        """dF/dZ of the last evaluated cycle."""
+        """dF/dZ of the last evaluated cycle: P diag(Ac) E by one FFT per tangent column (the
+        product-to-sum identities of :func:`product_indices`), plus the memory terms grouped by
+        their source sample (one outer product per stick interval)."""
         b, nq = self.basis, self.nq
         Fq, Fw, Wq, Ww = self.tables
         dir_of_row, contact_of_row, row_start = self.rows
-        Y = self._Y
-        cycle_derivative(b.inverse, self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row,
-                         row_start, Y)
-        n, _, width, ncoef = Y.shape
-        D = (b.forward @ Y.reshape(n, -1)).reshape(ncoef, nq, width, ncoef)  # [i, r, l, j]
+        Ac, Mc, src = self._Ac, self._Mc, self._src
+        cycle_coefficients(self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start,
+                           Ac, Mc, src)
+        n, _, width = Ac.shape
+        dm, sm, wa, wb, wg, wd = self._products
+        spec = np.fft.fft(Ac.reshape(n, -1), axis=0)  # a_hat[m] = sum_k a_k exp(-i m theta_k)
+        C, S = spec.real, -spec.imag
+        D = (wa[..., None] * C[dm] + wb[..., None] * C[sm] + wg[..., None] * S[sm] + wd[..., None] * S[dm])
+        D = D.reshape(D.shape[0], D.shape[1], nq, width)  # [i, j, r, l]
+        P, E = b.forward, b.inverse
+        for r in range(nq):
+            ks = src[:, r]
+            used = np.flatnonzero(ks >= 0)
+            if used.size == 0:
+                continue
+            u, inv = np.unique(ks[used], return_inverse=True)
+            groups = (inv[None, :] == np.arange(u.size)[:, None]).astype(float)  # (u, used) indicator
+            G = (groups @ (P[:, used].T[:, :, None] * Mc[used, r, None, :]).reshape(used.size, -1))
+            D[:, :, r, :] += np.einsum("uil,uj->ijl", G.reshape(u.size, P.shape[0], width), E[u])
+        ncoef = b.n_coef
         J = np.zeros((ncoef, nq, ncoef, nq))
         for r in range(nq):
             c = contact_of_row[r]
             r0, r1 = row_start[c], row_start[c + 1]
-            J[:, r, :, r0:r1] = D[:, r, : r1 - r0, :].transpose(0, 2, 1)
+            J[:, r, :, r0:r1] = D[:, :, r, : r1 - r0]
         return J.reshape(ncoef * nq, ncoef * nq)

@@ -22,7 +22,6 @@ import warnings
 
 import numpy as np
 import xarray as xr
-from threadpoolctl import threadpool_limits
 
 from slipstep.errors import InputError
 from slipstep.frequency.schema import FRF_SCHEMA
@@ -31,7 +30,7 @@ from slipstep.hbm.continuation import Branch, solve_point, trace
 from slipstep.hbm.crosscheck import hbm_initial_state, relative_differences, steady_reference
 from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak, viscous_dissipation
 from slipstep.hbm.linear import linear_response
-from slipstep.hbm.residual import HarmonicBalance
+from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
 
 
@@ -94,7 +93,7 @@ def _solve_branch(system, parameter, values, fixed, harmonics, samples, continua
 
 def _response(system, parameter, values, fixed, **options):
     """Solve, estimate, cross-check and lay out (BLAS on one thread: small dense systems)."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with blas_threads():
         return _response_body(system, parameter, values, fixed, **options)
 
 

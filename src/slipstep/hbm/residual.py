@@ -24,7 +24,7 @@ import contextlib
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from slipstep.errors import InputError
 from slipstep.hbm.aft import AFT
@@ -41,13 +41,19 @@ def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:
     return sim.preload_state[0].copy(), sim.preload_state[5].copy()
 
 
-def blas_threads(size: int):
+_THREADPOOLS = None
+
+
+def blas_threads(size: int = 0):
     """A context limiting BLAS to one thread for the small dense systems of a harmonic balance
     (size unknowns < 2000): multi-threaded BLAS on matrices of a few hundred rows is 10-30x
-    slower on a loaded machine than one thread."""
+    slower on a loaded machine than one thread. (The library scan is done once.)"""
+    global _THREADPOOLS
     if size >= 2000:
         return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    if _THREADPOOLS is None:
+        _THREADPOOLS = ThreadpoolController()
+    return _THREADPOOLS.limit(limits=1, user_api="blas")
 
 
 def default_samples(h_max: int) -> int:
@@ -195,7 +201,7 @@ class HarmonicBalance:
                 break
             dz = np.linalg.solve(J, -R)
             alpha = 1.0
-            for _ in range(12):
+            for _ in range(8):
                 Zt = Z + alpha * dz.reshape(shape)
                 Rt = self.evaluate(Zt, omega, level, jacobian=False, refactor=False)
                 nt = np.linalg.norm(Rt)
