@@ -33,11 +33,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from hbm_cases import jenkins_1dof  # noqa: E402
+from hbm_cases import jenkins_1dof
 
-from slipstep.hbm import HarmonicBalance, frf  # noqa: E402
-from slipstep.hbm.crosscheck import relative_differences, steady_reference  # noqa: E402
-from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak  # noqa: E402
+from slipstep.hbm import HarmonicBalance, frf
+from slipstep.hbm.crosscheck import relative_differences, steady_reference
+from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak
 
 TMDSIMPY = {(15, 256): 0.56, (45, 1024): 1.9}
 

@@ -17,9 +17,9 @@ import warnings
 
 import numpy as np
 import pytest
+from hbm_cases import gap_oscillator, jenkins_1dof, jenkins_2dof
 
 import slipstep as ss
-from hbm_cases import gap_oscillator, jenkins_1dof, jenkins_2dof
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm import frf, level_response
 from slipstep.hbm.adequacy import HarmonicAdequacyWarning

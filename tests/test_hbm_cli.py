@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
+from hbm_cases import jenkins_1dof
 from rich.console import Console
 
 import slipstep as ss
-from hbm_cases import jenkins_1dof
 from slipstep.hbm.cli_support import parse_frequencies, parse_harmonics, run_command
 
 
@@ -29,10 +29,9 @@ def test_parse_harmonics_and_frequencies():
 
 
 def test_run_command_writes_the_result_figure_and_summary(tmp_path):
-    console = Console(file=open(tmp_path / "out.txt", "w"), width=120)
-    ds, s = run_command(jenkins_1dof(), parse_frequencies("250:400:7"), harmonics="1,3,5,7", output=tmp_path / "h.nc",
-                        plot_path=tmp_path / "h.png", console=console)
-    console.file.close()
+    with open(tmp_path / "out.txt", "w") as fh:
+        ds, s = run_command(jenkins_1dof(), parse_frequencies("250:400:7"), harmonics="1,3,5,7",
+                            output=tmp_path / "h.nc", plot_path=tmp_path / "h.png", console=Console(file=fh, width=120))
     back = xr.open_dataset(tmp_path / "h.nc", engine="h5netcdf")
     assert np.allclose(back.amplitude.values, ds.amplitude.values) and back.attrs["solver"] == "hbm"
     assert (tmp_path / "h.png").stat().st_size > 10_000

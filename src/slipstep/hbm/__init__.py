@@ -11,7 +11,7 @@ as the time marching (issue 13): the designers' usual tool, cross-checked by the
 - :mod:`frf`: the FRF driver returning the Dataset of ``slipstep.frequency.schema``.
 """
 
-from slipstep.hbm.residual import HarmonicBalance, Point
 from slipstep.hbm.frf import frf, level_response
+from slipstep.hbm.residual import HarmonicBalance, Point
 
 __all__ = ["HarmonicBalance", "Point", "frf", "level_response"]

@@ -94,8 +94,8 @@ def summary_table(ds):
     for c in s["checks"]:
         de = c["energy_rel_diff"]
         rows.append((f"cross-check at {c['frequency_Hz']:.6g} Hz ({c['march_status']}, {c['march_periods']} periods)",
-                     f"amplitude diff {c['amplitude_rel_diff']:.2e}, energy diff "
-                     f"{'n/a' if de is None or not math.isfinite(de) else f'{de:.2e}'}"))
+                     (f"amplitude diff {c['amplitude_rel_diff']:.2e}, energy diff "
+                      f"{'n/a' if de is None or not math.isfinite(de) else f'{de:.2e}'}")))
     for name, value in rows:
         table.add_row(name, str(value))
     return table
@@ -132,8 +132,8 @@ def run_command(system, frequencies, *, harmonics, samples=None, check_frequenci
     from slipstep.io import atomic_path
 
     hs = parse_harmonics(harmonics) if isinstance(harmonics, str) else harmonics
-    kwargs = dict(harmonics=hs, samples=samples, check=check, check_frequencies=check_frequencies,
-                  responses=responses, level=level)
+    kwargs = {"harmonics": hs, "samples": samples, "check": check, "check_frequencies": check_frequencies,
+              "responses": responses, "level": level}
     if progress and not as_json:
         with ContinuationProgress(float(frequencies[0]), float(frequencies[-1]), console=console) as bar:
             ds = frf(system, frequencies, progress=bar, **kwargs)

@@ -18,9 +18,8 @@ Newton solve from the interpolated crossing).
 
 from __future__ import annotations
 
-import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

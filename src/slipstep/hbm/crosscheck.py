@@ -75,7 +75,6 @@ def _periodic_change(x: np.ndarray, n_per: int) -> float:
 
 def _march_own(system, responses, method, tolerance, max_periods, steps_per_period, **run_options):
     from slipstep.methods.simulation import run
-    from slipstep.post.energy import friction_energy_per_period
 
     T = system.period
     periods = 25
@@ -83,7 +82,7 @@ def _march_own(system, responses, method, tolerance, max_periods, steps_per_peri
         ds = run(system, method, periods=periods, max_step=T / steps_per_period, **run_options)
         if ds.attrs["status"] != "OK":
             return ds, periods, ds.attrs["status"], ds.attrs["status_message"]
-        n_per = int(round(T / ds.attrs["dt_s"]))
+        n_per = round(T / ds.attrs["dt_s"])
         change = _periodic_change(ds.displacement.values, n_per)
         if change <= tolerance:
             return ds, periods, "OK", f"steady after {periods} periods (change {change:.2g})"

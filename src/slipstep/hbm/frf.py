@@ -25,10 +25,24 @@ import xarray as xr
 
 from slipstep.errors import InputError
 from slipstep.frequency.schema import FRF_SCHEMA
-from slipstep.hbm.adequacy import Adequacy, HarmonicAdequacyWarning, extended_set, force_content
+from slipstep.hbm.adequacy import (
+    Adequacy,
+    HarmonicAdequacyWarning,
+    extended_set,
+    force_content,
+)
 from slipstep.hbm.continuation import Branch, solve_point, trace
-from slipstep.hbm.crosscheck import hbm_initial_state, relative_differences, steady_reference
-from slipstep.hbm.energy import contact_energy, excitation_work, half_peak_to_peak, viscous_dissipation
+from slipstep.hbm.crosscheck import (
+    hbm_initial_state,
+    relative_differences,
+    steady_reference,
+)
+from slipstep.hbm.energy import (
+    contact_energy,
+    excitation_work,
+    half_peak_to_peak,
+    viscous_dissipation,
+)
 from slipstep.hbm.linear import linear_response
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
@@ -113,7 +127,6 @@ def _response_body(system, parameter, values, fixed, *, harmonics, samples, resp
         ad = Adequacy(hb, resp)
         estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
         worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
-        h_max = int(hb.h.max())
         if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
             return _response_body(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
                              responses=responses, continuation=continuation, check=check, check_at=check_at,
@@ -176,9 +189,9 @@ def level_response(system: System, frequency_hz: float, levels, **options) -> xr
         raise InputError("levels", f"is {levels!r}", "give one or more excitation levels >= 0 (1: as given)")
     _frequencies([frequency_hz])
     check_levels = np.atleast_1d(options.pop("check_levels", ()))
-    opts = dict(harmonics=5, samples=None, responses=None, continuation=True, check="peak", check_options=None,
-                adequacy=True, adequacy_tolerance=0.01, auto_harmonics=False, max_harmonics=127, progress=None,
-                tol=1e-10, max_dp=None)
+    opts = {"harmonics": 5, "samples": None, "responses": None, "continuation": True, "check": "peak",
+            "check_options": None, "adequacy": True, "adequacy_tolerance": 0.01, "auto_harmonics": False,
+            "max_harmonics": 127, "progress": None, "tol": 1e-10, "max_dp": None}
     unknown = set(options) - set(opts)
     if unknown:
         raise InputError("options", f"unknown option(s) {sorted(unknown)}", f"use only {sorted(opts)}")

@@ -47,7 +47,7 @@ def excitation_multiples(system, fundamental_hz: float | None = None):
                                  f"replace the {label} table by [[{label}]] harmonics or use a time-marching solver")
             for hm in signal.harmonics:
                 ratio = hm.frequency / (1.0 / exc.period if exc.period is not None else f0)
-                m = int(round(ratio))
+                m = round(ratio)
                 if m < 1 or abs(ratio - m) > 1e-9 * max(ratio, 1.0):
                     raise InputError(f"{label}.frequency_Hz", f"{hm.frequency} Hz is not a whole multiple of the "
                                      f"fundamental {f0} Hz", "give harmonics at multiples of one fundamental")
@@ -70,7 +70,7 @@ class LinearPart:
         self.f0, force, motion, self.f_const = excitation_multiples(system)
         n, nq = cs.M.shape[0], cs.A.shape[0]
         nm = cs.B.shape[1]
-        missing = sorted((set(force) | set(motion)) - set(int(x) for x in self.h))
+        missing = sorted((set(force) | set(motion)) - {int(x) for x in self.h})
         self.missing = missing
         self.Fe = np.zeros((self.h.size, n), complex)  # varying forces (scaled by level)
         self.P = np.zeros((self.h.size, nm), complex)

@@ -10,11 +10,11 @@ import json
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import xarray as xr
 
-from slipstep.io import atomic_path  # noqa: E402
+from slipstep.io import atomic_path
 
 
 def _label(ds: xr.Dataset) -> str:
