@@ -44,6 +44,24 @@ def test_no_contact_equals_the_frequency_domain_solution():
     assert np.all(ds.status.values == "OK")
 
 
+def test_open_gap_and_multi_harmonic_forcing_equal_the_linear_solution():
+    """A contact that never closes (the gap oscillator at a small force) is the free linear
+    structure; a force with harmonics 1 and 3 gives each harmonic its own linear response."""
+    system = gap_oscillator(force=0.5)
+    sig = ss.Signal(("x",), (ss.Harmonic(10.0, [0.5]), ss.Harmonic(30.0, [0.2], [0.3])))
+    system = ss.System(system.structure, system.contacts, ss.Excitation(force=sig))
+    f = np.array([8.0, 12.0, 25.0])
+    ds = frf(system, f, harmonics=3, continuation=False, check="none")
+    st = system.structure
+    for j, (m, a, ph) in enumerate(((1, 0.5, 0.0), (3, 0.2, 0.3))):
+        exact = np.array([_linear(st.mass, st.damping, st.stiffness, np.array([a * np.exp(1j * ph)]), m * fi)[0]
+                          for fi in f])
+        assert np.allclose(ds.harmonic_amplitude.values[:, m, 0], exact, rtol=1e-10)
+    assert np.all(ds.harmonic_amplitude.values[:, 2, 0] < 1e-12 * ds.amplitude.values[:, 0])
+    assert np.allclose(ds.amplitude.values, ds.linear_free_amplitude.values, rtol=1e-9)
+    assert np.all(ds.amplitude.values[:, 0] < 1e-3)  # below the gap: the contact never closed
+
+
 @pytest.mark.parametrize("make, f", [(jenkins_1dof, [300.0, 350.0, 450.0, 600.0]), (jenkins_2dof, [200.0, 300.0, 500.0])])
 def test_stuck_contacts_equal_the_frequency_domain_solution(make, f):
     system = make(mu=1.0e6)
