@@ -14,11 +14,10 @@ lift-off), the balance only the retained ones. Two numbers per point:
   by solving the extended balance from the current solution (the new harmonics start at
   zero, so the first step's right-hand side is exactly the response the neglected force
   harmonics G_h F_h would produce, plus their feedback on the retained ones; the first one
-  or two steps usually converge it). The iteration is the pseudo-arclength corrector of
-  :mod:`slipstep.hbm.continuation` with the branch's tangent t (so it stays defined at
-  turning points, where dR/dZ is singular; it measures the distance between the two branches
-  normal to the curve), with Newton at the fixed parameter as the fallback (and for points
-  solved at a fixed parameter p, Omega or the excitation level):
+  or two Newton steps at the point's own frequency and level converge it). Where that fails
+  (at or next to a turning point, where dR/dZ is singular) the pseudo-arclength corrector of
+  :mod:`slipstep.hbm.continuation` with the branch's tangent t takes over (it measures the
+  distance between the two branches normal to the curve):
 
       [dR'/dZ  dR'/dp; t^T] [dZ; dp] = [-R'(Z, p); t^T (y - y_0)],   until R' = 0,
       estimate = max( max_j |A_j(Z', p') - A_j(Z)| / max_j A_j(Z),  |E(Z', p') - E(Z)| / |E(Z)| )
@@ -82,20 +81,21 @@ class Adequacy:
             out[2 * j - 1], out[2 * j] = Z[2 * i - 1], Z[2 * i]
         return out
 
-    def extended_solution(self, point: Point, iterations: int = 8):
-        """(Z', omega', level') of the extended balance near ``point``: corrector steps with the
-        branch's tangent (fixed parameter without one); if they do not converge within
-        ``iterations`` (a strongly non-smooth point), Newton with backtracking at fixed parameter."""
+    def extended_solution(self, point: Point, iterations: int = 5):
+        """(Z', omega', level') of the extended balance near ``point``: Newton at the point's own
+        frequency and level (a few iterations from the embedded solution); where that fails (at
+        or near a turning point, where dR/dZ is singular) corrector steps with the branch's tangent.
+        None when neither converges."""
         ext = self.ext
         Z = self._embed(point.Z)
         omega, level = point.omega, point.level
-        if point.tangent is not None:
-            tz, tp, zs, ps, parameter = point.tangent
-            row = np.concatenate([self._embed(tz).ravel(), [tp]])
-        else:
-            zs, ps, parameter = 1.0, 1.0, "omega"
-            row = np.zeros(Z.size + 1)
-            row[-1] = 1.0
+        fixed = ext.solve(omega, level, Z, max_iterations=iterations)
+        if fixed.converged:
+            return fixed.Z, omega, level
+        if point.tangent is None:
+            return None
+        tz, tp, zs, ps, parameter = point.tangent
+        row = np.concatenate([self._embed(tz).ravel(), [tp]])
         y0 = np.concatenate([Z.ravel() / zs, [(omega if parameter == "omega" else level) / ps]])
         y = y0.copy()
         n = Z.size
@@ -112,13 +112,10 @@ class Adequacy:
             try:
                 y = y + np.linalg.solve(A, -np.concatenate([R, [g]]))
             except np.linalg.LinAlgError:
-                break
+                return None
             if not np.all(np.isfinite(y)):
-                break
-        fixed = ext.solve(omega, level, Z)
-        if not fixed.converged:
-            return None
-        return fixed.Z, omega, level
+                return None
+        return None
 
     def estimate(self, point: Point) -> float:
         """Relative change of response amplitude / friction energy in the extended balance

@@ -135,11 +135,15 @@ def _response_body(system, parameter, values, fixed, *, harmonics, samples, resp
                              max_dp=max_dp, sweep=sweep)
         if worst > adequacy_tolerance:
             i = int(np.nanargmax(estimates))
+            where = f"{branch.points[i].omega / (2 * np.pi):.6g} Hz, level {branch.points[i].level:.3g}"
+            change = ("the balance with more harmonics has no solution near it (an internal resonance or a "
+                      "strongly non-smooth response within the added harmonics)" if np.isinf(worst) else
+                      f"the response would change by about {worst:.2%} with more harmonics")
             warnings.warn(
-                f"harmonic balance with harmonics {[int(v) for v in hb.h[1:]]}: the response would change by about "
-                f"{worst:.2%} with more harmonics (at {branch.points[i].omega / (2 * np.pi):.6g} Hz, level "
-                f"{branch.points[i].level:.3g}), above the tolerance {adequacy_tolerance:.2%}. Raise the harmonics (e.g. harmonics="
-                f"{int(extended_set(hb.h).max())}) or pass auto_harmonics=True", HarmonicAdequacyWarning, stacklevel=3)
+                f"harmonic balance with harmonics {[int(v) for v in hb.h[1:]]}: at {where} {change}, above the "
+                f"tolerance {adequacy_tolerance:.2%}; raise the harmonics (e.g. harmonics="
+                f"{int(extended_set(hb.h).max())}) or pass auto_harmonics=True (the time-marching cross-check "
+                "tells the actual error)", HarmonicAdequacyWarning, stacklevel=5)
     solve_time = time.perf_counter() - start
     ds = _dataset(hb, branch, resp, estimates, parameter, fixed)
     ds.attrs.update({"sweep": sweep, "solve_time_s": solve_time,
