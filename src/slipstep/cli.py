@@ -277,6 +277,9 @@ def _register_plugins() -> None:
             raise
         return
     register(app)
+    from slipstep.cli_frf import register as register_frf  # typer + stdlib at import time
+
+    register_frf(app)
 
 
 _register_plugins()

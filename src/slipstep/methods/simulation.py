@@ -335,6 +335,35 @@ class Simulation(Runner):
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
 
+    def start_from(self, x, v=None, a=None, w=None, state=None, t_start: float = 0.0) -> None:
+        """Start the following marches from a given state at time ``t_start`` [s] instead of the
+        preload (continuation of a steady state, shooting). The march then covers
+        [t_start, t_start + duration]. ``v`` defaults to 0 (dynamic methods), ``w`` to the
+        preload sliders, ``state`` to the law's states at (x, w); ``a`` defaults to the
+        consistent acceleration a = M^-1 (f_e - C v - K x - A^T f(x, w)), with the contact
+        force in elastic form T = k_t (u - w), N = k_n v for v > 0 (0 in lift-off)."""
+        cs, ws = self.compiled, self.ws
+        n, nd = cs.M.shape[0], cs.kt.shape[0]
+        x = np.array(x, float).reshape(n)
+        v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)
+        w = self.preload_state[5].copy() if w is None else np.array(w, float).reshape(nd)
+        p0 = evaluate_compiled(_motion_signal(cs), np.array([t_start]))[0]
+        fe0 = evaluate_compiled(_force_signal(cs), np.array([t_start]))[0] + cs.constant_force
+        q = np.empty(cs.A.shape[0])
+        local_displacement(cs, x, p0, q)
+        f = elastic_contact_force(cs, q, w)
+        if state is None:
+            state = np.empty(nd, np.int8)
+            contact_law(cs, q, w.copy(), np.empty_like(q), np.empty(nd), state)
+        gf = cs.A.T @ f
+        if self.method.quasi_static:
+            a = np.zeros(n)
+        elif a is None:
+            a = ML.initial_acceleration(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
+        self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
+        self.q0, self.f0 = q, f
+        self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
+
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
@@ -368,6 +397,19 @@ class Simulation(Runner):
             **({} if self.massless is None else
                {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
         }
+
+
+def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Local contact forces from (q, w) in elastic form: T_d = k_t (u_d - w_d), N = k_n v for a
+    contact with v > 0, all zero in lift-off (in stick and in slip alike, since a slipping
+    slider sits at w = u - T / k_t)."""
+    f = np.zeros(cs.A.shape[0])
+    v = q[cs.normal_row]
+    closed = v > 0.0
+    f[cs.normal_row] = np.where(closed, cs.kn * v, 0.0)
+    d_closed = closed[cs.direction_contact]
+    f[cs.tangential_row] = np.where(d_closed, cs.kt * (q[cs.tangential_row] - w), 0.0)
+    return f
 
 
 def default_max_step(period: float | None, dt_stick: float) -> float:
