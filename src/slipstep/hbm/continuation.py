@@ -18,6 +18,7 @@ Newton solve from the interpolated crossing).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -100,17 +101,23 @@ def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: 
     other parameter held at ``fixed``. ``progress(point)`` is called after every point."""
     prob = _Problem(hb, parameter, fixed)
     branch = Branch()
+    clock = [time.perf_counter()]
+
+    def done(pt):
+        now = time.perf_counter()
+        pt.wall_time, clock[0] = now - clock[0], now
+        branch.points.append(pt)
+        if progress:
+            progress(pt)
+
     span = end - start
     sign = 1.0 if span > 0 else -1.0
     ps = abs(span) if span != 0 else max(abs(start), 1.0)
     first = prob.solve(start, Z0)
+    done(first)
     if not first.converged:
         branch.status, branch.message = "NOT_CONVERGED", f"the first point ({parameter} = {start:.6g}) did not converge"
-        branch.points.append(first)
         return branch
-    branch.points.append(first)
-    if progress:
-        progress(first)
     if span == 0:
         return branch
     zs = max(hb.scale(first.Z), float(np.abs(first.Z[1:]).max(initial=0.0)))
@@ -171,9 +178,7 @@ def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: 
             frac = (end - y[n] * ps) / (p - y[n] * ps) if p != y[n] * ps else 1.0
             Zg = ((y[:n] + frac * (yc[:n] - y[:n])) * zs).reshape(shape)
             last = prob.solve(end, Zg)
-            branch.points.append(last)
-            if progress:
-                progress(last)
+            done(last)
             if not last.converged:
                 branch.status, branch.message = "NOT_CONVERGED", f"the end point ({parameter} = {end:.6g}) did not converge"
             return branch
@@ -182,9 +187,7 @@ def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: 
         pt = hb.point(Z, w, lv, its - 1, True, float(np.linalg.norm(R)))
         t_new = _tangent(J, Jp, t, zs, ps)
         pt.tangent = (t_new[:n].reshape(shape).copy(), float(t_new[n]), zs, ps, parameter)
-        branch.points.append(pt)
-        if progress:
-            progress(pt)
+        done(pt)
         if t_new[-1] * t[-1] < 0:
             branch.turning_points += 1
         y, t = yc, t_new

@@ -24,7 +24,6 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
-from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.adequacy import (
     Adequacy,
     HarmonicAdequacyWarning,
@@ -43,7 +42,6 @@ from slipstep.hbm.energy import (
     half_peak_to_peak,
     viscous_dissipation,
 )
-from slipstep.hbm.linear import linear_response
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
 
@@ -82,7 +80,9 @@ def _sequential(hb, parameter, values, fixed, progress):
     Z = None
     for v in values:
         w, lv = (v, fixed) if parameter == "omega" else (fixed, v)
+        t0 = time.perf_counter()
         pt = solve_point(hb, w, lv, Z) if parameter == "omega" else hb.solve(w, lv, Z)
+        pt.wall_time = time.perf_counter() - t0
         branch.points.append(pt)
         branch.steps += 1
         if progress:
@@ -217,56 +217,29 @@ def _positive_level(level) -> float:
 # ---- the Dataset -----------------------------------------------------------------------------
 
 
+def _linear_limits(system, freq, level, names) -> tuple[np.ndarray, np.ndarray]:
+    """Both linear limits at the points' frequencies (slipstep.frequency.linear_limits), scaled by
+    the points' excitation levels; NaN where a limit is singular."""
+    from slipstep.frequency import linear_limits
+
+    try:
+        lim = linear_limits(system, freq, names)
+    except np.linalg.LinAlgError:
+        nan = np.full((freq.size, len(names)), np.nan)
+        return nan, nan
+    return (level[:, None] * lim["linear_free_amplitude"].values, level[:, None] * lim["linear_stuck_amplitude"].values)
+
+
 def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, parameter, fixed) -> xr.Dataset:
+    """The FRF Dataset (slipstep.frequency.dataset.empty_frf: the one layout) of a branch."""
+    from slipstep import __version__
+    from slipstep.frequency.dataset import empty_frf, finalise
+
     system, pts = hb.system, branch.points
-    npt, nr = len(pts), resp.size
     names = [system.structure.dof_names[i] for i in resp]
     units = [system.structure.dof_units[i] for i in resp]
-    h_all = np.arange(int(hb.h.max()) + 1)
     freq = np.array([p.omega for p in pts]) / (2 * np.pi)
     level = np.array([p.level for p in pts])
-    nc = len(system.contacts)
-    data = {name: np.full(tuple({"frequency": npt, "harmonic": h_all.size, "response": nr, "contact": nc}[d]
-                                for d in dims), np.nan)
-            for name, (dims, _, _) in FRF_SCHEMA.items() if name != "status"}
-    status = []
-    for i, p in enumerate(pts):
-        X = p.X[:, resp]
-        data["amplitude"][i] = half_peak_to_peak(hb.h, X)
-        amp = np.abs(X)
-        amp[0] = X[0].real
-        data["harmonic_amplitude"][i, hb.h] = amp
-        ph = np.angle(X)
-        ph[0] = 0.0
-        data["harmonic_phase"][i, hb.h] = ph
-        data["energy_per_cycle"][i] = contact_energy(hb, p.Z, p.F)
-        data["excitation_work"][i] = excitation_work(hb, p)
-        data["viscous_dissipation"][i] = viscous_dissipation(hb, p)
-        ok = p.converged and p.aft_periods > 0
-        status.append("OK" if ok else "NOT_CONVERGED")
-    if "harmonic_truncation_estimate" in data:
-        data["harmonic_truncation_estimate"][:] = estimates
-    for key, stuck in (("linear_free_amplitude", False), ("linear_stuck_amplitude", True)):
-        try:
-            Xl, ms = linear_response(system, freq, stuck)
-            data[key][:] = level[:, None] * np.array([half_peak_to_peak(np.array(ms), Xl[i][:, resp])
-                                                      for i in range(npt)]).reshape(npt, nr)
-        except np.linalg.LinAlgError:
-            pass
-    variables = {}
-    for name, (dims, unit, long_name) in FRF_SCHEMA.items():
-        values = np.array(status, dtype=object).astype(str) if name == "status" else data[name]
-        variables[name] = xr.Variable(dims, values, {"units": unit, "long_name": long_name})
-    coords = {
-        "frequency": ("frequency", freq, {"units": "Hz", "long_name": "excitation frequency"}),
-        "harmonic": ("harmonic", h_all, {"units": "1", "long_name": "harmonic number"}),
-        "response": ("response", names),
-        "response_unit": ("response", units),
-        "contact": ("contact", list(system.contact_names)),
-        "excitation_level": ("frequency", level, {"units": "1", "long_name": "scale of the harmonic excitation"}),
-    }
-    from slipstep import __version__
-
     attrs = {
         "title": f"slipstep frequency response: {system.name}, harmonic balance",
         "case": system.name, "solver": "hbm", "method": "",
@@ -280,7 +253,30 @@ def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, p
         "max_force_content_outside": float(max((force_content(hb, p) for p in pts), default=0.0)),
         "steady_tolerance": math.nan, "slipstep_version": __version__,
     }
-    return xr.Dataset(variables, coords=coords, attrs=attrs)
+    ds = empty_frf(freq, names, units, list(system.contact_names), int(hb.h.max()), attrs)
+    ds = ds.assign_coords(excitation_level=("frequency", level, {"units": "1",
+                                                                 "long_name": "scale of the harmonic excitation"}))
+    v = {name: ds[name].values for name in ds.data_vars}
+    for i, p in enumerate(pts):
+        X = p.X[:, resp]
+        v["amplitude"][i] = half_peak_to_peak(hb.h, X)
+        amp = np.abs(X)
+        amp[0] = X[0].real
+        v["harmonic_amplitude"][i, hb.h] = amp
+        ph = np.angle(X)
+        ph[0] = 0.0
+        v["harmonic_phase"][i, hb.h] = ph
+        v["energy_per_cycle"][i] = contact_energy(hb, p.Z, p.F)
+        W, Dv = excitation_work(hb, p), viscous_dissipation(hb, p)
+        v["excitation_work"][i], v["viscous_dissipation"][i] = W, Dv
+        if "energy_balance_residual" in v and W != 0:
+            v["energy_balance_residual"][i] = (W - Dv - v["energy_per_cycle"][i].sum()) / W
+        if "point_time" in v:
+            v["point_time"][i] = p.wall_time
+        v["status"][i] = "OK" if p.converged and p.aft_periods > 0 else "NOT_CONVERGED"
+    v["harmonic_truncation_estimate"][:] = estimates
+    v["linear_free_amplitude"][:], v["linear_stuck_amplitude"][:] = _linear_limits(system, freq, level, names)
+    return finalise(ds)
 
 
 def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:

@@ -77,6 +77,7 @@ class Point:
     ft: np.ndarray | None = None  # (N, nq) the AFT force samples
     qt: np.ndarray | None = None  # (N, nq) the local displacement samples
     tangent: tuple | None = None  # continuation: (t_Z (n_coef, nq), t_p, z_scale, p_scale, parameter), scaled
+    wall_time: float = float("nan")  # s spent on the point (set by the FRF drivers)
 
 
 class HarmonicBalance:
