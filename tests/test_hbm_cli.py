@@ -2,6 +2,7 @@
 run (progress bar, netCDF written atomically, figure, summary with the cross-check)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -41,3 +42,37 @@ def test_run_command_writes_the_result_figure_and_summary(tmp_path):
     text = (tmp_path / "out.txt").read_text()
     assert "cross-check at" in text and "amplitude diff" in text
     json.dumps(s)  # the --json summary is serialisable
+
+
+def _cli(*args):
+    from typer.testing import CliRunner
+
+    from slipstep.cli import app
+
+    return CliRunner().invoke(app, list(args))
+
+
+JENKINS_TOML = str(Path(__file__).resolve().parents[1] / "examples" / "jenkins.toml")
+
+
+def test_cli_frf_solver_hbm(tmp_path):
+    result = _cli("frf", JENKINS_TOML, "--frequencies", "250:400:7", "--solver", "hbm", "--harmonics", "1,3,5,7",
+                  "--check-frequencies", "380", "-o", str(tmp_path), "--json")
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.output.strip().splitlines()[-1])
+    assert s["solver"] == "hbm" and s["harmonics"] == [0, 1, 3, 5, 7] and s["points_not_ok"] == 0
+    assert len(s["checks"]) == 2 and all(c["march_status"] == "OK" for c in s["checks"])
+    assert all(c["amplitude_rel_diff"] < 0.01 for c in s["checks"])
+    ds = xr.open_dataset(s["output"], engine="h5netcdf")
+    assert ds.attrs["solver"] == "hbm" and np.isfinite(ds.check_amplitude_rel_diff.values).sum() == 2
+    assert Path(s["figure"]).stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("args, field", [
+    (("--solver", "hbm", "--harmonics", "1,x"), "--harmonics"),
+    (("--solver", "march", "--harmonics", "1,3,5"), "--harmonics"),
+])
+def test_cli_frf_bad_harmonics(tmp_path, args, field):
+    result = _cli("frf", JENKINS_TOML, "--frequencies", "250:400:3", *args, "-o", str(tmp_path))
+    assert result.exit_code == 2
+    assert field in result.output
