@@ -9,8 +9,10 @@ Measured in one run, interleaved round-robin, medians of --repeats after a warm-
 * HBM along the pseudo-arclength continuation over the same range (time per continuation
   point and per grid point of the whole curve), and with the harmonic-adequacy estimate;
 * the periodic steady state by marching (Method 3, 2000 steps per period, to a relative
-  periodicity of 1e-6) at a few of the grid frequencies, through the cross-check's
-  slipstep.hbm.crosscheck.steady_reference; and by shooting when it is available;
+  periodicity of 1e-6) from the static preload at a few of the grid frequencies (the
+  cross-check's slipstep.hbm.crosscheck.steady_reference), and the steady-state FRFs of
+  slipstep.frequency.frf by marching and by shooting on the same grid (each point from the
+  previous one's state, the same 2000-steps-per-period cap);
 * the HBM amplitude and energy against the marched ones at those frequencies.
 
 Reference (issue 13): tmdsimpy's HBM took 0.56 s per point at H = 15 / 256 samples and
@@ -91,11 +93,7 @@ def main(argv=None):
             "continuation_points": int(ds.frequency.size), "continuation_s_per_point": t_cont / ds.frequency.size,
             "continuation_s_per_grid_point": t_cont / len(freqs), "with_adequacy_s_per_point": t_adeq,
         }
-    # the marched steady state (and shooting) at a few frequencies, with the HBM difference
-    try:
-        from slipstep.steady import shoot
-    except ImportError:
-        shoot = None
+    # the marched steady state at a few frequencies from the preload, with the HBM difference
     hb = balances[(45, 1024)]
     march_times, rows = [], []
     for f in check_f:
@@ -108,32 +106,40 @@ def main(argv=None):
         rows.append({"frequency_Hz": f, "march_s": march_times[-1], "march_periods": ref.periods,
                      "march_status": ref.status, "amplitude_rel_diff": a, "energy_rel_diff": e})
     results["march"] = {"s_per_point": statistics.median(march_times), "points": rows}
-    if shoot is not None:
-        from slipstep.frequency import retune
-
-        times = []
-        for f in check_f:
+    # the steady-state FRFs (each point from the previous one's state), same grid, same accuracy cap
+    try:
+        from slipstep.frequency import frf as frf_steady
+    except ImportError:
+        frf_steady = None
+    if frf_steady is not None:
+        grid = freqs if not args.quick else freqs[::4]
+        for solver in ("march", "shoot"):
             t = time.perf_counter()
-            shoot(retune(system, f), "piecewise-linear", max_step=1 / f / 2000)
-            times.append(time.perf_counter() - t)
-        results["shoot"] = {"s_per_point": statistics.median(times)}
+            ds = frf_steady(system, grid, solver=solver, min_steps_per_period=2000, max_periods=400)
+            results[f"{solver}_frf"] = {"s_per_point": (time.perf_counter() - t) / grid.size,
+                                        "points": int(grid.size),
+                                        "periods_per_point": float(np.nanmean(ds.periods_to_steady.values))}
     if args.json:
         print(json.dumps(results, indent=2))
         return
     print(f"single-DOF Jenkins oscillator, {len(freqs)} frequencies 150-600 Hz, median of {repeats}")
-    print(f"{'solver':34s} {'s/point':>10s} {'vs tmdsimpy':>12s} {'vs march':>10s}")
-    m = results["march"]["s_per_point"]
+    print(f"{'solver':34s} {'s/point':>10s} {'vs tmdsimpy':>12s} {'vs march':>10s} {'vs shoot':>10s}")
+    m = results.get("march_frf", results["march"])["s_per_point"]
+    sh = results.get("shoot_frf", {}).get("s_per_point", float("nan"))
     for key in TMDSIMPY:
         r = results[f"H{key[0]}_N{key[1]}"]
         print(f"{f'HBM H={key[0]} N={key[1]} (Newton per point)':34s} {r['hbm_s_per_point']:10.4f} "
-              f"{r['speedup_vs_tmdsimpy']:11.1f}x {m / r['hbm_s_per_point']:9.1f}x")
+              f"{r['speedup_vs_tmdsimpy']:11.1f}x {m / r['hbm_s_per_point']:9.1f}x {sh / r['hbm_s_per_point']:9.1f}x")
         print(f"{'  continuation, per point':34s} {r['continuation_s_per_point']:10.4f}   "
               f"({r['continuation_points']} points; {r['continuation_s_per_grid_point']:.4f} s per grid point)")
         print(f"{'  with the adequacy estimate':34s} {r['with_adequacy_s_per_point']:10.4f}")
         print(f"{'  tmdsimpy (reference)':34s} {r['tmdsimpy_s_per_point']:10.4f}")
-    print(f"{'march to steady (Method 3, 2000/T)':34s} {m:10.4f}")
-    if "shoot" in results:
-        print(f"{'shooting (slipstep.steady.shoot)':34s} {results['shoot']['s_per_point']:10.4f}")
+    print(f"{'march to steady from the preload':34s} {results['march']['s_per_point']:10.4f}")
+    for solver in ("march", "shoot"):
+        if f"{solver}_frf" in results:
+            r = results[f"{solver}_frf"]
+            print(f"{f'{solver} FRF (from the previous point)':34s} {r['s_per_point']:10.4f}   "
+                  f"({r['periods_per_point']:.1f} periods per point)")
     for row in results["march"]["points"]:
         print(f"  {row['frequency_Hz']:.0f} Hz: HBM(H=45) vs march: amplitude {row['amplitude_rel_diff']:.2e}, "
               f"energy {row['energy_rel_diff']:.2e} (march {row['march_periods']} periods, {row['march_status']})")

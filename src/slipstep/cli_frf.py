@@ -240,7 +240,9 @@ def _text(s: dict) -> str:
     if s["points_not_ok"]:
         lines.append(f"{s['points_not_ok']} point(s) not steady or failed (see the status variable)")
     if "checks" in s:  # harmonic balance: the retained harmonics, the adequacy estimate, the cross-check
-        lines.append(f"harmonics {','.join(str(h) for h in s['harmonics'][1:])} ({s['samples']} AFT samples), "
+        from slipstep.hbm.cli_support import harmonics_text
+
+        lines.append(f"harmonics {harmonics_text(s['harmonics'])} ({s['samples']} AFT samples), "
                      f"{s['time_per_point_s'] * 1e3:.3g} ms per point, {s['turning_points']} turning point(s); "
                      f"harmonic truncation estimate (max) {s['max_harmonic_truncation_estimate']:.2e}")
         for c in s["checks"]:

@@ -10,6 +10,12 @@ import math
 from slipstep.errors import InputError
 
 
+def harmonics_text(h) -> str:
+    """'0..15' for a full set, else the list '1,3,5' (the mean, always retained, left out)."""
+    hs = [int(v) for v in h if int(v) > 0]
+    return f"0..{hs[-1]}" if hs == list(range(1, len(hs) + 1)) else ",".join(map(str, hs))
+
+
 def parse_harmonics(text: str):
     """'1,3,5' -> (1, 3, 5) (a chosen set); '15' -> 15 (all of 0..15)."""
     parts = [p.strip() for p in str(text).split(",") if p.strip()]
@@ -83,8 +89,7 @@ def summary_table(ds):
     table = Table(title=f"slipstep frf: {s['case']}, harmonic balance", show_header=False)
     table.add_column("quantity", style="cyan")
     table.add_column("value")
-    h = s["harmonics"][1:]
-    rows = [("harmonics", f"0..{h[-1]}" if h == list(range(1, len(h) + 1)) else ",".join(map(str, h))),
+    rows = [("harmonics", harmonics_text(s["harmonics"])),
             ("AFT samples per period", s["samples"]),
             ("points (continuation)", f"{s['points']} ({s['continuation_status']}, {s['turning_points']} turning points)"),
             ("peak", f"{s['peak_amplitude']:.6g} ({s['peak_response']}) at {s['peak_frequency_Hz']:.6g} Hz"),
