@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from slipstep.errors import InputError, SolverError, Status
+from slipstep.errors import InputError, Interrupted, SolverError, Status
+from slipstep.live import call_kernel
+from slipstep.methods import memory
 from slipstep.kernels import march as K
 from slipstep.kernels.state_solve import LowRank
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
@@ -46,6 +48,8 @@ class RunOptions:
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
         when the contact coordinates are at most half the DOFs).
+    max_memory: the memory a run may take [bytes] (estimate checked before any allocation,
+        slipstep.methods.memory); default: half of the available memory.
     massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
         shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
     """
@@ -66,6 +70,7 @@ class RunOptions:
     fallback: bool = True
     dt: float | None = None
     linear_solver: str = "auto"
+    max_memory: float | None = None
     massless_dofs: object = "auto"
 
     def validated(self) -> "RunOptions":
@@ -88,6 +93,8 @@ class RunOptions:
             positive("max_step", self.max_step)
         if self.dt is not None:
             positive("dt", self.dt)
+        if self.max_memory is not None:
+            memory.parse_size("max_memory", self.max_memory)
         if self.linear_solver not in ("auto", "direct", "low-rank"):
             raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
         if not isinstance(self.scheme, Scheme):
@@ -119,6 +126,8 @@ class Runner:
 
     failure_hint = ""
     _kernel = None
+    progress = False  # draw a progress bar on stderr for runs longer than a second (the CLI sets it)
+    keep_interrupted = False  # Ctrl-C: return the partial result (True) or raise Interrupted carrying it
 
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
@@ -126,12 +135,15 @@ class Runner:
         self.out.counters[:] = 0
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
-        start = time.perf_counter()
-        status = kernel(*args)
-        self.kernel_time = time.perf_counter() - start
+        # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        status, self.kernel_time = call_kernel(kernel, args, self.out.counters, self.out.t, self.t_end,
+                                               self.out.t.shape[0], self.progress)
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
         self.status = Status(status)
+        if self.status == Status.INTERRUPTED and not self.keep_interrupted:
+            partial = self.dataset()
+            raise Interrupted(partial.attrs["status_message"], partial)
         return self.status
 
     def run(self, raise_on_failure: bool = False):
@@ -149,7 +161,7 @@ class Runner:
             return {}
         step = int(self.out.counters[K.C_FAIL_STEP])
         report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
-        visited = self._visited_states()
+        visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
         return report
@@ -236,6 +248,7 @@ class Simulation(Runner):
         scheme = opt.scheme
         self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
         self.max_step = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
+        _check_time_scales(t_end, self.dt_limit, self.max_step, opt)
         if opt.dt is not None:
             dt = opt.dt
         elif self.method.quasi_static:
@@ -260,8 +273,8 @@ class Simulation(Runner):
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
             capacity = n_fixed + 1
-        if capacity > 50_000_000:
-            raise InputError("duration", f"needs {capacity} steps", "shorten the run or use the quasi-static method")
+        self.low_rank = use_low_rank(cs, opt.linear_solver)
+        self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
@@ -281,10 +294,9 @@ class Simulation(Runner):
         self.ipar[K.FALLBACK] = int(opt.fallback)
         self.ipar[K.SIGNALS] = 1
         self.ipar[K.PRELOAD] = 0
-        self.low_rank = use_low_rank(cs, opt.linear_solver)
         self.ipar[K.LOWRANK] = int(self.low_rank)
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
@@ -399,6 +411,18 @@ class Simulation(Runner):
         }
 
 
+def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
+    """Refuse end times and step limits whose ratio no march can cover (before any step count
+    is computed from them): a non-finite end time, or more than 1e15 steps."""
+    field_name = "duration" if opt.duration is not None else "periods"
+    if not math.isfinite(t_end):
+        raise InputError(field_name, f"gives an end time of {t_end} s", "give a finite duration or number of periods")
+    limit = min(dt_limit, max_step)
+    if not limit > 0 or t_end / limit > 1e15:
+        raise InputError(field_name, f"would need more than 1e15 steps ({t_end:.3g} s with steps of {limit:.3g} s)",
+                         "check the units of the masses and stiffnesses, or simulate a shorter time")
+
+
 def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Local contact forces from (q, w) in elastic form: T_d = k_t (u_d - w_d), N = k_n v for a
     contact with v > 0, all zero in lift-off (in stick and in slip alike, since a slipping
@@ -456,11 +480,39 @@ def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     return linear_solver == "low-rank" and nq > 0
 
 
-def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_static: bool, low_rank: bool) -> float:
+    """The memory estimate of a march of ``capacity`` steps (slipstep.methods.memory) checked
+    against the limit before anything is allocated; returns it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    field_name = "duration" if opt.duration is not None else "periods"
+    fixes = ("simulate fewer periods (or a shorter duration)" +
+             (", use fewer steps_per_period" if quasi_static else ", raise the step ratio"))
+    limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
+    return memory.check(capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank),
+                        limit, field_name, fixes)
+
+
+def _cache_capacities(n: int, nq: int, low_rank: bool) -> tuple[int, int, int]:
+    """(matrix size factorised per state, state cache slots, low-rank base slots): at most
+    about 200 MB of factorisations each."""
     size = nq if low_rank else n  # the matrix factorised per state: C(S) (nq) or J(S) (n)
     cap = int(min(512, max(8, 2e8 // (8 * size * size + 1))))
     capb = int(min(64, max(2, 2e8 // (8 * (n * n + 2 * n * nq) + 1)))) if low_rank else 1
+    return size, cap, capb
+
+
+def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> int:
+    """Bytes of :func:`_allocate_workspace` (its largest arrays)."""
+    n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
+    nb, nqb = (n, nq) if low_rank else (1, 1)
+    return int(8 * ((cap + 1) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
+                    + 4 * n * n + 20 * (n + nq + nd)) + 2 * cap * nd + nd * (max_state_iter + 1))
+
+
+def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+    n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
     nb, nqb = (n, nq) if low_rank else (1, 1)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
@@ -483,9 +535,14 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int) -> K.Outputs:
+def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
+    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
+    the available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     k = capacity + 1
+    if k > 100_000:
+        limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
+        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
     return K.Outputs(
         t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
         q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),
