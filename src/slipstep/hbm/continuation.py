@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slipstep.hbm.residual import HarmonicBalance, Point
+from slipstep.hbm.residual import HarmonicBalance, Point, blas_threads
 
 
 @dataclass
@@ -93,7 +93,14 @@ def solve_point(hb: HarmonicBalance, omega: float, level: float, Z0: np.ndarray 
     return pt
 
 
-def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, *,
+def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, **options) -> Branch:
+    """Continue the balance from p = start to p = end (p = 'omega' [rad/s] or 'level'), the
+    other parameter held at ``fixed`` (options: see :func:`_trace`); BLAS on one thread."""
+    with blas_threads(hb.size):
+        return _trace(hb, parameter, start, end, fixed, **options)
+
+
+def _trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, *,
           ds: float | None = None, max_dp: float | None = None, max_dz: float = 0.1, min_ds: float = 1e-7,
           max_steps: int = 2000, target_iterations: int = 4, max_corrector: int = 12, tol: float = 1e-10,
           Z0: np.ndarray | None = None, progress: Callable[[Point], None] | None = None) -> Branch:

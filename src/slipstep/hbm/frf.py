@@ -126,7 +126,7 @@ def _response_body(system, parameter, values, fixed, *, harmonics, samples, resp
     if adequacy:
         ad = Adequacy(hb, resp)
         estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
-        worst = np.nanmax(estimates) if np.any(np.isfinite(estimates)) else 0.0
+        worst = float(np.max(estimates[~np.isnan(estimates)])) if np.any(~np.isnan(estimates)) else 0.0
         if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
             return _response_body(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
                              responses=responses, continuation=continuation, check=check, check_at=check_at,
@@ -249,7 +249,8 @@ def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, p
         "continuation_steps": branch.steps, "failed_correctors": branch.failed_correctors,
         "turning_points": branch.turning_points,
         "newton_iterations": int(sum(p.iterations for p in pts)),
-        "max_harmonic_truncation_estimate": float(np.nanmax(estimates)) if np.any(np.isfinite(estimates)) else math.nan,
+        "max_harmonic_truncation_estimate": (float(np.max(estimates[~np.isnan(estimates)]))
+                                             if np.any(~np.isnan(estimates)) else math.nan),
         "max_force_content_outside": float(max((force_content(hb, p) for p in pts), default=0.0)),
         "steady_tolerance": math.nan, "slipstep_version": __version__,
     }

@@ -86,6 +86,7 @@ class LinearPart:
         kc[cs.normal_row] = cs.kn
         self.Kc = np.zeros((self.h.size, nq))
         self.Kc[0] = kc
+        self.KcD = np.einsum("rn,hr,rm->hnm", cs.A, self.Kc, cs.A, optimize=True)  # A^T Kc_h A, constant
         self.g0 = np.zeros((self.h.size, nq))
         self.g0[0] = cs.g
 
@@ -93,8 +94,7 @@ class LinearPart:
         """Factorise D_h(omega) and form G_h, the linear local response and D_h^-1."""
         cs, h = self.cs, self.h
         w = h * omega
-        D = (cs.K[None] - (w ** 2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None]
-             + np.einsum("rn,hr,rm->hnm", cs.A, self.Kc, cs.A))
+        D = (cs.K[None] - (w ** 2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD)
         self.omega, self.level = omega, level
         self.D = D
         self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)

@@ -157,7 +157,7 @@ class HarmonicBalance:
         J = np.eye(Rr.size) + Gr @ (dF - np.diag(kc.ravel()))
         X = Xe - np.einsum("hnm,hm->hn", lin.DinvAT, U)
         dD = lin.dD_domega()
-        dR_dw = np.einsum("rn,hnm,hmk,hk->hr", cs.A, lin.Dinv, dD, X)
+        dR_dw = np.einsum("hnm,hm->hn", lin.Dinv, np.einsum("hmk,hk->hm", dD, X)) @ cs.AT
         Pb = lin.P @ cs.B.T
         dR_dl = -(np.einsum("hnm,hm->hn", lin.Dinv, lin.Fe) @ cs.AT) + Pb - np.einsum("hrs,hs->hr", lin.G, lin.Kc * Pb)
         return Rr, J, b.coefficients(dR_dw).ravel(), b.coefficients(dR_dl).ravel()
