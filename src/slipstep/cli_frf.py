@@ -131,7 +131,10 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
 
         from slipstep.config import load_system
         from slipstep.frequency.response import check_frequencies
-        from slipstep.io import atomic_path
+        from rich.markup import escape
+
+        from slipstep.results import save as save_netcdf
+        from slipstep.text import escape_text
         from slipstep.plots_frf import plot_frf
 
         if direction not in ("up", "down", "both"):
@@ -168,7 +171,8 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         total = freqs.size * (2 if direction == "both" else 1)
         with Progress(TextColumn("[bold]frf[/] {task.description}"), BarColumn(), MofNCompleteColumn(),
                       TimeRemainingColumn(), console=_err, transient=True, disable=as_json) as bar:
-            task = bar.add_task(f"{_case_stem(case)} ({'sine sweep' if sine_sweep else solver})",
+            label = escape(escape_text(_case_stem(case)))  # a file name is text, never markup
+            task = bar.add_task(f"{label} ({'sine sweep' if sine_sweep else solver})",
                                 total=2 if sine_sweep and direction == "both" else (1 if sine_sweep else total))
             done = [0]
 
@@ -176,16 +180,15 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
                 done[0] += 1
                 if steady is None and f is not None:  # a continuation step (hbm): i of n along the range
                     text = f" step {done[0]}: {f:.5g} Hz"
-                    bar.update(task, completed=i, description=f"{_case_stem(case)}{text}")
+                    bar.update(task, completed=i, description=f"{label}{text}")
                     return
                 text = "" if f is None else f" {f:.4g} Hz: {steady.status}, {steady.periods} periods"
-                bar.update(task, completed=done[0], description=f"{_case_stem(case)}{text}")
+                bar.update(task, completed=done[0], description=f"{label}{text}")
 
             ds = run(system, freqs, direction, options, progress)
         stem = _case_stem(case)
         nc, png = folder / f"{stem}_frf.nc", folder / f"{stem}_frf.png"
-        with atomic_path(nc) as tmp:
-            ds.to_netcdf(tmp, engine="h5netcdf")
+        save_netcdf(ds, nc)
         if hbm:
             from slipstep.hbm.cli_support import summary as hbm_summary
             from slipstep.hbm.plot import plot_frf as plot_hbm
