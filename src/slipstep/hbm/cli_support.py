@@ -134,7 +134,7 @@ def run_command(system, frequencies, *, harmonics, samples=None, check_frequenci
     unless ``as_json``, printed as a table with the cross-check beside the answer), the
     figure written to ``plot_path`` when given. Returns (Dataset, summary dict)."""
     from slipstep.hbm.frf import frf
-    from slipstep.io import atomic_path
+    from slipstep.results import save
 
     hs = parse_harmonics(harmonics) if isinstance(harmonics, str) else harmonics
     kwargs = {"harmonics": hs, "samples": samples, "check": check, "check_frequencies": check_frequencies,
@@ -144,8 +144,7 @@ def run_command(system, frequencies, *, harmonics, samples=None, check_frequenci
             ds = frf(system, frequencies, progress=bar, **kwargs)
     else:
         ds = frf(system, frequencies, **kwargs)
-    with atomic_path(output) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+    save(ds, output)
     if plot_path is not None:
         from slipstep.hbm.plot import plot_frf
 
