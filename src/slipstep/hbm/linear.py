@@ -117,31 +117,3 @@ class LinearPart:
         """dD_h/dOmega = -2 h^2 Omega M + i h C."""
         cs, h = self.cs, self.h
         return -2.0 * (h ** 2 * self.omega)[:, None, None] * cs.M[None] + 1j * h[:, None, None] * cs.C[None]
-
-
-def linear_response(system, frequencies_hz, stuck: bool) -> np.ndarray:
-    """Frequency-domain linear limit: DOF phasors (nf, n) of the harmonic excitation (harmonic 1
-    and its multiples summed as phasors per multiple: returns (nf, n_multiples, n) and the multiples).
-
-    stuck=False: contacts removed; stuck=True: every contact a linear spring diag(k_t, k_n)
-    about the static state (sliders fixed), i.e. K + A^T Kc A and the motion load A^T Kc B P."""
-    cs = system.compile()
-    _, force, motion, _ = excitation_multiples(system)
-    ms = sorted(set(force) | set(motion))
-    n, nq, nm = cs.M.shape[0], cs.A.shape[0], cs.B.shape[1]
-    kc = np.zeros(nq)
-    if stuck:
-        kc[cs.tangential_row] = cs.kt
-        kc[cs.normal_row] = cs.kn
-    # a contact with an all-zero normal row and an offset (constant normal load) stays closed;
-    # otherwise stuck assumes every contact is closed (the linearised static state)
-    Kd = cs.A.T @ (kc[:, None] * cs.A)
-    Kp = cs.A.T @ (kc[:, None] * cs.B)
-    out = np.zeros((len(frequencies_hz), len(ms), n), complex)
-    for i, f in enumerate(frequencies_hz):
-        for j, m in enumerate(ms):
-            w = 2 * np.pi * f * m
-            D = cs.K - w ** 2 * cs.M + 1j * w * cs.C + Kd
-            rhs = force.get(m, np.zeros(n)) + Kp @ motion.get(m, np.zeros(nm))
-            out[i, j] = np.linalg.solve(D, rhs)
-    return out, ms
