@@ -45,9 +45,17 @@ def _resolve(pkg: griffe.Module, obj: griffe.Object, target: str) -> str | None:
     return None
 
 
+# `[A] [B]` or `[A][B]` in prose (matrices, vectors: `[dR/dZ  dR/dp] [dZ; dp]`) would be read as a Markdown
+# reference link to an identifier B; escape the second bracket unless B is a dotted Python name
+NOT_A_LINK = re.compile(r"\](\s?)\[(?![A-Za-z_][\w.]*\])")
+
+
 def _rewrite(pkg: griffe.Module, obj: griffe.Object) -> None:
     doc = obj.docstring
-    if doc is None or ":`" not in doc.value:
+    if doc is None:
+        return
+    doc.value = NOT_A_LINK.sub(lambda m: "]" + m.group(1) + "\\[", doc.value)
+    if ":`" not in doc.value:
         return
 
     def replace(match: re.Match) -> str:
