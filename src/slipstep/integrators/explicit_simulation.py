@@ -51,7 +51,8 @@ class ExplicitSimulation(Runner):
             raise InputError("step_ratio", f"is {ratio}: an explicit scheme is unstable above its stability limit",
                              "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)")
         # preload (and validation of the common options) by the implicit set-up, quasi-static loads ramp
-        pre = Simulation(system, "newmark", **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
+        pre = Simulation(system, "newmark", error_estimate=False,
+                         **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
         self.options = pre.options
         self.compiled = cs = pre.compiled
         self.preload_state = pre.preload_state

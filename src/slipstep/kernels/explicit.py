@@ -38,6 +38,7 @@ from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
+from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.signals import evaluate_signal
 
 # float parameters
@@ -199,8 +200,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                 if not (np.isfinite(x1[i]) and np.isfinite(v1[i]) and np.isfinite(a1[i])):
                     status = NON_FINITE
             for r in range(nq):
-                if not abs(q1[r]) <= bound:
-                    status = NON_FINITE
+                if status == OK and not abs(q1[r]) <= bound:
+                    status = DIVERGED  # |q| beyond 1e6 length scales: the scheme's instability
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----

@@ -19,6 +19,7 @@ import numpy as np
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels import march as K
 from slipstep.kernels.state_solve import LowRank
+from slipstep.methods import accuracy
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
@@ -37,14 +38,24 @@ class RunOptions:
     periods / duration: simulated time after the preload (duration [s] wins if given).
     step_ratio: r in dt = r * T_min / (2 pi sqrt(beta)) (dynamic methods).
     steps_per_period: quasi-static step count per excitation period.
-    tolerance: Newton stop: the estimated error theta/(1-theta) max |A delta| of the modified-Newton
-        iteration (theta its observed contraction) <= tolerance * length scale.
+    tolerance: Newton stop (modified and full Newton), both tests at once (kernels/march.py):
+        increment: theta/(1-theta) eta <= 1, eta = max(max |A delta| / (tol L), max_j |delta_j| /
+        (tol max(L, |x_j|))), theta the larger of the last two contraction ratios; and residual:
+        max |r| <= tol * (the step's largest force term). Default 1e-10: at 1e-8 one random small
+        system in six drifted more than 1e-6 of its range from the converged solution.
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
     max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
         when the contact coordinates are at most half the DOFs).
+    rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate
+        of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is
+        within about rtol; it never exceeds the contact-state / convergence rule of Newton
+        methods, nor the stability limit; the piecewise-linear solve obeys only the latter.
+    error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
+        peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
+        step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
     """
 
     periods: float = 3.0
@@ -52,7 +63,7 @@ class RunOptions:
     step_ratio: float = 1.0
     steps_per_period: int = 300
     scheme: Scheme = field(default_factory=newmark)
-    tolerance: float = 1e-8
+    tolerance: float = 1e-10
     state_tolerance: float = 1e-9
     singular_tolerance: float = 1e-12
     max_iterations: int = 500
@@ -63,6 +74,8 @@ class RunOptions:
     fallback: bool = True
     dt: float | None = None
     linear_solver: str = "auto"
+    rtol: float | None = None
+    error_estimate: bool = True
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -84,6 +97,10 @@ class RunOptions:
             positive("max_step", self.max_step)
         if self.dt is not None:
             positive("dt", self.dt)
+        if self.rtol is not None:
+            value = positive("rtol", self.rtol)
+            if not 1e-8 <= value <= 0.2:
+                raise InputError("rtol", f"is {value}", "give a relative accuracy between 1e-8 and 0.2 (e.g. 1e-3)")
         if self.linear_solver not in ("auto", "direct", "low-rank"):
             raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
         if not isinstance(self.scheme, Scheme):
@@ -111,6 +128,10 @@ class Runner:
 
     failure_hint = ""
     _kernel = None
+
+    def accuracy_attrs(self) -> dict:
+        """The time-discretisation error estimate attrs (see Simulation.accuracy_attrs)."""
+        return {}
 
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
@@ -186,6 +207,7 @@ class Runner:
             "length_scale_m": self.compiled.length_scale,
         })
         attrs.update(failure)
+        attrs.update(self.accuracy_attrs())
         return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"],
                              compiled=self.compiled)
 
@@ -218,21 +240,17 @@ class Simulation(Runner):
                              "give duration (seconds) or a harmonic excitation")
         self.period, self.t_end = period, t_end
         scheme = opt.scheme
-        self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
+        self._accuracy = None
+        self._coarse = None
+        self.dt_limit, self.dt_stability = self._step_limits(scheme)
         self.max_step = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
-        if opt.dt is not None:
-            dt = opt.dt
-        elif self.method.quasi_static:
-            base = period if period is not None else t_end
-            dt = base / opt.steps_per_period
-        elif not math.isfinite(self.dt_limit):
-            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
-                             "add contacts or stiffness")
-        elif period is not None:
-            limit = min(self.dt_limit, self.max_step)
-            dt = period / math.ceil(period / limit * (1 - 1e-12))
-        else:
-            dt = min(self.dt_limit, self.max_step)
+        dt = self._fixed_step(self.dt_limit, self.max_step)
+        if opt.dt is not None and opt.dt > self.dt_stability * (1 + 1e-12):
+            raise InputError("dt", f"is {opt.dt:.4g} s, beyond the stability limit {self.dt_stability:.4g} s of the "
+                             f"scheme {scheme.name} (Omega_crit = {scheme.omega_crit:.4g})",
+                             "give a smaller dt or use an unconditionally stable scheme (2 beta >= gamma)")
+        if self._pilot_allowed():
+            dt = self._pilot_step(dt)
         if dt > t_end * (1 + 1e-12):
             field_name = "duration" if opt.duration is not None else "periods"
             raise InputError(field_name, f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
@@ -240,7 +258,9 @@ class Simulation(Runner):
         self.dt = dt
         dt_max = self.max_step
         n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
-        if self.method.adaptive:
+        if opt.rtol is not None and not self.method.quasi_static:
+            capacity = 4 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
+        elif self.method.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
             capacity = n_fixed + 1
@@ -249,12 +269,15 @@ class Simulation(Runner):
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
-        self.fpar[K.STEP_FACTOR] = opt.step_ratio * scheme.step_limit_factor
-        self.fpar[K.DT_MAX] = dt_max
+        self.fpar[K.STEP_FACTOR] = min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor)
+        self.fpar[K.DT_MAX] = min(dt_max, self.dt_stability)
         self.fpar[K.TOL] = opt.tolerance
         self.fpar[K.STATE_RTOL] = opt.state_tolerance
         self.fpar[K.SINGULAR_RTOL] = opt.singular_tolerance
         self.fpar[K.T_START], self.fpar[K.T_END] = 0.0, t_end
+        if opt.rtol is not None and not self.method.quasi_static:
+            self.fpar[K.RTOL] = opt.rtol
+            self.fpar[K.ERR_SCALE] = cs.length_scale
         self.ipar = np.zeros(K.N_IPAR, np.int64)
         self.ipar[K.SOLVER] = self.method.solver
         self.ipar[K.ADAPTIVE] = int(self.method.adaptive)
@@ -272,6 +295,133 @@ class Simulation(Runner):
         self.status = None
         self.kernel_time = math.nan
         self._preload()
+
+    # -- the step rule (README "Methods"; methods/accuracy.py) ------------------------------
+    def _step_limits(self, scheme) -> tuple[float, float]:
+        """(dt_limit, dt_stability): the step limit r * factor * T_min(stick) of the Newton
+        iteration's convergence (paper 4.2), capped at the scheme's stability limit
+        Omega_crit / omega_max (omega_max over every visitable contact state) with a warning.
+        With rtol and the piecewise-linear solve only the stability limit is kept."""
+        opt = self.options
+        dt_stability = math.inf
+        if math.isfinite(scheme.omega_crit) and not self.method.quasi_static:
+            w = accuracy.highest_frequency(self.compiled)
+            dt_stability = scheme.omega_crit / w if w > 0 else math.inf
+        conv = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
+        if opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR:
+            conv = math.inf if math.isfinite(dt_stability) else conv
+        if conv > dt_stability * (1 + 1e-12) and opt.dt is None:
+            warnings.warn(f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
+                          f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
+                          f"is capped at the stability limit", stacklevel=4)
+            conv = dt_stability
+        return conv, dt_stability
+
+    def _fixed_step(self, limit: float, max_step: float) -> float:
+        """The fixed step: min(limit, max_step), rounded down to whole steps per period."""
+        opt, period = self.options, self.period
+        if opt.dt is not None:
+            return opt.dt
+        if self.method.quasi_static:
+            return (period if period is not None else self.t_end) / opt.steps_per_period
+        if not math.isfinite(limit) and not math.isfinite(max_step):
+            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
+                             "add contacts or stiffness")
+        if period is not None:
+            return period / math.ceil(period / min(limit, max_step) * (1 - 1e-12))
+        return min(limit, max_step)
+
+    def _pilot_allowed(self) -> bool:
+        opt = self.options
+        return (opt.error_estimate and not self.method.quasi_static and self.period is not None and opt.dt is None
+                and opt.max_step is None and opt.rtol is None and self.t_end >= self.period * (1 - 1e-9))
+
+    def _twin(self, method: str, **changes):
+        """A piecewise-linear twin march of this run (same system, scheme and tolerances) with
+        ``changes`` to its options; returns (status, loop energy [J], peak force [N]) or None."""
+        opt = self.options
+        base = dict(scheme=opt.scheme, duration=self.t_end, tolerance=opt.tolerance,
+                    state_tolerance=opt.state_tolerance, singular_tolerance=opt.singular_tolerance,
+                    preload_increments=opt.preload_increments, linear_solver=opt.linear_solver, error_estimate=False,
+                    max_state_iterations=opt.max_state_iterations, step_ratio=opt.step_ratio)
+        base.update(changes)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                twin = Simulation(self.system, method, **base)
+            except (InputError, SolverError):
+                return None
+            status = twin.march()
+        if status != Status.OK:
+            return None
+        n = int(twin.out.counters[K.C_STEPS])
+        return (status,) + accuracy.loop_energy(twin.out, n, twin.compiled, self.period)
+
+    def _pilot_step(self, dt0: float) -> float:
+        """The default rule's refinement: the step-doubling estimate of the loop energy at dt0
+        (piecewise-linear twins at dt0 and 2 dt0); above DEFAULT_TARGET the step (and the
+        accuracy cap of adaptive steps) becomes dt0 sqrt(DEFAULT_TARGET / estimate)."""
+        fine = self._twin("piecewise-linear", dt=dt0)
+        coarse = self._twin("piecewise-linear", dt=2 * dt0)
+        if fine is None or coarse is None:
+            return dt0
+        est = accuracy.richardson(fine[1], coarse[1])
+        if not est > accuracy.DEFAULT_TARGET:
+            self._coarse = (2 * dt0, coarse)
+            return dt0
+        self.max_step = dt0 * math.sqrt(accuracy.DEFAULT_TARGET / est)
+        return self._fixed_step(self.dt_limit, self.max_step)
+
+    def _check_divergence(self) -> Status:
+        """A march that ends OK but whose energy grew without a source is DIVERGED."""
+        if self.status == Status.OK and not self.method.quasi_static:
+            n = int(self.out.counters[K.C_STEPS])
+            t = self.out.t[: n + 1]
+            fe = evaluate_compiled(_force_signal(self.compiled), t) + self.compiled.constant_force
+            p = evaluate_compiled(_motion_signal(self.compiled), t)
+            if accuracy.energy_diverged(self.out, n, self.compiled, fe, p):
+                self.status = Status.DIVERGED
+                self.out.counters[K.C_FAIL_STEP] = n
+        return self.status
+
+    def accuracy_attrs(self) -> dict:
+        """energy_error_estimate and peak_force_error_estimate (relative, NaN when not
+        available) by step doubling (methods/accuracy.py); computed once per Simulation.
+        Warns when the loop-energy estimate exceeds WARN_LIMIT (1 %)."""
+        if self._accuracy is not None:
+            return self._accuracy
+        nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
+               "error_estimate_method": "none"}
+        if not self.options.error_estimate or self.status != Status.OK or self.period is None:
+            return nan
+        n = int(self.out.counters[K.C_STEPS])
+        energy, peak = accuracy.loop_energy(self.out, n, self.compiled, self.period)
+        opt = self.options
+        if self.method.quasi_static:
+            twin = self._twin("quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
+            how = "step doubling: quasi-static twin at half the steps per period"
+        elif self.method.adaptive or opt.rtol is not None:
+            twin = self._twin("piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
+                              step_ratio=2 * opt.step_ratio, max_step=2 * self.max_step,
+                              rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2))
+            how = ("step doubling: piecewise-linear twin with twice the step factor and cap" if opt.rtol is None
+                   else "piecewise-linear twin at 8 rtol (4x the step)")
+        elif self._coarse is not None and self._coarse[0] == 2 * self.dt:
+            twin, how = self._coarse[1], "step doubling: piecewise-linear twin at 2 dt"
+        else:
+            twin, how = self._twin("piecewise-linear", dt=2 * self.dt), "step doubling: piecewise-linear twin at 2 dt"
+        if twin is None:
+            return nan
+        ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not self.method.quasi_static else 2.0
+        self._accuracy = {"energy_error_estimate": accuracy.richardson(energy, twin[1], ratio),
+                          "peak_force_error_estimate": accuracy.richardson(peak, twin[2], ratio),
+                          "error_estimate_method": how}
+        est = self._accuracy["energy_error_estimate"]
+        if est > accuracy.WARN_LIMIT:
+            warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
+                          f"{100 * est:.2g} % (step doubling): use a smaller step (max_step / --steps-per-period) "
+                          f"or set rtol (--rtol 1e-3)", stacklevel=3)
+        return self._accuracy
 
     # -- set-up ---------------------------------------------------------------------------
     def _preload(self):
@@ -304,20 +454,44 @@ class Simulation(Runner):
         # initial point of the march: p(0), f_e(0), consistent acceleration
         p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
         fe0 = evaluate_compiled(_force_signal(cs), np.zeros(1))[0] + cs.constant_force
-        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale:
+        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale and not self.method.quasi_static:
             warnings.warn("the prescribed motion does not start from zero (p(0) != 0): a dynamic run receives it "
-                          "as an impulse and rings at the internal frequencies for as long as nothing damps them; "
-                          "a quasi-static run jumps in its first step. Start motions from zero (sine phase) or "
-                          "set ramp_time.", stacklevel=3)
-        w_pre = ws.w.copy()
-        local_displacement(cs, ws.x, p0, q)
-        contact_law(cs, q, w_pre, f, ws.w, ws.state)
-        generalised_force(cs, f, ws.gf)
+                          "as an impulse and rings at the internal frequencies for as long as nothing damps them. "
+                          "Start motions from zero (sine phase) or set ramp_time.", stacklevel=3)
+        if self.method.quasi_static and (np.any(p0 != 0) or np.any(fe0 != cs.constant_force)):
+            q[:], f[:] = self._static_start(ipar)
+        else:
+            w_pre = ws.w.copy()
+            local_displacement(cs, ws.x, p0, q)
+            contact_law(cs, q, w_pre, f, ws.w, ws.state)
+            generalised_force(cs, f, ws.gf)
         ws.fe[:] = fe0
         if not self.method.quasi_static:
             ws.a[:] = np.linalg.solve(cs.M, fe0 - cs.K @ ws.x - ws.gf)
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
+
+    def _static_start(self, ipar) -> tuple[np.ndarray, np.ndarray]:
+        """Quasi-static runs start from the static equilibrium at p(0), f_e(0): one
+        piecewise-linear quasi-static step from the preload (x, w) to t = 0 (K x + A^T f(q, w)
+        = f_e(0) with q = A x - B p(0) + g, the sliders moved by that solve). Returns (q, f)."""
+        cs, ws = self.compiled, self.ws
+        fpar = self.fpar.copy()
+        delta = 1e-9 * (self.period if self.period is not None else self.t_end)
+        fpar[K.T_START], fpar[K.T_END], fpar[K.DT] = -delta, 0.0, delta
+        fpar[K.RTOL] = 0.0
+        ipar = ipar.copy()
+        ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK, K.PRELOAD]] = 0, 1, K.PIECEWISE_LINEAR, 0, 1, 0
+        out = _allocate_outputs(cs, 1)
+        nq = cs.A.shape[0]
+        q, f = np.zeros(nq), np.zeros(nq)
+        local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
+        contact_law(cs, q, ws.w.copy(), f, np.empty_like(ws.w), np.empty_like(ws.state))
+        status = K.march(cs, fpar, ipar, ws, out, q, f)
+        if status != K.OK:
+            raise SolverError(f"the static equilibrium at t = 0 (p(0), f_e(0)) failed: {Status(status).message}")
+        _reset_cache(ws)
+        return out.q[1].copy(), out.f[1].copy()
 
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
@@ -326,7 +500,8 @@ class Simulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        return self._run_kernel(K.march)
+        self._run_kernel(K.march)
+        return self._check_divergence()
 
     # -- results --------------------------------------------------------------------------
     def _visited_states(self) -> str:

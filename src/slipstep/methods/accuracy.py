@@ -1,0 +1,120 @@
+"""The step rule's accuracy side: stability limits over the visitable contact states, the
+step-doubling estimate of the time-discretisation error, and the divergence test.
+
+Error estimate (step doubling, Richardson). Newmark / HHT / generalised alpha are second
+order, also across stick-slip transitions for the loop energy (measured: the loop-energy
+error falls 3.6-4.4x per halved step on the oscillator of tests/test_trust_accuracy.py), so
+for a quantity Q computed with step dt and with 2 dt
+
+    err(Q_dt) ~ (Q_dt - Q_2dt) / (2^2 - 1)
+
+The coarse march uses the piecewise-linear solve (the same discrete equations as every
+implicit step solver, and no convergence limit, so 2 dt is allowed). Estimated: the
+dissipated energy per cycle (friction, last period, all contacts) and the peak contact
+force over the last period, both relative. Explicit schemes cannot double their step
+(stability): their twin halves it, err ~ (Q_dt - Q_dt/2) * 4/3.
+
+Default step rule (item 4 of issue 8; README "Methods"):
+    dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
+    then, when the step-doubling estimate at dt0 exceeds DEFAULT_TARGET = 0.5 % on the loop
+    energy, dt = dt0 sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period.
+A run whose final estimate exceeds WARN_LIMIT = 1 % warns and names the estimate.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from slipstep.kernels.contact import LIFT, STICK, add_contact_stiffness
+
+DEFAULT_TARGET = 0.005
+WARN_LIMIT = 0.01
+#: all state combinations are searched for the highest frequency up to this many directions
+MAX_ENUMERATED_DIRECTIONS = 5
+
+
+def omega_max(cs, state) -> float:
+    """omega_max^2 = max |eig(M^-1 (K + K_D(S)))| (paper Eq. 8) of one contact state [rad/s]."""
+    Keff = cs.K.copy()
+    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
+    return float(np.sqrt(np.abs(np.linalg.eigvals(np.linalg.solve(cs.M, Keff))).max()))
+
+
+def highest_frequency(cs) -> float:
+    """The highest omega_max over the contact states a march can visit [rad/s]: every
+    combination of stick, slip+, slip- and lift-off (lift-off shared by a contact's
+    directions) for up to MAX_ENUMERATED_DIRECTIONS directions, else full stick and the
+    uniform slip states (slip couples mu k_n into the tangential rows and can raise it)."""
+    nd = cs.kt.shape[0]
+    owner = np.asarray(cs.direction_contact)
+    if nd <= MAX_ENUMERATED_DIRECTIONS:
+        states = itertools.product((STICK, 2, 3, LIFT), repeat=nd)
+    else:
+        states = [(s,) * nd for s in (STICK, 2, 3)]
+    best = 0.0
+    for st in states:
+        st = np.array(st, np.int8)
+        lifted = {owner[d] for d in range(nd) if st[d] == LIFT}
+        if any((st[d] == LIFT) != (owner[d] in lifted) for d in range(nd)):
+            continue  # lift-off is a contact's state, not a direction's
+        best = max(best, omega_max(cs, st))
+    return best
+
+
+def loop_energy(out, n_steps: int, cs, period: float | None) -> tuple[float, float]:
+    """(friction energy dissipated over the last period [J], peak |contact force| over it [N])
+    from kernel outputs: D = sum_d int T_d dw_d (trapezoid rule, interpolated at the start
+    of the period, as slipstep.post.energy.friction_energy_per_period)."""
+    t = out.t[: n_steps + 1]
+    if period is None or t[-1] - t[0] < period * (1 - 1e-9):
+        period = t[-1] - t[0]
+    T = out.f[: n_steps + 1][:, np.asarray(cs.tangential_row)]
+    w = out.w[: n_steps + 1]
+    inc = (0.5 * (T[1:] + T[:-1]) * np.diff(w, axis=0)).sum(axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(inc)])
+    start = t[-1] - period
+    energy = cum[-1] - np.interp(start, t, cum)
+    last = t >= start - 1e-12 * period
+    peak = float(np.abs(out.f[: n_steps + 1][last]).max(initial=0.0))
+    return float(energy), peak
+
+
+def richardson(fine: float, coarse: float, ratio: float = 2.0, order: int = 2) -> float:
+    """Relative error estimate of ``fine`` from a twin whose step is ``ratio`` times larger
+    (ratio < 1: a finer twin): |fine - coarse| / |ratio^order - 1| / |fine|."""
+    scale = abs(fine)
+    if scale == 0.0:
+        return 0.0 if coarse == 0.0 else math.inf
+    if ratio > 1:
+        return abs(fine - coarse) / (ratio ** order - 1.0) / scale
+    # finer twin: the twin is the better value, err(fine) ~ |fine - twin| r^-p / (r^-p - 1)
+    q = ratio ** -order
+    return abs(fine - coarse) * q / (q - 1.0) / scale
+
+
+def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -> bool:
+    """True if the stored energy grew beyond everything the loads supplied (no source):
+
+        E(t) - E(0) > 2 max_{s <= t} max(W(s), 0) + 10 (E(0) + 1e-12 J)   for some t
+
+    E = 1/2 v^T M v + 1/2 x^T K x + contact elastic energy (1/2 N^2/k_n + 1/2 T^2/k_t),
+    W = int f_e . dx - int f . B dp (trapezoid rule). A dissipative march has
+    E(t) - E(0) <= W(t); an unstable scheme grows exponentially past any such bound."""
+    k = n_steps + 1
+    x, v = out.x[:k], out.v[:k]
+    f = out.f[:k]
+    E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
+    nrow, trow = np.asarray(cs.normal_row), np.asarray(cs.tangential_row)
+    if nrow.size:
+        E = E + 0.5 * (f[:, nrow] ** 2 / cs.kn).sum(axis=1) + 0.5 * (f[:, trow] ** 2 / cs.kt).sum(axis=1)
+    W = np.concatenate([[0.0], np.cumsum(0.5 * ((fe[1:] + fe[:-1]) * np.diff(x, axis=0)).sum(axis=1))])
+    if cs.B.shape[1]:
+        fb = f @ cs.B
+        W = W - np.concatenate([[0.0], np.cumsum(0.5 * ((fb[1:] + fb[:-1]) * np.diff(motion[:k], axis=0)).sum(axis=1))])
+    if not np.all(np.isfinite(E)):
+        return True
+    budget = 2.0 * np.maximum.accumulate(np.maximum(W, 0.0)) + 10.0 * (E[0] + 1e-12)
+    return bool(np.any(E - E[0] > budget))
