@@ -11,7 +11,7 @@ def test_random_systems_agree_with_tight_reference():
     checked = sensitive = 0
     bad = []
     kinds = set()
-    for i in range(240):
+    for i in range(200):
         system = random_system(np.random.default_rng([8, i]))
         rows = check_system(system, periods=1.0)
         if rows is None:
@@ -23,7 +23,7 @@ def test_random_systems_agree_with_tight_reference():
         bad += [(i, m, rows[m]["error"]) for m in failures(rows, 1e-6)]
         for m in CHECK_METHODS:  # the methods do report OK here (a test of agreement, not of refusals)
             assert rows[m]["status"] in ("OK", "NOT_CONVERGED", "STATE_CYCLING", "SINGULAR"), (i, m, rows[m])
-    assert checked >= 150
-    assert sensitive <= 0.1 * checked
+    assert checked >= 140
+    assert sensitive <= 0.05 * checked
     assert len(kinds) >= 6  # 1 and n DOFs, 2D and quasi-3D contacts, K = 0 and K != 0 are all drawn
     assert not bad, bad

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import slipstep as ss
-from slipstep.errors import InputError
+from slipstep.errors import InputError, Status
+from slipstep.kernels import march as K
 from slipstep.integrators import simulate
 from slipstep.methods.accuracy import energy_diverged, highest_frequency
 from slipstep.methods.schemes import generalized_alpha, hht, newmark
@@ -71,9 +72,9 @@ def test_highest_frequency_covers_full_stick(paper):
 
 def test_energy_criterion():
     """energy_diverged: a growing free oscillation (no source) is caught, a correct one not."""
-    from slipstep.model.structure import Structure
-    from slipstep.model.contact import ContactElement
     from slipstep.kernels.march import Outputs
+    from slipstep.model.contact import ContactElement
+    from slipstep.model.structure import Structure
     system = System(Structure(np.eye(1), stiffness=np.eye(1) * 1e4),
                     (ContactElement("C", np.array([[1.0], [0.0]]), 1e4, 1e4, 0.3, normal_offset=1e-3),))
     cs = system.compile()
@@ -91,5 +92,18 @@ def test_energy_criterion():
                        np.zeros((k, 1)), np.ones((k, 1), np.int8), np.zeros(k, np.int64), np.zeros(9, np.int64))
 
     zero = np.zeros((t.size, 1))
-    assert not energy_diverged(outputs(0.0), t.size - 1, cs, zero, np.zeros((t.size, 0)))
-    assert energy_diverged(outputs(60.0), t.size - 1, cs, zero, np.zeros((t.size, 0)))
+    assert energy_diverged(outputs(0.0), t.size - 1, cs, zero, np.zeros((t.size, 0))) == 0
+    first = energy_diverged(outputs(60.0), t.size - 1, cs, zero, np.zeros((t.size, 0)))
+    assert 0 < first < t.size - 1  # found while growing, before the end
+
+
+def test_implicit_divergence_beyond_the_limit_is_diverged(paper):
+    """Force a conditionally stable Newmark step past its limit (the set-up refuses it, so the
+    kernel parameter is changed after it): the march ends DIVERGED with the step it was found."""
+    sim = ss.Simulation(paper, "piecewise-linear", scheme=newmark(1 / 12, 0.5), periods=1, error_estimate=False)
+    sim.fpar[K.DT] = sim.dt * 1.4  # omega_max dt = 1.4 * sqrt(6) at most: unstable
+    status = sim.march()
+    ds = sim.dataset()
+    assert status == Status.DIVERGED and ds.attrs["status"] == "DIVERGED"
+    assert 0 < ds.attrs["failed_at_step"] <= ds.attrs["steps"]
+    assert "stability limit" in ds.attrs["status_message"]

@@ -116,6 +116,8 @@ def run(
                                                               "(default 300)."),
     output_dir: Path = typer.Option(Path("slipstep-out"), help="Directory of the result file <case>_<method>.nc."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table) for scripts."),
+    rtol: Optional[float] = typer.Option(None, help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
+                                                    "the local error estimate, never beyond the method's step limit."),
 ):
     """Simulate CASE with one method; print a summary and write the result Dataset (netCDF)."""
     from slipstep.methods.simulation import Simulation
@@ -124,13 +126,17 @@ def run(
     with user_errors():
         system, spec = load_case(case)
         chosen = get_method(method or spec.method or "newmark")
-        sim = Simulation(system, chosen, **_run_options(spec, periods, step_ratio, steps_per_period))
+        opts = _run_options(spec, periods, step_ratio, steps_per_period)
+        if rtol is not None:
+            opts["rtol"] = rtol
+        sim = Simulation(system, chosen, **opts)
         ds = sim.run()
         path = _output_dir(output_dir) / f"{_case_stem(case)}_{chosen.name}.nc"
         save(ds, path)
     a = ds.attrs
     keys = ("case", "method", "paper_method", "status", "status_message", "steps", "iterations", "solves",
-            "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s")
+            "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s",
+            "energy_error_estimate", "peak_force_error_estimate")
     summary = {k: _json_value(a[k]) for k in keys if k in a}
     summary["output"] = str(path)
     if as_json:
@@ -144,6 +150,8 @@ def run(
                 ("mean iterations per step", _fmt(a["mean_solves_per_step"])),
                 ("state changes", a["state_changes"]), ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
                 ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
+                ("est. error, loop energy / peak force",
+                 f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %"),
                 ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
                 ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"), ("output", str(path))]
         for name, value in rows:

@@ -15,7 +15,7 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.methods.simulation import (
-    RunOptions, Runner, Simulation, _allocate_outputs, default_max_step,
+    RunOptions, Runner, Simulation, _allocate_outputs, check_divergence, default_max_step,
 )
 from slipstep.model.validate import positive
 from slipstep.system import System
@@ -96,7 +96,8 @@ class ExplicitSimulation(Runner):
         ws = self.ws
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
-        return self._run_kernel(E.explicit_march)
+        self._run_kernel(E.explicit_march)
+        return check_divergence(self)
 
     def _visited_states(self) -> str:
         return ""

@@ -32,13 +32,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
-from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.signals import evaluate_signal
 
 # float parameters

@@ -52,6 +52,7 @@ from slipstep.kernels.signals import evaluate_signal
 BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
 RTOL, ERR_SCALE = 12, 13  # accuracy control (rtol > 0: on; the piecewise-linear solve then keeps dt <= DT_MAX only)
 N_FPAR = 14
+ACC_GROWTH = 1.5  # the largest growth of the accuracy step from one step to the next
 # int parameters
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
@@ -137,7 +138,7 @@ def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, q
 #   conv[CV_TOL]    tol, the relative tolerance (RunOptions.tolerance)
 #   conv[CV_TOL_Q]  tol * L, the absolute tolerance on the contact coordinates [m]
 #   conv[CV_FLOOR]  tol * L * max diag J(stick): the residual floor [N] (a step at rest)
-#   conv[CV_X + j]  tol * max(L, |x_j|): the absolute tolerance on DOF j
+#   conv[CV_X + j]  tol * L / max_r |A_rj| (tol * L for a DOF no contact sees): the tolerance on DOF j
 CV_TOL, CV_TOL_Q, CV_FLOOR, CV_X = 0, 1, 2, 3
 #: the residual test never asks for less than this relative residual (round-off of r)
 RESIDUAL_RTOL_MIN = 1e-13
@@ -283,7 +284,7 @@ def _local_error(A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     1991), e = dt^2 |beta - 1/6| (a_{n+1} - a_n), with a_{n+1} = a0 dx - a2 v_n - a3 a_n,
     measured on the contact coordinates (A e; on the DOFs without contacts) against
     err_tol = rtol L. Returns max |e| / err_tol (> 1: reject the step). The step that
-    follows is dt (0.9 / err)^(1/3), within [0.2, 2] dt (the local error is O(dt^3))."""
+    follows is dt (0.9 / err)^(1/3), within [0.2, ACC_GROWTH] dt (the local error is O(dt^3))."""
     n = dx.shape[0]
     c = dt * dt * max(abs(beta - 1.0 / 6.0), 1.0 / 12.0)
     err = 0.0
@@ -402,6 +403,11 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     conv[CV_TOL] = fpar[TOL]
     conv[CV_TOL_Q] = fpar[TOL] * length_scale
     kd_stick = _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt)
+    for i in range(n):  # DOF j's length: L over its largest gather entry (a rotation: L / lever arm)
+        amax = 0.0
+        for rr in range(nq):
+            amax = max(amax, abs(A[rr, i]))
+        conv[CV_X + i] = fpar[TOL] * (length_scale / amax if amax > 0.0 else length_scale)
     state_rtol = fpar[STATE_RTOL]
     singular_rtol = fpar[SINGULAR_RTOL]
     solver = ipar[SOLVER]
@@ -488,8 +494,6 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 for i in range(n):
                     kdiag = max(kdiag, Lin[i, i] + kfac * kd_stick[i])
                 conv[CV_FLOOR] = fpar[TOL] * length_scale * kdiag
-            for i in range(n):
-                conv[CV_X + i] = fpar[TOL] * max(length_scale, abs(x[i]))
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
             if signals:
                 evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
@@ -610,7 +614,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     counters[C_REDOS] += 1
                     dt = dt * max(0.2, 0.9 * err ** (-1.0 / 3.0))
                     continue
-                dt_next = dt * min(2.0, max(0.2, 0.9 * err ** (-1.0 / 3.0))) if err > 0.0 else 2.0 * dt
+                dt_next = dt * min(ACC_GROWTH, max(0.2, 0.9 * err ** (-1.0 / 3.0))) if err > 0.0 else ACC_GROWTH * dt
             if status != OK or not adaptive or attempt == max_redo:
                 break
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----

@@ -95,8 +95,9 @@ def richardson(fine: float, coarse: float, ratio: float = 2.0, order: int = 2) -
     return abs(fine - coarse) * q / (q - 1.0) / scale
 
 
-def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -> bool:
-    """True if the stored energy grew beyond everything the loads supplied (no source):
+def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -> int:
+    """The first output point where the stored energy has grown beyond everything the loads
+    supplied (no source), 0 if it never does:
 
         E(t) - E(0) > 2 max_{s <= t} max(W(s), 0) + 10 (E(0) + 1e-12 J)   for some t
 
@@ -114,7 +115,6 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
     if cs.B.shape[1]:
         fb = f @ cs.B
         W = W - np.concatenate([[0.0], np.cumsum(0.5 * ((fb[1:] + fb[:-1]) * np.diff(motion[:k], axis=0)).sum(axis=1))])
-    if not np.all(np.isfinite(E)):
-        return True
     budget = 2.0 * np.maximum.accumulate(np.maximum(W, 0.0)) + 10.0 * (E[0] + 1e-12)
-    return bool(np.any(E - E[0] > budget))
+    over = ~(E - E[0] <= budget)  # NaN counts as over
+    return int(np.argmax(over)) if np.any(over) else 0
