@@ -17,6 +17,7 @@ from slipstep.kernels import explicit as E
 from slipstep.methods.simulation import (
     RunOptions, Runner, Simulation, _allocate_outputs, check_divergence, default_max_step,
 )
+from slipstep.methods.accuracy import highest_frequency
 from slipstep.model.validate import positive
 from slipstep.system import System
 
@@ -28,8 +29,9 @@ EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo",
 class ExplicitSimulation(Runner):
     """One system marched by an explicit integrator, fixed or contact-state adaptive step.
 
-    dt (fixed) = period / ceil(period / min(step_ratio * factor * T_min(all stick), max_step)), with
-    ``factor = integrator.step_limit_factor`` (the stability limit, see the integrator).
+    dt (fixed) = period / ceil(period / min(step_ratio * Omega_crit / omega_max, max_step)), with
+    Omega_crit the integrator's stability limit and omega_max the highest frequency over every
+    visitable contact state (full stick for most systems; slip can couple higher).
     Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
     """
 
@@ -59,7 +61,9 @@ class ExplicitSimulation(Runner):
         self.q0, self.f0 = pre.q0, pre.f0
         self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end
         factor = ratio * integrator.step_limit_factor
-        self.dt_limit = factor * self.t_min_stick
+        # the stability limit over every visitable contact state (methods/accuracy.highest_frequency)
+        w_max = highest_frequency(cs)
+        self.dt_limit = ratio * integrator.omega_crit / w_max if w_max > 0 else factor * self.t_min_stick
         period, t_end = self.period, self.t_end
         opt = self.options
         self.max_step = dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)

@@ -19,12 +19,18 @@ Quasi-static (inertia off, paper Eq. 10): Lin = K, r0 = f_e - K x_n, J(S) = K + 
 
 Step solvers:
     0 modified Newton (Method 1): J(all stick) factorised once per dt, iterate on dx until
-      the error estimate theta/(1-theta) max |A delta| <= tol * L (theta: the observed
-      contraction); each iteration = one contact-law call + one solve.
+      BOTH the increment test (the error estimate theta/(1-theta) of the scaled increment on
+      the contact coordinates and the DOFs, theta the larger of the last two contraction
+      ratios, :func:`_newton_update`) and the force-residual test at the new iterate
+      (:func:`_residual_converged`) hold; each iteration = one contact-law call + one solve.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
+Accuracy control (fpar RTOL > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
+solvers (rule: the fixed step or the contact-state step below), min(dt_acc, dt_max) for the
+piecewise-linear solve; dt_acc follows the local error of each step (:func:`_local_error`),
+a step above it is redone smaller (counted as a redo). Every step then factorises afresh.
 Adaptive step (Method 2): dt = min(step_factor * T_min(S_n), dt_max), with
 T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|) cached per state; redo the step with the
 smaller dt when the new state's limit is below the dt used (a redone step postulates the

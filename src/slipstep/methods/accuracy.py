@@ -16,8 +16,9 @@ force over the last period, both relative. Explicit schemes cannot double their 
 
 Default step rule (item 4 of issue 8; README "Methods"):
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
-    then, when the step-doubling estimate at dt0 exceeds DEFAULT_TARGET = 0.5 % on the loop
-    energy, dt = dt0 sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period.
+    then, while the step-doubling estimate at dt exceeds DEFAULT_TARGET = 0.5 % on the loop
+    energy, dt = dt sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period,
+    re-estimated (at most PILOT_ROUNDS = 3 rounds, methods/simulation.py).
 A run whose final estimate exceeds WARN_LIMIT = 1 % warns and names the estimate.
 """
 

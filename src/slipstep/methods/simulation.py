@@ -28,6 +28,8 @@ from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
+#: refinements of the default step rule at most (each: two piecewise-linear twin marches)
+PILOT_ROUNDS = 3
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
 
@@ -363,19 +365,23 @@ class Simulation(Runner):
         return (status,) + accuracy.loop_energy(twin.out, n, twin.compiled, self.period)
 
     def _pilot_step(self, dt0: float) -> float:
-        """The default rule's refinement: the step-doubling estimate of the loop energy at dt0
-        (piecewise-linear twins at dt0 and 2 dt0); above DEFAULT_TARGET the step (and the
-        accuracy cap of adaptive steps) becomes dt0 sqrt(DEFAULT_TARGET / estimate)."""
-        fine = self._twin("piecewise-linear", dt=dt0)
-        coarse = self._twin("piecewise-linear", dt=2 * dt0)
-        if fine is None or coarse is None:
-            return dt0
-        est = accuracy.richardson(fine[1], coarse[1])
-        if not est > accuracy.DEFAULT_TARGET:
-            self._coarse = (2 * dt0, coarse)
-            return dt0
-        self.max_step = dt0 * math.sqrt(accuracy.DEFAULT_TARGET / est)
-        return self._fixed_step(self.dt_limit, self.max_step)
+        """The default rule's refinement: the step-doubling estimate of the loop energy at dt
+        (piecewise-linear twins at dt and 2 dt); above DEFAULT_TARGET the step (and the accuracy
+        cap of adaptive steps) becomes dt sqrt(DEFAULT_TARGET / estimate), re-estimated up to
+        PILOT_ROUNDS times (whole steps per period each time)."""
+        dt = dt0
+        for _ in range(PILOT_ROUNDS):
+            fine = self._twin("piecewise-linear", dt=dt)
+            coarse = self._twin("piecewise-linear", dt=2 * dt)
+            if fine is None or coarse is None:
+                return dt
+            est = accuracy.richardson(fine[1], coarse[1])
+            if not est > accuracy.DEFAULT_TARGET:
+                self._coarse = (2 * dt, coarse)
+                return dt
+            self.max_step = dt * math.sqrt(accuracy.DEFAULT_TARGET / est)
+            dt = self._fixed_step(self.dt_limit, self.max_step)
+        return dt
 
     def _check_divergence(self) -> Status:
         """A march that ends OK but whose energy grew without a source is DIVERGED."""
