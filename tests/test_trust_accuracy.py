@@ -125,3 +125,23 @@ def test_energy_balance_closes_across_lift_off():
     # and it vanishes with the step (O(dt) per crossing)
     fine = ss.run(sys_, "piecewise-linear", periods=2, error_estimate=False, max_step=ds.attrs["dt_s"] / 8)
     assert abs(energy_balance(fine, sys_).crossing_work.values[-1]) < 0.3 * abs(cross[-1])
+
+
+def test_cli_rtol_and_error_estimate(tmp_path):
+    """`slipstep run --rtol` reaches the march; the summary carries the error estimates."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from slipstep.cli import app
+    result = CliRunner().invoke(app, ["run", "paper", "-m", "3", "--periods", "1", "--rtol", "1e-3", "--json",
+                                      "--output-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert 0 < summary["energy_error_estimate"] < 0.01 and 0 < summary["peak_force_error_estimate"] < 0.05
+    ds = ss.load_result(summary["output"])
+    assert ds.attrs["error_estimate_method"].startswith("step doubling")
+    dt = ds.step_size.values[1:]
+    assert dt.max() / dt.min() > 1.5  # the accuracy control varies the step
+    bad = CliRunner().invoke(app, ["run", "paper", "--rtol", "2", "--output-dir", str(tmp_path)])
+    assert bad.exit_code == 2 and "rtol" in bad.output

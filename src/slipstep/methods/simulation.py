@@ -528,6 +528,7 @@ class Simulation(Runner):
             "steps_per_period": self.options.steps_per_period if self.method.quasi_static else None,
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
+            "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "linear_solver": "low-rank" if self.low_rank else "direct",
         }
 
