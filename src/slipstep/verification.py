@@ -130,12 +130,14 @@ def perturbed(system: System, eps: float) -> System:
 
 
 def check_system(system: System, methods=CHECK_METHODS, periods: float = 2.0, reference_tolerance: float = 1e-13,
-                 rtol: float = 1e-6, **options) -> dict | None:
+                 rtol: float = 1e-6, adaptive: bool = False, **options) -> dict | None:
     """Run ``methods`` and a full-Newton reference at ``reference_tolerance`` on the same grid;
     returns {method: {'status', 'error'}} (error against the reference, NaN when not OK) and
     'sensitive' (see the module docstring; the twins run only when a method fails), or None
     when the system cannot be set up or the reference itself fails (not counted). The error
-    estimate is off (its default-step refinement would change the grid between runs)."""
+    estimate is off (its default-step refinement would change the grid between runs).
+    adaptive: also Method 2 ('newmark-adaptive') against Method 2+3 at the tight state
+    tolerance on their contact-state grid (error inf when the two grids differ)."""
     from slipstep.methods.simulation import run
 
     options.setdefault("error_estimate", False)
@@ -153,6 +155,13 @@ def check_system(system: System, methods=CHECK_METHODS, periods: float = 2.0, re
             ds = run(system, m, periods=periods, **options)
             ok = ds.attrs["status"] == "OK"
             rows[m] = {"status": ds.attrs["status"], "error": agreement_error(ds, ref) if ok else math.nan}
+        if adaptive:
+            aref = run(system, "piecewise-linear-adaptive", periods=periods, state_tolerance=reference_tolerance,
+                       **options)
+            ds = run(system, "newmark-adaptive", periods=periods, **options)
+            ok = ds.attrs["status"] == "OK" and aref.attrs["status"] == "OK"
+            rows["newmark-adaptive"] = {"status": ds.attrs["status"],
+                                        "error": agreement_error(ds, aref) if ok else math.nan}
         rows["sensitive"] = bool(_failed(rows, rtol)) and _sensitive(system, ref, periods, reference_tolerance, rtol,
                                                                   options)
     return rows
