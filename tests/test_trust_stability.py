@@ -7,8 +7,8 @@ import pytest
 
 import slipstep as ss
 from slipstep.errors import InputError, Status
-from slipstep.kernels import march as K
 from slipstep.integrators import simulate
+from slipstep.kernels import march as K
 from slipstep.methods.accuracy import energy_diverged, highest_frequency
 from slipstep.methods.schemes import generalized_alpha, hht, newmark
 from slipstep.system import System
