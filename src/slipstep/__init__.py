@@ -16,6 +16,9 @@ from slipstep.model.contact import ContactElement
 from slipstep.model.damper import DamperContact, Platform, rigid_damper
 from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
 from slipstep.model.structure import Structure
+from slipstep.model.assembly import (DamperLink, HarmonicForce, LinkContact, PlatformLink, assemble, blade_chain,
+                                     engine_order_forces)
+from slipstep.model.substructure import Point, Substructure, craig_bampton, frame_blade, load_mtx, load_npz
 from slipstep.results import load as load_result, save as save_result
 from slipstep.system import CompiledSystem, System
 
@@ -26,4 +29,7 @@ __all__ = [
     "PAPER_METHODS", "Platform", "RunOptions", "Scheme", "Signal", "Simulation", "SolverError", "Status",
     "Structure", "System", "Tabulated", "builtin_cases", "generalized_alpha", "get_method", "hht", "load_case",
     "load_result", "load_system", "newmark", "rigid_damper", "run", "save_result", "state_t_min",
+    # substructures and assemblies (issue 11)
+    "DamperLink", "HarmonicForce", "LinkContact", "PlatformLink", "Point", "Substructure", "assemble", "blade_chain",
+    "craig_bampton", "engine_order_forces", "frame_blade", "load_mtx", "load_npz",
 ]

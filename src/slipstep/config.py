@@ -272,7 +272,12 @@ def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
     path = Path(name_or_path)
     if not path.suffix and str(name_or_path) in builtin_cases():
         path = CASES_DIR / f"{name_or_path}.toml"
-    spec = parse_case(read_toml(path), source=str(path))
+    data = read_toml(path)
+    if "substructures" in data:  # the third kind: an assembly (slipstep.config_assembly)
+        from slipstep.config_assembly import load_assembly_case
+
+        return load_assembly_case(data, path)
+    spec = parse_case(data, source=str(path))
     return build_system(spec), spec.run
 
 

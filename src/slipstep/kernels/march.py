@@ -645,10 +645,13 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
         for i in range(n):
-            if inertia:
+            if inertia and M[i, i] != 0.0:
                 a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
                 v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
                 a[i] = a_new
+            elif inertia:  # a massless DOF in a dynamic march (methods/massless.py): v = dx/dt, a = 0
+                v[i] = dx[i] / dt
+                a[i] = 0.0
             x[i] += dx[i]
             fe[i] = fe1[i]
             gf[i] = gf1[i]

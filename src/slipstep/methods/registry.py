@@ -8,6 +8,7 @@
 | piecewise-linear-adaptive  | Method 2+3 | piecewise linear            | contact-state adaptive |
 | quasi-static               | Method 4   | piecewise linear, no inertia| fixed, steps per period |
 | full-newton                | (option)   | Newton, current-state J     | fixed                 |
+| quasi-static-dofs          | Method 3+4 | piecewise linear, chosen DOFs without inertia (methods/massless.py) | fixed, T_min of the dynamic part |
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ class Method:
     adaptive: bool
     quasi_static: bool
     description: str
+    massless: bool = False  # the DOFs of option massless_dofs without inertia (methods/massless.py)
 
 
 METHODS: dict[str, Method] = {m.name: m for m in (
@@ -41,10 +43,14 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "quasi-static time marching (no inertia), piecewise-linear state loop"),
     Method("full-newton", "Newton", FULL_NEWTON, False, False,
            "Newmark with full Newton (current-state tangent), fixed step"),
+    Method("quasi-static-dofs", "Method 3+4", PIECEWISE_LINEAR, False, False,
+           "piecewise-linear Newmark with the DOFs of option massless_dofs (default: the dampers') "
+           "quasi-static, without inertia", massless=True),
 )}
 
 ALIASES = {"1": "newmark", "2": "newmark-adaptive", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive",
-           "23": "piecewise-linear-adaptive", "4": "quasi-static"}
+           "23": "piecewise-linear-adaptive", "4": "quasi-static",
+           "3+4": "quasi-static-dofs", "34": "quasi-static-dofs"}
 
 PAPER_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static")
 

@@ -21,6 +21,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.methods import massless as ML
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
@@ -62,6 +63,8 @@ class RunOptions:
     error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
         peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
         step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
+    massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
+        shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
     """
 
     periods: float = 3.0
@@ -82,6 +85,7 @@ class RunOptions:
     linear_solver: str = "auto"
     rtol: float | None = None
     error_estimate: bool = True
+    massless_dofs: object = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -116,7 +120,11 @@ class RunOptions:
 
 def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
     """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
-    (paper Eq. 8), and the eigenvalues themselves."""
+    (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
+    quasi-static-dofs method) those are condensed out first (methods/massless.py)."""
+    zero = ML.massless_mask(cs.M)
+    if zero.any():
+        return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
     Keff = cs.K.copy()
     add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
     ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
@@ -234,7 +242,15 @@ class Simulation(Runner):
         self.compiled = cs = system.compile()
         nd = cs.kt.shape[0]
         self.stick = np.full(nd, STICK, np.int8)
-        self.t_min_stick, _ = state_t_min(cs, self.stick)
+        self.massless = ML.select_massless(system, self.options.massless_dofs) if self.method.massless else None
+        if self.massless is not None:  # those DOFs without inertia; T_min of the dynamic part
+            self.compiled = cs = ML.inertia_free(cs, self.massless)
+            self.t_min_stick, _ = ML.condensed_t_min(cs, self.stick, self.massless)
+        else:
+            if self.options.massless_dofs != "auto":
+                raise InputError("massless_dofs", f"is only used by the quasi-static-dofs method, not {self.method.name}",
+                                 "use method quasi-static-dofs or drop the option")
+            self.t_min_stick, _ = state_t_min(cs, self.stick)
         period = system.period
         opt = self.options
         if opt.duration is not None:
@@ -352,6 +368,9 @@ class Simulation(Runner):
                     preload_increments=opt.preload_increments, linear_solver=opt.linear_solver, error_estimate=False,
                     max_state_iterations=opt.max_state_iterations, step_ratio=opt.step_ratio)
         base.update(changes)
+        if self.method.massless:  # twins of the same partly quasi-static method
+            method = self.method.name
+            base["massless_dofs"] = opt.massless_dofs
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
@@ -472,7 +491,7 @@ class Simulation(Runner):
             generalised_force(cs, f, ws.gf)
         ws.fe[:] = fe0
         if not self.method.quasi_static:
-            ws.a[:] = np.linalg.solve(cs.M, fe0 - cs.K @ ws.x - ws.gf)
+            ws.a[:] = ML.initial_acceleration(cs.M, fe0 - cs.K @ ws.x - ws.gf)
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
 
@@ -530,6 +549,8 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "linear_solver": "low-rank" if self.low_rank else "direct",
+            **({} if self.massless is None else
+               {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
         }
 
 
@@ -611,7 +632,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
         fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
         dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
-        Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
+        Lin=z(n, n), J=z(n, n), Minv=ML.inverse_mass(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
         cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),
         cache_lu=z(cap + 1, size, size), cache_piv=np.zeros((cap + 1, size), np.int64),
