@@ -29,8 +29,10 @@ from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
-#: refinements of the default step rule at most (each: two piecewise-linear twin marches)
+#: refinements of the default step rule at most (each: two piecewise-linear twin marches of at
+#: most PILOT_PERIODS periods)
 PILOT_ROUNDS = 3
+PILOT_PERIODS = 3
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
 
@@ -389,14 +391,16 @@ class Simulation(Runner):
         cap of adaptive steps) becomes dt sqrt(DEFAULT_TARGET / estimate), re-estimated up to
         PILOT_ROUNDS times (whole steps per period each time)."""
         dt = dt0
+        duration = min(self.t_end, PILOT_PERIODS * self.period)  # a long run is piloted on its start
         for _ in range(PILOT_ROUNDS):
-            fine = self._twin("piecewise-linear", dt=dt)
-            coarse = self._twin("piecewise-linear", dt=2 * dt)
+            fine = self._twin("piecewise-linear", dt=dt, duration=duration)
+            coarse = self._twin("piecewise-linear", dt=2 * dt, duration=duration)
             if fine is None or coarse is None:
                 return dt
             est = accuracy.richardson(fine[1], coarse[1])
             if not est > accuracy.DEFAULT_TARGET:
-                self._coarse = (2 * dt, coarse)
+                if duration == self.t_end:
+                    self._coarse = (2 * dt, coarse)
                 return dt
             self.max_step = dt * math.sqrt(accuracy.DEFAULT_TARGET / est)
             dt = self._fixed_step(self.dt_limit, self.max_step)
