@@ -285,25 +285,33 @@ def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, tro
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _local_error(A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
+def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     """Accuracy control: the local displacement error of a Newmark step (Zienkiewicz & Xie
-    1991), e = dt^2 |beta - 1/6| (a_{n+1} - a_n), with a_{n+1} = a0 dx - a2 v_n - a3 a_n,
-    measured on the contact coordinates (A e; on the DOFs without contacts) against
+    1991), e_j = dt^2 |beta - 1/6| (a_{n+1} - a_n)_j, a_{n+1} = a0 dx - a2 v_n - a3 a_n; for a
+    massless DOF (M_jj = 0, methods/massless.py: a quasi-static path) the error of its linear
+    interpolation in time, e_j = |dx_j - v_j dt| / 8 (dt^2/8 of its second derivative).
+    Measured on the contact coordinates (A e; on the DOFs without contacts) against
     err_tol = rtol L. Returns max |e| / err_tol (> 1: reject the step). The step that
     follows is dt (0.9 / err)^(1/3), within [0.2, ACC_GROWTH] dt (the local error is O(dt^3))."""
     n = dx.shape[0]
     c = dt * dt * max(abs(beta - 1.0 / 6.0), 1.0 / 12.0)
+    e = np.empty(n)
+    for j in range(n):
+        if M[j, j] != 0.0:
+            e[j] = c * (a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j])
+        else:
+            e[j] = (dx[j] - v[j] * dt) / 8.0
     err = 0.0
     if A.shape[0] == 0:
         for j in range(n):
-            err = max(err, abs(a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j]))
+            err = max(err, abs(e[j]))
     else:
         for rr in range(A.shape[0]):
             s = 0.0
             for j in range(n):
-                s += A[rr, j] * (a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j])
+                s += A[rr, j] * e[j]
             err = max(err, abs(s))
-    return c * err / err_tol
+    return err / err_tol
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -615,7 +623,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status, more = SINGULAR, 0
                 solves += more
             if accuracy and status == OK:
-                err = _local_error(A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
+                err = _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
                 if err > 1.0 and attempt < max_redo:  # reject: redo with the step the estimate asks for
                     counters[C_REDOS] += 1
                     dt = dt * max(0.2, 0.9 * err ** (-1.0 / 3.0))
