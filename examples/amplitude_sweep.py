@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 
 import slipstep  # noqa: E402
 from slipstep.config import CASES_DIR, build_system, parse_case, read_toml  # noqa: E402
+from slipstep.io import save_figure  # noqa: E402
 
 AMPLITUDES_UM = (1, 2, 4, 6, 8, 10, 15, 20, 25, 35, 50, 70)
 
@@ -77,7 +78,7 @@ def plot(rows, path: Path) -> None:
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend()
-    fig.savefig(path, dpi=130)
+    save_figure(fig, path, dpi=130)  # atomic: a failed write keeps the previous figure
     plt.close(fig)
 
 

@@ -159,10 +159,14 @@ def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
     try:
         return AssemblyCaseSpec.model_validate(data)
     except ValidationError as exc:
-        first = exc.errors()[0]
+        from slipstep.config_check import _model_at, suggestion
+
+        order = {"extra_forbidden": 0, "missing": 2}  # an unknown key first, not the key it misspells
+        first = sorted(exc.errors(), key=lambda e: order.get(e["type"], 1))[0]
         field = _named_loc(data, first["loc"])
         if first["type"] == "extra_forbidden":
-            raise InputError(field, f"is not a known key in {source}",
+            valid = getattr(_model_at(AssemblyCaseSpec, first["loc"]), "model_fields", {})
+            raise InputError(field, f"is not a known key in {source}{suggestion(str(first['loc'][-1]), valid)}",
                              "check the spelling against the assembly case format in the README "
                              "(units are part of key names)") from None
         if first["type"] == "missing":

@@ -49,6 +49,7 @@ from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters a
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
+from slipstep.kernels.codes import C_PROGRESS, C_STOP, FULL_NEWTON, INTERRUPTED, MODIFIED_NEWTON, PIECEWISE_LINEAR  # noqa: F401
 from slipstep.kernels.contact import compatible, contact_stiffness, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
@@ -62,7 +63,6 @@ ACC_GROWTH = 1.5  # the largest growth of the accuracy step from one step to the
 # int parameters
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
-MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR = 0, 1, 2
 
 
 class Workspace(NamedTuple):
@@ -463,6 +463,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     dt_acc = fpar[DT]  # the accuracy step, adapted after every step (accuracy control)
     dt_next = dt_acc
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
+        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+            status = INTERRUPTED
+            counters[C_FAIL_STEP] = k
+            break
         if k >= cap:
             status = CAPACITY
             break
@@ -669,6 +673,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             t += dt
         k += 1
         _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves)
+        counters[C_PROGRESS] = k
         for rr in range(nq):
             o_q[k, rr] = q1[rr]
             o_f[k, rr] = f1[rr]

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.march import FULL_NEWTON, MODIFIED_NEWTON, PIECEWISE_LINEAR
+from slipstep.kernels.codes import FULL_NEWTON, MODIFIED_NEWTON, PIECEWISE_LINEAR
 
 
 @dataclass(frozen=True)

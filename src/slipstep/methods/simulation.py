@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from slipstep.errors import InputError, SolverError, Status
+from slipstep.errors import InputError, Interrupted, SolverError, Status
+from slipstep.live import call_kernel
+from slipstep.methods import memory
 from slipstep.kernels import march as K
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
@@ -29,8 +31,8 @@ from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
-#: refinements of the default step rule at most (each: two piecewise-linear twin marches of at
-#: most PILOT_PERIODS periods)
+#: refinements of the default step rule at most (each: two piecewise-linear twin marches of
+#: PILOT_PERIODS periods, whatever the run's length: the step does not depend on it)
 PILOT_ROUNDS = 3
 PILOT_PERIODS = 3
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
@@ -65,6 +67,8 @@ class RunOptions:
     error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
         peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
         step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
+    max_memory: the memory a run may take [bytes] (estimate checked before any allocation,
+        slipstep.methods.memory); default: half of the available memory.
     massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
         shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
     """
@@ -87,6 +91,7 @@ class RunOptions:
     linear_solver: str = "auto"
     rtol: float | None = None
     error_estimate: bool = True
+    max_memory: float | None = None
     massless_dofs: object = "auto"
 
     def validated(self) -> "RunOptions":
@@ -113,6 +118,8 @@ class RunOptions:
             value = positive("rtol", self.rtol)
             if not 1e-8 <= value <= 0.2:
                 raise InputError("rtol", f"is {value}", "give a relative accuracy between 1e-8 and 0.2 (e.g. 1e-3)")
+        if self.max_memory is not None:
+            memory.parse_size("max_memory", self.max_memory)
         if self.linear_solver not in ("auto", "direct", "low-rank"):
             raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
         if not isinstance(self.scheme, Scheme):
@@ -144,6 +151,8 @@ class Runner:
 
     failure_hint = ""
     _kernel = None
+    progress = False  # draw a progress bar on stderr for runs longer than a second (the CLI sets it)
+    keep_interrupted = False  # Ctrl-C: return the partial result (True) or raise Interrupted carrying it
 
     def accuracy_attrs(self) -> dict:
         """The time-discretisation error estimate attrs (see Simulation.accuracy_attrs)."""
@@ -155,12 +164,15 @@ class Runner:
         self.out.counters[:] = 0
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
-        start = time.perf_counter()
-        status = kernel(*args)
-        self.kernel_time = time.perf_counter() - start
+        # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        status, self.kernel_time = call_kernel(kernel, args, self.out.counters, self.out.t, self.t_end,
+                                               self.out.t.shape[0], self.progress)
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
         self.status = Status(status)
+        if self.status == Status.INTERRUPTED and not self.keep_interrupted:
+            partial = self.dataset()
+            raise Interrupted(partial.attrs["status_message"], partial)
         return self.status
 
     def run(self, raise_on_failure: bool = False):
@@ -178,7 +190,7 @@ class Runner:
             return {}
         step = int(self.out.counters[K.C_FAIL_STEP])
         report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
-        visited = self._visited_states()
+        visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
         return report
@@ -268,6 +280,7 @@ class Simulation(Runner):
         self._coarse = None
         self.dt_limit, self.dt_stability = self._step_limits(scheme)
         self.max_step = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
+        _check_time_scales(t_end, self.dt_limit, self.max_step, opt)
         dt = self._fixed_step(self.dt_limit, self.max_step)
         if opt.dt is not None and opt.dt > self.dt_stability * (1 + 1e-12):
             raise InputError("dt", f"is {opt.dt:.4g} s, beyond the stability limit {self.dt_stability:.4g} s of the "
@@ -289,8 +302,8 @@ class Simulation(Runner):
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
             capacity = n_fixed + 1
-        if capacity > 50_000_000:
-            raise InputError("duration", f"needs {capacity} steps", "shorten the run or use the quasi-static method")
+        self.low_rank = use_low_rank(cs, opt.linear_solver)
+        self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
@@ -313,10 +326,9 @@ class Simulation(Runner):
         self.ipar[K.FALLBACK] = int(opt.fallback)
         self.ipar[K.SIGNALS] = 1
         self.ipar[K.PRELOAD] = 0
-        self.low_rank = use_low_rank(cs, opt.linear_solver)
         self.ipar[K.LOWRANK] = int(self.low_rank)
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
@@ -359,7 +371,7 @@ class Simulation(Runner):
     def _pilot_allowed(self) -> bool:
         opt = self.options
         return (opt.error_estimate and not self.method.quasi_static and self.period is not None and opt.dt is None
-                and opt.max_step is None and opt.rtol is None and self.t_end >= self.period * (1 - 1e-9))
+                and opt.max_step is None and opt.rtol is None)
 
     def _twin(self, method: str, **changes):
         """A piecewise-linear twin march of this run (same system, scheme and tolerances) with
@@ -391,7 +403,7 @@ class Simulation(Runner):
         cap of adaptive steps) becomes dt sqrt(DEFAULT_TARGET / estimate), re-estimated up to
         PILOT_ROUNDS times (whole steps per period each time)."""
         dt = dt0
-        duration = min(self.t_end, PILOT_PERIODS * self.period)  # a long run is piloted on its start
+        duration = PILOT_PERIODS * self.period  # the step is the system's, not the run length's
         for _ in range(PILOT_ROUNDS):
             fine = self._twin("piecewise-linear", dt=dt, duration=duration)
             coarse = self._twin("piecewise-linear", dt=2 * dt, duration=duration)
@@ -399,7 +411,7 @@ class Simulation(Runner):
                 return dt
             est = accuracy.richardson(fine[1], coarse[1])
             if not est > accuracy.DEFAULT_TARGET:
-                if duration == self.t_end:
+                if abs(duration - self.t_end) <= 1e-12 * duration:
                     self._coarse = (2 * dt, coarse)
                 return dt
             self.max_step = dt * math.sqrt(accuracy.DEFAULT_TARGET / est)
@@ -521,6 +533,38 @@ class Simulation(Runner):
         _reset_cache(ws)
         return out.q[1].copy(), out.f[1].copy()
 
+    def start_from(self, x, v=None, a=None, w=None, state=None, t_start: float = 0.0) -> None:
+        """Start the following marches from a given state at time ``t_start`` [s] instead of the
+        preload (continuation of a steady state, shooting). The march then covers
+        [t_start, t_start + duration]. ``v`` defaults to 0 (dynamic methods), ``w`` to the
+        preload sliders, ``state`` to the law's states at (x, w); ``a`` defaults to the
+        consistent acceleration a = M^-1 (f_e - C v - K x - A^T f(x, w)), with the contact
+        force in elastic form T = k_t (u - w), N = k_n v for v > 0 (0 in lift-off)."""
+        cs, ws = self.compiled, self.ws
+        n, nd = cs.M.shape[0], cs.kt.shape[0]
+        x = np.array(x, float).reshape(n)
+        v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)
+        w = self.preload_state[5].copy() if w is None else np.array(w, float).reshape(nd)
+        p0 = evaluate_compiled(_motion_signal(cs), np.array([t_start]))[0]
+        fe0 = evaluate_compiled(_force_signal(cs), np.array([t_start]))[0] + cs.constant_force
+        q = np.empty(cs.A.shape[0])
+        local_displacement(cs, x, p0, q)
+        f = elastic_contact_force(cs, q, w)
+        if state is None:
+            state = np.empty(nd, np.int8)
+            contact_law(cs, q, w.copy(), np.empty_like(q), np.empty(nd), state)
+        gf = cs.A.T @ f
+        if self.method.quasi_static:
+            a = np.zeros(n)
+        elif a is None:
+            a = ML.initial_acceleration(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
+        self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
+        self.q0, self.f0 = q, f
+        self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
+        # the step-doubling twins march from the preload: no estimate for a continued march
+        self._accuracy = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
+                          "error_estimate_method": "none (started from a given state)"}
+
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
@@ -574,6 +618,31 @@ def check_divergence(runner) -> Status:
     return runner.status
 
 
+def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
+    """Refuse end times and step limits whose ratio no march can cover (before any step count
+    is computed from them): a non-finite end time, or more than 1e15 steps."""
+    field_name = "duration" if opt.duration is not None else "periods"
+    if not math.isfinite(t_end):
+        raise InputError(field_name, f"gives an end time of {t_end} s", "give a finite duration or number of periods")
+    limit = min(dt_limit, max_step)
+    if not limit > 0 or t_end / limit > 1e15:
+        raise InputError(field_name, f"would need more than 1e15 steps ({t_end:.3g} s with steps of {limit:.3g} s)",
+                         "check the units of the masses and stiffnesses, or simulate a shorter time")
+
+
+def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Local contact forces from (q, w) in elastic form: T_d = k_t (u_d - w_d), N = k_n v for a
+    contact with v > 0, all zero in lift-off (in stick and in slip alike, since a slipping
+    slider sits at w = u - T / k_t)."""
+    f = np.zeros(cs.A.shape[0])
+    v = q[cs.normal_row]
+    closed = v > 0.0
+    f[cs.normal_row] = np.where(closed, cs.kn * v, 0.0)
+    d_closed = closed[cs.direction_contact]
+    f[cs.tangential_row] = np.where(d_closed, cs.kt * (q[cs.tangential_row] - w), 0.0)
+    return f
+
+
 def default_max_step(period: float | None, dt_stick: float) -> float:
     """The accuracy cap of dynamic steps, fixed and adaptive: at least 50 steps per excitation
     period (the T_min rule of paper 4.2 is a convergence limit and says nothing about accuracy
@@ -618,11 +687,39 @@ def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     return linear_solver == "low-rank" and nq > 0
 
 
-def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_static: bool, low_rank: bool) -> float:
+    """The memory estimate of a march of ``capacity`` steps (slipstep.methods.memory) checked
+    against the limit before anything is allocated; returns it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    field_name = "duration" if opt.duration is not None else "periods"
+    fixes = ("simulate fewer periods (or a shorter duration)" +
+             (", use fewer steps_per_period" if quasi_static else ", raise the step ratio"))
+    limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
+    return memory.check(capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank),
+                        limit, field_name, fixes)
+
+
+def _cache_capacities(n: int, nq: int, low_rank: bool) -> tuple[int, int, int]:
+    """(matrix size factorised per state, state cache slots, low-rank base slots): at most
+    about 200 MB of factorisations each."""
     size = nq if low_rank else n  # the matrix factorised per state: C(S) (nq) or J(S) (n)
     cap = int(min(512, max(8, 2e8 // (8 * size * size + 1))))
     capb = int(min(64, max(2, 2e8 // (8 * (n * n + 2 * n * nq) + 1)))) if low_rank else 1
+    return size, cap, capb
+
+
+def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> int:
+    """Bytes of :func:`_allocate_workspace` (its largest arrays)."""
+    n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
+    nb, nqb = (n, nq) if low_rank else (1, 1)
+    return int(8 * ((cap + 1) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
+                    + 4 * n * n + 20 * (n + nq + nd)) + 2 * cap * nd + nd * (max_state_iter + 1))
+
+
+def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+    n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
     nb, nqb = (n, nq) if low_rank else (1, 1)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
@@ -645,9 +742,14 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int) -> K.Outputs:
+def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
+    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
+    the available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     k = capacity + 1
+    if k > 100_000:
+        limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
+        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
     return K.Outputs(
         t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
         q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),
