@@ -26,13 +26,20 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 
 import numpy as np
 
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
 from slipstep.kernels.contact import LIFT, STICK
 
 DEFAULT_TARGET = 0.005
 WARN_LIMIT = 0.01
+#: refinements of the default step rule at most (each: two piecewise-linear twin marches of
+#: PILOT_PERIODS periods, whatever the run's length: the step does not depend on it)
+PILOT_ROUNDS = 3
+PILOT_PERIODS = 3
 #: all state combinations are searched for the highest frequency up to this many directions
 MAX_ENUMERATED_DIRECTIONS = 5
 
@@ -121,3 +128,108 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
     budget = 2.0 * np.maximum.accumulate(np.maximum(W, 0.0)) + 10.0 * (E[0] + 1e-12)
     over = ~(E - E[0] <= budget)  # NaN counts as over
     return int(np.argmax(over)) if np.any(over) else 0
+
+
+def check_divergence(runner) -> Status:
+    """Set runner.status to DIVERGED when an OK dynamic march's stored energy grew beyond what
+    its loads supplied (:func:`energy_diverged`, from the first such point); returns the status."""
+    from slipstep.methods.simulation import _force_signal, _motion_signal
+    from slipstep.model.excitation import evaluate_compiled
+
+    if runner.status == Status.OK:
+        cs, out = runner.compiled, runner.out
+        n = int(out.counters[C_STEPS])
+        t = out.t[: n + 1]
+        fe = evaluate_compiled(_force_signal(cs), t) + cs.constant_force
+        p = evaluate_compiled(_motion_signal(cs), t)
+        first = energy_diverged(out, n, cs, fe, p)
+        if first:
+            runner.status = Status.DIVERGED
+            out.counters[C_FAIL_STEP] = first
+    return runner.status
+
+
+def twin(sim, method: str, **changes):
+    """A twin march of ``sim`` (same system, scheme and tolerances; the same method when it is
+    the partly quasi-static one) with ``changes`` to its options; returns (status, loop energy
+    [J], peak force [N]) or None when it cannot run."""
+    from slipstep.methods.simulation import Simulation
+
+    opt = sim.options
+    base = {"scheme": opt.scheme, "duration": sim.t_end, "tolerance": opt.tolerance,
+            "state_tolerance": opt.state_tolerance, "singular_tolerance": opt.singular_tolerance,
+            "preload_increments": opt.preload_increments, "linear_solver": opt.linear_solver, "error_estimate": False,
+            "max_state_iterations": opt.max_state_iterations, "step_ratio": opt.step_ratio}
+    base.update(changes)
+    if sim.method.massless:
+        method = sim.method.name
+        base["massless_dofs"] = opt.massless_dofs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            other = Simulation(sim.system, method, **base)
+        except (InputError, SolverError):
+            return None
+        status = other.march()
+    if status != Status.OK:
+        return None
+    n = int(other.out.counters[C_STEPS])
+    return (status,) + loop_energy(other.out, n, other.compiled, sim.period)
+
+
+def pilot_step(sim, dt0: float) -> float:
+    """The default rule's refinement (module docstring): the step-doubling estimate of the loop
+    energy at dt (piecewise-linear twins at dt and 2 dt over PILOT_PERIODS periods); above
+    DEFAULT_TARGET the step (and sim.max_step, the cap of adaptive steps) becomes
+    dt sqrt(DEFAULT_TARGET / estimate), whole steps per period, re-estimated up to PILOT_ROUNDS times."""
+    dt = dt0
+    duration = PILOT_PERIODS * sim.period
+    for _ in range(PILOT_ROUNDS):
+        fine = twin(sim, "piecewise-linear", dt=dt, duration=duration)
+        coarse = twin(sim, "piecewise-linear", dt=2 * dt, duration=duration)
+        if fine is None or coarse is None:
+            return dt
+        est = richardson(fine[1], coarse[1])
+        if not est > DEFAULT_TARGET:
+            if abs(duration - sim.t_end) <= 1e-12 * duration:
+                sim._coarse = (2 * dt, coarse)  # reused by the final estimate
+            return dt
+        sim.max_step = dt * math.sqrt(DEFAULT_TARGET / est)
+        dt = sim._fixed_step(sim.dt_limit, sim.max_step)
+    return dt
+
+
+def estimate(sim) -> dict:
+    """energy_error_estimate and peak_force_error_estimate (relative, NaN when not available)
+    of a finished march by step doubling (module docstring), and error_estimate_method.
+    Warns when the loop-energy estimate exceeds WARN_LIMIT (1 %)."""
+    nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
+           "error_estimate_method": "none"}
+    if not sim.options.error_estimate or sim.status != Status.OK or sim.period is None:
+        return nan
+    n = int(sim.out.counters[C_STEPS])
+    energy, peak = loop_energy(sim.out, n, sim.compiled, sim.period)
+    opt = sim.options
+    if sim.method.quasi_static:
+        other = twin(sim, "quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
+        how = "step doubling: quasi-static twin at half the steps per period"
+    elif sim.method.adaptive or opt.rtol is not None:
+        other = twin(sim, "piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
+                     step_ratio=2 * opt.step_ratio, max_step=2 * sim.max_step,
+                     rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2))
+        how = ("step doubling: piecewise-linear twin with twice the step factor and cap" if opt.rtol is None
+               else "step doubling: piecewise-linear twin at 8 rtol (twice the step)")
+    elif sim._coarse is not None and sim._coarse[0] == 2 * sim.dt:
+        other, how = sim._coarse[1], "step doubling: piecewise-linear twin at 2 dt"
+    else:
+        other, how = twin(sim, "piecewise-linear", dt=2 * sim.dt), "step doubling: piecewise-linear twin at 2 dt"
+    if other is None:
+        return nan
+    ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not sim.method.quasi_static else 2.0
+    out = {"energy_error_estimate": richardson(energy, other[1], ratio),
+           "peak_force_error_estimate": richardson(peak, other[2], ratio), "error_estimate_method": how}
+    if out["energy_error_estimate"] > WARN_LIMIT:
+        warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
+                      f"{100 * out['energy_error_estimate']:.2g} % (step doubling): use a smaller step (max_step / "
+                      f"--steps-per-period) or set rtol (--rtol 1e-3)", stacklevel=4)
+    return out

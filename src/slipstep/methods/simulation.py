@@ -22,6 +22,7 @@ from slipstep.methods import memory
 from slipstep.kernels import march as K
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
+from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
 from slipstep.methods.registry import Method, get_method
@@ -31,10 +32,6 @@ from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
-#: refinements of the default step rule at most (each: two piecewise-linear twin marches of
-#: PILOT_PERIODS periods, whatever the run's length: the step does not depend on it)
-PILOT_ROUNDS = 3
-PILOT_PERIODS = 3
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
 
@@ -374,94 +371,26 @@ class Simulation(Runner):
                 and opt.max_step is None and opt.rtol is None)
 
     def _twin(self, method: str, **changes):
-        """A piecewise-linear twin march of this run (same system, scheme and tolerances) with
-        ``changes`` to its options; returns (status, loop energy [J], peak force [N]) or None."""
-        opt = self.options
-        base = dict(scheme=opt.scheme, duration=self.t_end, tolerance=opt.tolerance,
-                    state_tolerance=opt.state_tolerance, singular_tolerance=opt.singular_tolerance,
-                    preload_increments=opt.preload_increments, linear_solver=opt.linear_solver, error_estimate=False,
-                    max_state_iterations=opt.max_state_iterations, step_ratio=opt.step_ratio)
-        base.update(changes)
-        if self.method.massless:  # twins of the same partly quasi-static method
-            method = self.method.name
-            base["massless_dofs"] = opt.massless_dofs
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                twin = Simulation(self.system, method, **base)
-            except (InputError, SolverError):
-                return None
-            status = twin.march()
-        if status != Status.OK:
-            return None
-        n = int(twin.out.counters[K.C_STEPS])
-        return (status,) + accuracy.loop_energy(twin.out, n, twin.compiled, self.period)
+        return accuracy.twin(self, method, **changes)
 
     def _pilot_step(self, dt0: float) -> float:
-        """The default rule's refinement: the step-doubling estimate of the loop energy at dt
-        (piecewise-linear twins at dt and 2 dt); above DEFAULT_TARGET the step (and the accuracy
-        cap of adaptive steps) becomes dt sqrt(DEFAULT_TARGET / estimate), re-estimated up to
-        PILOT_ROUNDS times (whole steps per period each time)."""
-        dt = dt0
-        duration = PILOT_PERIODS * self.period  # the step is the system's, not the run length's
-        for _ in range(PILOT_ROUNDS):
-            fine = self._twin("piecewise-linear", dt=dt, duration=duration)
-            coarse = self._twin("piecewise-linear", dt=2 * dt, duration=duration)
-            if fine is None or coarse is None:
-                return dt
-            est = accuracy.richardson(fine[1], coarse[1])
-            if not est > accuracy.DEFAULT_TARGET:
-                if abs(duration - self.t_end) <= 1e-12 * duration:
-                    self._coarse = (2 * dt, coarse)
-                return dt
-            self.max_step = dt * math.sqrt(accuracy.DEFAULT_TARGET / est)
-            dt = self._fixed_step(self.dt_limit, self.max_step)
-        return dt
+        return accuracy.pilot_step(self, dt0)
 
     def _check_divergence(self) -> Status:
         """A march that ends OK but whose energy grew without a source is DIVERGED."""
         if not self.method.quasi_static:
-            check_divergence(self)
+            accuracy.check_divergence(self)
         return self.status
 
     def accuracy_attrs(self) -> dict:
-        """energy_error_estimate and peak_force_error_estimate (relative, NaN when not
-        available) by step doubling (methods/accuracy.py); computed once per Simulation.
-        Warns when the loop-energy estimate exceeds WARN_LIMIT (1 %)."""
+        """energy_error_estimate, peak_force_error_estimate, error_estimate_method: see
+        :func:`slipstep.methods.accuracy.estimate` (computed once per Simulation)."""
         if self._accuracy is not None:
             return self._accuracy
-        nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
-               "error_estimate_method": "none"}
-        if not self.options.error_estimate or self.status != Status.OK or self.period is None:
-            return nan
-        n = int(self.out.counters[K.C_STEPS])
-        energy, peak = accuracy.loop_energy(self.out, n, self.compiled, self.period)
-        opt = self.options
-        if self.method.quasi_static:
-            twin = self._twin("quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
-            how = "step doubling: quasi-static twin at half the steps per period"
-        elif self.method.adaptive or opt.rtol is not None:
-            twin = self._twin("piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
-                              step_ratio=2 * opt.step_ratio, max_step=2 * self.max_step,
-                              rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2))
-            how = ("step doubling: piecewise-linear twin with twice the step factor and cap" if opt.rtol is None
-                   else "step doubling: piecewise-linear twin at 8 rtol (twice the step)")
-        elif self._coarse is not None and self._coarse[0] == 2 * self.dt:
-            twin, how = self._coarse[1], "step doubling: piecewise-linear twin at 2 dt"
-        else:
-            twin, how = self._twin("piecewise-linear", dt=2 * self.dt), "step doubling: piecewise-linear twin at 2 dt"
-        if twin is None:
-            return nan
-        ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not self.method.quasi_static else 2.0
-        self._accuracy = {"energy_error_estimate": accuracy.richardson(energy, twin[1], ratio),
-                          "peak_force_error_estimate": accuracy.richardson(peak, twin[2], ratio),
-                          "error_estimate_method": how}
-        est = self._accuracy["energy_error_estimate"]
-        if est > accuracy.WARN_LIMIT:
-            warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
-                          f"{100 * est:.2g} % (step doubling): use a smaller step (max_step / --steps-per-period) "
-                          f"or set rtol (--rtol 1e-3)", stacklevel=3)
-        return self._accuracy
+        result = accuracy.estimate(self)
+        if self.status == Status.OK:
+            self._accuracy = result
+        return result
 
     # -- set-up ---------------------------------------------------------------------------
     def _preload(self):
@@ -600,22 +529,6 @@ class Simulation(Runner):
             **({} if self.massless is None else
                {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
         }
-
-
-def check_divergence(runner) -> Status:
-    """Set runner.status to DIVERGED when an OK dynamic march's stored energy grew beyond what
-    its loads supplied (methods/accuracy.energy_diverged); returns the status."""
-    if runner.status == Status.OK:
-        cs, out = runner.compiled, runner.out
-        n = int(out.counters[K.C_STEPS])
-        t = out.t[: n + 1]
-        fe = evaluate_compiled(_force_signal(cs), t) + cs.constant_force
-        p = evaluate_compiled(_motion_signal(cs), t)
-        first = accuracy.energy_diverged(out, n, cs, fe, p)
-        if first:
-            runner.status = Status.DIVERGED
-            out.counters[K.C_FAIL_STEP] = first
-    return runner.status
 
 
 def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
