@@ -24,6 +24,8 @@ SCRIPT = textwrap.dedent("""
         for variant in ("fixed", "adaptive"):
             assert simulate(paper, scheme, variant, periods=0.5).attrs["status"] == "OK", (scheme, variant)
     assert slipstep.run(paper, "newmark", periods=0.5, scheme=slipstep.hht(0.1)).attrs["status"] == "OK"
+    for method in ("newmark", "piecewise-linear-adaptive"):  # the accuracy control (rtol) path
+        assert slipstep.run(paper, method, periods=0.5, rtol=1e-3).attrs["status"] == "OK", method
 
     # a structure with more DOFs than contact coordinates and a quasi-3D contact (rows != columns)
     n = 5
