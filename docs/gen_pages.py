@@ -518,6 +518,7 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
         "relative error estimate of the peak contact force, by step doubling (NaN when not available)",
     ),
     "error_estimate_method": ("-", "how the error estimates were obtained"),
+    "rtol": ("1", "the accuracy the user set (`rtol` option, `--rtol`); NaN: off, the default step rule applies"),
     "failed_at_step": ("1", "on failure: the step that failed"),
     "failed_at_time_s": ("s", "on failure: the time it failed at"),
     "states_visited": ("-", "on failure: the contact states tried in the failing step"),
@@ -530,8 +531,15 @@ def sample_results():
     are those every result carries."""
     import slipstep as ss
 
+    import warnings
+
     system = ss.load_system("paper")
-    return [ss.run(system, "newmark", periods=0.05), ss.run(system, "quasi-static", periods=0.05, steps_per_period=40)]
+    with warnings.catch_warnings():  # a twentieth of a period: the error-estimate warning is expected
+        warnings.simplefilter("ignore")
+        return [
+            ss.run(system, "newmark", periods=0.05),
+            ss.run(system, "quasi-static", periods=0.05, steps_per_period=40),
+        ]
 
 
 def result_attributes(samples=None) -> list[str]:
