@@ -25,6 +25,8 @@ Step solvers:
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
+      A postulated state without a piecewise-linear form (a coupled slip of the friction-
+      circle law) is solved by Newton on the consistent tangent (solver 1) instead.
 Adaptive step (Method 2): dt = min(step_factor * T_min(S_n), dt_max), with
 T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|) cached per state; redo the step with the
 smaller dt when the new state's limit is below the dt used (a redone step postulates the
@@ -43,7 +45,7 @@ from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters a
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
-from slipstep.kernels.contact import compatible, contact_stiffness, gather, law, piecewise_law, scatter
+from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
@@ -87,9 +89,9 @@ class Workspace(NamedTuple):
     stick: np.ndarray  # int8 (nd) all STICK
     cache_keys: np.ndarray  # int8 (cap, 2 nd)
     cache_used: np.ndarray  # bool (cap)
-    cache_ok: np.ndarray  # bool (cap + 1): factorisation not singular
-    cache_lu: np.ndarray  # (cap + 1, n, n); slot cap is scratch
-    cache_piv: np.ndarray  # int64 (cap + 1, n)
+    cache_ok: np.ndarray  # bool (cap + 2): factorisation not singular
+    cache_lu: np.ndarray  # (cap + 2, n, n); slots cap, cap + 1 are scratch (state_solve.py)
+    cache_piv: np.ndarray  # int64 (cap + 2, n)
     tmin_keys: np.ndarray  # int8 (cap, nd)
     tmin_used: np.ndarray
     tmin_value: np.ndarray  # (cap,) s
@@ -113,7 +115,7 @@ class Outputs(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
+def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
                      gf1, r, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
     n = dx.shape[0]
@@ -122,7 +124,7 @@ def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, q
         for j in range(n):
             s += A[rr, j] * dx[j]
         q1[rr] = s
-    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
     counters[C_LAW_CALLS] += 1
     scatter(AT, f1, gf1)
     for i in range(n):
@@ -161,7 +163,7 @@ def _newton_update(A, dx, delta, it, prev_norm, tol_abs):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                      dx, delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
     factorised full-stick Jacobian (lu0, piv0). Returns (status, solves); on success q1, f1,
@@ -170,62 +172,63 @@ def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow
         dx[i] = 0.0
     prev_norm = 0.0
     for it in range(max_iter):
-        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         lu_solve(lu0, piv0, r, delta)
         status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
         if status != OK:
             return status, it + 1
         if converged:
-            _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                              state1, gf1, r, counters)
             return OK, it + 1
     return NOT_CONVERGED, max_iter
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                  dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                  keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
     cached); the full-stick one where J(S) is singular. As :func:`_modified_newton` otherwise."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
-    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state,
+    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
                                      stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if not ok:
         return SINGULAR, 0
     prev_norm = 0.0
     for it in range(max_iter):
-        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         use, use_state = stick_slot, stick
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, dt_state,
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
                                    stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             use, use_state = slot, state1
         if lowrank:
-            solve_low_rank(use, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, use_state, kfac, r, delta)
+            solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
         else:
             lu_solve(lus[use], pivs[use], r, delta)
         status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
         if status != OK:
             return status, it + 1
         if converged:
-            _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                              state1, gf1, r, counters)
             return OK, it + 1
     return NOT_CONVERGED, max_iter
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, key,
+def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
     state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
     in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
     carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
-    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, stick,
+    nowhere = np.empty(0)  # J(stick) needs no linearisation point
+    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
                                key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if lowrank:
         b = lr.slot_base[slot]
@@ -264,14 +267,14 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
     T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
     slot, found = find_slot(tkeys, tused, state)
     if not found:
         Keff = Kst.copy()
-        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, 1.0, Keff)
+        contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
         ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
         wmax2 = 0.0
         for i in range(ev.shape[0]):
@@ -297,8 +300,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     B = sys.B
     g = sys.g
     nrow = sys.normal_row
-    kn = sys.kn
-    mu = sys.mu
+    lcode = sys.law
+    lpar = sys.law_par
     fdir = sys.first_direction
     ndir = sys.n_directions
     trow = sys.tangential_row
@@ -366,7 +369,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state,
+                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
                                                    tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             dt_nominal = dt_state_limit
         else:
@@ -432,6 +435,13 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     for d in range(nd):
                         visited[it, d] = state1[d]
                     counters[C_N_VISITED] = it + 1
+                    if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no piecewise-linear form: Newton on the consistent tangent
+                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                    delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
+                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
+                                                    singular_rtol, counters)
+                        solves += more
+                        break
                     same = nominal and last_slot >= 0
                     if same:
                         for d in range(nd):
@@ -441,19 +451,20 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if same:
                         slot, ok = last_slot, ok_flags[last_slot]
                     else:
-                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
-                                                   state1, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
+                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                                                   state1, qbase, w, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
                                                    lr, nominal, singular_rtol, counters)
                         last_slot = slot if nominal else -1
                     if not ok:
                         status = SINGULAR
                         break
-                    piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
+                    piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
                     scatter(AT, f1, gf1)
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
                     if lowrank:
-                        solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, kfac, r, dx)
+                        solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac,
+                                       r, dx)
                     else:
                         lu_solve(lus[slot], pivs[slot], r, dx)
                     solves += 1
@@ -469,22 +480,22 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         for j in range(n):
                             s += A[rr, j] * dx[j]
                         q1[rr] = s
-                    if compatible(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-                        piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
+                    if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
+                        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
                         scatter(AT, f1, gf1)
                         status = OK
                         break
-                    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+                    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
                     counters[C_LAW_CALLS] += 1
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
                                                           stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
                                                           nominal, singular_rtol, counters)
                     more = 0
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, tol_abs, counters)
                     solves += more
@@ -492,18 +503,18 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
                 if solver == FULL_NEWTON:
-                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0,
+                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
                                                 qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
                                                 singular_rtol, counters)
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow,
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,
                                                               kt, stick, dt_state, key, keys, used, ok_flags, lus,
                                                               pivs, lr, nominal, singular_rtol, counters)
                         stick_dt = dt if nominal else np.nan
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, tol_abs, counters)
                     else:
@@ -514,7 +525,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
             if _same(state1, dt_state):
                 break
-            limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1,
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
                                       tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

@@ -407,7 +407,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     lr = LowRank(
         base_keys=i8(capb, nd), base_used=np.zeros(capb, np.bool_), base_ok=np.zeros(capb + 1, np.bool_),
         base_lu=z(capb + 1, nb, nb), base_piv=np.zeros((capb + 1, nb), np.int64), Z=z(capb + 1, nb, nqb),
-        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 1, np.int64), slot_identity=np.zeros(cap + 1, np.bool_),
+        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 2, np.int64), slot_identity=np.zeros(cap + 2, np.bool_),
         Ay=z(nq), t=z(nq), s=z(nq), col=z(n), zc=z(n),
     )
     return K.Workspace(
@@ -416,8 +416,8 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
         Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
-        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),
-        cache_lu=z(cap + 1, size, size), cache_piv=np.zeros((cap + 1, size), np.int64),
+        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 2, np.bool_),
+        cache_lu=z(cap + 2, size, size), cache_piv=np.zeros((cap + 2, size), np.int64),
         tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
         lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd), lr=lr,
     )
