@@ -21,6 +21,9 @@ Step solvers:
     0 modified Newton (Method 1): J(all stick) factorised once per dt, iterate on dx until
       the error estimate theta/(1-theta) max |A delta| <= tol * L (theta: the observed
       contraction); each iteration = one contact-law call + one solve.
+    3 modified Newton with J(S) of the state whose T_min set the step (Method 2: the state
+      at the step start, or the one a redo found; fixed step: S_n), cached per state: the
+      adaptive step's longer slip steps then contract as fast as Method 1's.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
@@ -56,7 +59,8 @@ N_FPAR = 12
 # int parameters
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
-MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR = 0, 1, 2
+MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE = 0, 1, 2, 3
+THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 
 
 class Workspace(NamedTuple):
@@ -236,6 +240,51 @@ def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir
     return ok, lus[slot], pivs[slot]
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
+                    gf1, max_iter, tol_abs, theta_give_up, from_zero, counters):
+    """:func:`_modified_newton` with the factorised J(S) of a state S (solver 3), given up as
+    soon as it stops contracting (|delta_k| >= theta_give_up |delta_(k-1)|): J(S) softer than
+    the tangent of the state the step reaches (a slip state entering stick) can make the
+    iteration diverge, where the stiffest tangent, J(all stick), cannot; that one then goes
+    on from the dx reached (from_zero False, theta_give_up inf). Returns (status, solves);
+    NOT_CONVERGED when given up."""
+    if from_zero:
+        for i in range(dx.shape[0]):
+            dx[i] = 0.0
+    prev_norm = 0.0
+    for it in range(max_iter):
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
+        lu_solve(lu, piv, r, delta)
+        last = prev_norm
+        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        if status != OK:
+            return status, it + 1
+        if converged:
+            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
+            return OK, it + 1
+        if it > 0 and prev_norm >= theta_give_up * last:
+            return NOT_CONVERGED, it + 1
+    return NOT_CONVERGED, max_iter
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
+                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+    """(ok, lu, piv): the factorisation of J(S) for the modified Newton of solver 3, S the
+    contact state whose T_min set the step (cached per state like the stick one). Falls back
+    to J(all stick) where S has no constant tangent (coupled slip), in low-rank mode (whose
+    J(S) solve is not one LU) and where J(S) is singular."""
+    if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
+        nowhere = np.empty(0)
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state, stick,
+                                   key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+        if ok:
+            return ok, lus[slot], pivs[slot]
+    return _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
+                                lus, pivs, lr, nominal, singular_rtol, counters)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _sub_matvec(Mat, y, out):
     """out -= Mat y."""
@@ -352,6 +401,11 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     k = 0
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
     stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
+    tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
+    tan_state = np.full(nd, -1, np.int8)
+    okS = False
+    luS = lus[0]
+    pivS = pivs[0]
     ok0 = False
     lu0 = lus[0]
     piv0 = pivs[0]
@@ -507,6 +561,34 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                                                 qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
                                                 singular_rtol, counters)
+                elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
+                    tstate = dt_state if adaptive else state
+                    if not (nominal and dt == tan_dt and _same(tstate, tan_state)):
+                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
+                                                              dt_state, key, keys, used, ok_flags, lus, pivs, lr,
+                                                              nominal, singular_rtol, counters)
+                        tan_dt = dt if nominal else np.nan
+                        for d in range(nd):
+                            tan_state[d] = tstate[d]
+                    stick_dt = np.nan
+                    status, more = SINGULAR, 0
+                    if okS:
+                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs,
+                                                       THETA_GIVE_UP, True, counters)
+                    solves += more
+                    if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
+                        counters[C_FALLBACKS] += 1
+                        restart = status != NOT_CONVERGED  # else go on from the dx reached
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
+                                                              key, keys, used, ok_flags, lus, pivs, lr, nominal,
+                                                              singular_rtol, counters)
+                        status, more = SINGULAR, 0
+                        if ok0:
+                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs,
+                                                           np.inf, restart, counters)
+                        solves += more
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
                         ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,

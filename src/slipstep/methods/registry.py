@@ -3,11 +3,12 @@
 | name                       | paper      | step solver (kernels.march) | step control          |
 |----------------------------|------------|-----------------------------|-----------------------|
 | newmark                    | Method 1   | modified Newton, stick J    | fixed r T_min(stick)/pi |
-| newmark-adaptive           | Method 2   | modified Newton, stick J    | contact-state adaptive |
+| newmark-adaptive           | Method 2   | modified Newton, J(S) of the step's state | contact-state adaptive |
 | piecewise-linear           | Method 3   | piecewise linear            | fixed                 |
 | piecewise-linear-adaptive  | Method 2+3 | piecewise linear            | contact-state adaptive |
 | quasi-static               | Method 4   | piecewise linear, no inertia| fixed, steps per period |
 | full-newton                | (option)   | Newton, current-state J     | fixed                 |
+| newmark-adaptive-stick     | (variant)  | modified Newton, stick J    | contact-state adaptive |
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.march import FULL_NEWTON, MODIFIED_NEWTON, PIECEWISE_LINEAR
+from slipstep.kernels.march import FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
 
 
 @dataclass(frozen=True)
@@ -31,8 +32,9 @@ class Method:
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("newmark", "Method 1", MODIFIED_NEWTON, False, False,
            "standard Newmark: modified Newton with the full-stick tangent, fixed step"),
-    Method("newmark-adaptive", "Method 2", MODIFIED_NEWTON, True, False,
-           "standard Newmark with the step adapted to the contact state"),
+    Method("newmark-adaptive", "Method 2", MODIFIED_NEWTON_STATE, True, False,
+           "standard Newmark with the step adapted to the contact state; modified Newton with the tangent of "
+           "the state that set the step"),
     Method("piecewise-linear", "Method 3", PIECEWISE_LINEAR, False, False,
            "piecewise-linear Newmark: postulate the state, one solve, check, re-solve on a transition"),
     Method("piecewise-linear-adaptive", "Method 2+3", PIECEWISE_LINEAR, True, False,
@@ -41,6 +43,9 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "quasi-static time marching (no inertia), piecewise-linear state loop"),
     Method("full-newton", "Newton", FULL_NEWTON, False, False,
            "Newmark with full Newton (current-state tangent), fixed step"),
+    Method("newmark-adaptive-stick", "Method 2 (stick tangent)", MODIFIED_NEWTON, True, False,
+           "Method 2 iterating with the full-stick tangent like Method 1 (slower: longer slip steps contract "
+           "more slowly)"),
 )}
 
 ALIASES = {"1": "newmark", "2": "newmark-adaptive", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive",

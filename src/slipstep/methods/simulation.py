@@ -27,7 +27,8 @@ from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
-SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear"}
+SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear",
+                K.MODIFIED_NEWTON_STATE: "modified-newton-state"}
 
 
 @dataclass(frozen=True)
