@@ -151,40 +151,6 @@ def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def local_tangent(nrow, lcode, lpar, fdir, ndir, trow, kt, c, state, q, w_old, K):
-    """K[:m, :m] = K(S) = d f / d q of contact c (m = ndir + 1; tangential directions first,
-    normal last): the law's local stiffness, the consistent tangent at (q, w_old) for a
-    coupled slip (q of length 0: no point, the stiffest tangent, used for T_min)."""
-    m = ndir[c] + 1
-    for i in range(m):
-        for j in range(m):
-            K[i, j] = 0.0
-    d0 = fdir[c]
-    if state[d0] == LIFT:
-        return
-    kn = lpar[c, P_KN]
-    mu_kn = lpar[c, P_MU] * kn
-    K[m - 1, m - 1] = kn
-    if lcode[c] == LAW_CIRCLE:
-        at_point = q.shape[0] > 0
-        u1 = u2 = w1 = w2 = limit = 0.0
-        if at_point:
-            u1, u2, w1, w2 = q[trow[d0]], q[trow[d0 + 1]], w_old[d0], w_old[d0 + 1]
-            limit = mu_kn * q[nrow[c]]
-        K[0, 0], K[0, 1], K[1, 0], K[1, 1], K[0, 2], K[1, 2] = circle.tangent(kt[d0], mu_kn, limit, state[d0],
-                                                                              at_point, u1, u2, w1, w2)
-        return
-    for i in range(m - 1):
-        K[i, i], K[i, m - 1] = uncoupled.tangent(kt[d0 + i], mu_kn, state[d0 + i])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _local_row(nrow, fdir, ndir, trow, c, i):
-    """Row in q of local index i of contact c (tangential directions first, normal last)."""
-    return trow[fdir[c] + i] if i < ndir[c] else nrow[c]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _add_outer(out, k, A, r1, r2):
     """out += k * A[r1]^T A[r2]."""
     n = A.shape[1]
@@ -195,30 +161,51 @@ def _add_outer(out, k, A, r1, r2):
                 out[i, j] += a * A[r2, j]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old):
+    """The six tangential entries of a friction-circle contact's K(S) (laws/circle.py), at
+    (q, w_old), or without a point (q of length 0) the stick ones."""
+    d0 = fdir[c]
+    mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+    if q.shape[0] == 0:
+        return circle.tangent(kt[d0], mu_kn, 0.0, state[d0], False, 0.0, 0.0, 0.0, 0.0)
+    return circle.tangent(kt[d0], mu_kn, mu_kn * q[nrow[c]], state[d0], True, q[trow[d0]], q[trow[d0 + 1]],
+                          w_old[d0], w_old[d0 + 1])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, q, w_old, factor, out):
-    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7), K(S) of
-    :func:`local_tangent` (at (q, w_old) for a coupled slip; q of length 0: no point)."""
-    K = np.empty((3, 3))
+    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7): the laws' local
+    stiffness (laws/*.tangent), at (q, w_old) for a coupled slip (q of length 0: no point,
+    the stiffest tangent, used for T_min)."""
     for c in range(nrow.shape[0]):
-        if state[fdir[c]] == LIFT:
+        d0 = fdir[c]
+        if state[d0] == LIFT:
             continue
-        local_tangent(nrow, lcode, lpar, fdir, ndir, trow, kt, c, state, q, w_old, K)
-        m = ndir[c] + 1
         nr = nrow[c]
-        _add_outer(out, factor * K[m - 1, m - 1], A, nr, nr)
-        for i in range(m - 1):
-            ri = _local_row(nrow, fdir, ndir, trow, c, i)
-            for j in range(m):
-                if K[i, j] != 0.0:
-                    _add_outer(out, factor * K[i, j], A, ri, _local_row(nrow, fdir, ndir, trow, c, j))
+        kn = lpar[c, P_KN]
+        _add_outer(out, factor * kn, A, nr, nr)
+        if lcode[c] == LAW_CIRCLE:
+            r1, r2 = trow[d0], trow[d0 + 1]
+            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
+            for k, ra, rb in ((k11, r1, r1), (k12, r1, r2), (k21, r2, r1), (k22, r2, r2), (k1v, r1, nr),
+                              (k2v, r2, nr)):
+                if k != 0.0:
+                    _add_outer(out, factor * k, A, ra, rb)
+            continue
+        mu_kn = lpar[c, P_MU] * kn
+        for d in range(d0, d0 + ndir[c]):
+            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+            if kuu != 0.0:
+                _add_outer(out, factor * kuu, A, trow[d], trow[d])
+            if kuv != 0.0:
+                _add_outer(out, factor * kuv, A, trow[d], nr)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
     """out = kfac (K(S) - K(stick)) y, local (the low-rank update of kernels/state_solve.py):
     lift-off: -k_t on u, -k_n on v; slip: the slip tangent minus k_t on u; stick: 0."""
-    K = np.empty((3, 3))
     for r in range(out.shape[0]):
         out[r] = 0.0
     for c in range(nrow.shape[0]):
@@ -229,15 +216,19 @@ def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kf
             for d in range(d0, d0 + ndir[c]):
                 out[trow[d]] = -kfac * kt[d] * y[trow[d]]
             continue
-        if state[d0] == STICK and (ndir[c] == 1 or state[d0 + 1] == STICK):
+        if lcode[c] == LAW_CIRCLE:
+            if state[d0] == STICK:
+                continue
+            r1, r2 = trow[d0], trow[d0 + 1]
+            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
+            out[r1] = kfac * ((k11 - kt[d0]) * y[r1] + k12 * y[r2] + k1v * y[nr])
+            out[r2] = kfac * (k21 * y[r1] + (k22 - kt[d0]) * y[r2] + k2v * y[nr])
             continue
-        local_tangent(nrow, lcode, lpar, fdir, ndir, trow, kt, c, state, q, w_old, K)
-        m = ndir[c] + 1
-        for i in range(m - 1):
-            s = -kt[d0 + i] * y[trow[d0 + i]]
-            for j in range(m):
-                s += K[i, j] * y[_local_row(nrow, fdir, ndir, trow, c, j)]
-            out[trow[d0 + i]] = kfac * s
+        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+        for d in range(d0, d0 + ndir[c]):
+            if state[d] != STICK:
+                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+                out[trow[d]] = kfac * (kuv * y[nr] + (kuu - kt[d]) * y[trow[d]])
 
 
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------

@@ -60,6 +60,7 @@ N_FPAR = 12
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
 MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE = 0, 1, 2, 3
+EVENTS = 4  # not a step solver of this march: the event-driven quasi-static march, kernels/events.py
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 
 

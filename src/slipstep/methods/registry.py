@@ -9,6 +9,7 @@
 | quasi-static               | Method 4   | piecewise linear, no inertia| fixed, steps per period |
 | full-newton                | (option)   | Newton, current-state J     | fixed                 |
 | newmark-adaptive-stick     | (variant)  | modified Newton, stick J    | contact-state adaptive |
+| quasi-static-events        | (beyond)   | exact events, kernels/events.py | outputs every period/steps_per_period |
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.march import FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
+from slipstep.kernels.march import EVENTS, FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,9 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "quasi-static time marching (no inertia), piecewise-linear state loop"),
     Method("full-newton", "Newton", FULL_NEWTON, False, False,
            "Newmark with full Newton (current-state tangent), fixed step"),
+    Method("quasi-static-events", "beyond the paper", EVENTS, False, True,
+           "event-driven quasi-static: exact state-transition instants by root finding in each linear phase, "
+           "outputs on the steps_per_period grid (harmonic excitation, piecewise-linear laws)"),
     Method("newmark-adaptive-stick", "Method 2 (stick tangent)", MODIFIED_NEWTON, True, False,
            "Method 2 iterating with the full-stick tangent like Method 1 (slower: longer slip steps contract "
            "more slowly)"),

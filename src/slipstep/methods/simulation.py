@@ -18,6 +18,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels import march as K
+from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
 from slipstep.methods.registry import Method, get_method
@@ -28,7 +29,7 @@ from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
 
 SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear",
-                K.MODIFIED_NEWTON_STATE: "modified-newton-state"}
+                K.MODIFIED_NEWTON_STATE: "modified-newton-state", K.EVENTS: "events"}
 
 
 @dataclass(frozen=True)
@@ -205,6 +206,8 @@ class Simulation(Runner):
         self.method = method if isinstance(method, Method) else get_method(method)
         self.options = RunOptions(**options).validated()
         self.compiled = cs = system.compile()
+        if self.method.solver == K.EVENTS:
+            check_event_case(system, cs)
         nd = cs.kt.shape[0]
         self.stick = np.full(nd, STICK, np.int8)
         self.t_min_stick, _ = state_t_min(cs, self.stick)
@@ -327,7 +330,7 @@ class Simulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        return self._run_kernel(K.march)
+        return self._run_kernel(event_march if self.method.solver == K.EVENTS else K.march)
 
     # -- results --------------------------------------------------------------------------
     def _visited_states(self) -> str:
@@ -351,6 +354,20 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "linear_solver": "low-rank" if self.low_rank else "direct",
         }
+
+
+def check_event_case(system: System, cs: CompiledSystem) -> None:
+    """The event-driven method needs phases that are linear in known harmonic functions of time."""
+    if cs.force_table_time.size or cs.motion_table_time.size:
+        raise InputError("method", "quasi-static-events needs harmonic loads and motions, the case has tables",
+                         "use method 'quasi-static' for tabulated signals")
+    if cs.force_ramp > 0 or cs.motion_ramp > 0:
+        raise InputError("ramp_time", "is set: quasi-static-events needs unramped harmonic signals",
+                         "remove ramp_time or use method 'quasi-static'")
+    circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+    if circles:
+        raise InputError("method", f"quasi-static-events needs piecewise-linear contact laws; {circles} use "
+                         "'3d-circle'", "use method 'quasi-static' for friction-circle contacts")
 
 
 def default_max_step(period: float | None, dt_stick: float) -> float:
