@@ -22,7 +22,7 @@ from rich.table import Table
 
 from slipstep.config import CASES_DIR, builtin_cases, load_case, read_toml
 from slipstep.errors import InputError, SolverError
-from slipstep.methods.registry import ALIASES, METHODS, PAPER_METHODS, get_method
+from slipstep.methods.registry import ALIASES, COMPARE_METHODS, METHODS, get_method
 
 app = typer.Typer(
     name="slipstep",
@@ -157,6 +157,8 @@ def run(
 COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
     ("method", "method", None), ("status", "status", None),
     ("kernel time [ms] (median)", "kernel_time_s", 1e3), ("time ratio to Method 1", "time_ratio", 1.0),
+    ("kernel time [ms] (min)", "kernel_time_min_s", 1e3), ("time ratio, min to min", "time_ratio_min", 1.0),
+    ("timing spread (IQR/median)", "time_spread", 1.0),
     ("steps", "steps", None), ("solves (iterations)", "solves", None),
     ("mean solves per step", "mean_solves_per_step", 1.0), ("single-solve step share", "single_solve_share", 1.0),
     ("state changes (raw)", "state_changes", None), ("state changes, last period", "state_changes_last_period", None),
@@ -170,8 +172,9 @@ COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
 def compare(
     case: str = typer.Argument(..., help="Built-in case name (e.g. paper) or path to a .toml case file."),
     periods: Optional[float] = typer.Option(None, help="Periods per run (default: the case's \\[run] value, else 3)."),
-    repeats: int = typer.Option(5, help="Timed kernel runs per method after the warm-up; the median is reported."),
-    methods: str = typer.Option(",".join(PAPER_METHODS), help="Comma-separated methods (names or paper numbers); "
+    repeats: int = typer.Option(21, help="Timed kernel runs per method, interleaved across the methods after every "
+                                        "kernel is warmed; the median and the minimum are reported."),
+    methods: str = typer.Option(",".join(COMPARE_METHODS), help="Comma-separated methods (names or paper numbers); "
                                                               "Method 1 (newmark) always runs as the reference."),
     output_dir: Path = typer.Option(Path("slipstep-out"), help="Directory for comparison.csv/.json, "
                                                                "fig8_time_ratios.png, fig5_iterations.png."),
@@ -205,7 +208,7 @@ def compare(
         print(json.dumps(rows, default=_json_value))
         return
     table = Table(title=f"slipstep compare: {system.name}, {n_periods:g} period(s), "
-                        f"median of {repeats} kernel runs")
+                        f"{repeats} interleaved kernel runs per method after warming every kernel")
     table.add_column("", style="cyan")
     for r in rows:
         table.add_column(r["paper_method"], justify="right")

@@ -55,6 +55,29 @@ def scatter(AT, f, out):
         out[j] = s
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state):
+    """laws/circle.py law for the contact whose first direction is d0 (limit = mu N)."""
+    r1, r2 = trow[d0], trow[d0 + 1]
+    f[r1], f[r2], w_new[d0], w_new[d0 + 1], s = circle.law(kt[d0], limit, q[r1], q[r2], w_old[d0], w_old[d0 + 1])
+    state[d0] = s
+    state[d0 + 1] = s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new):
+    """laws/circle.py linear for the contact whose first direction is d0."""
+    r1, r2 = trow[d0], trow[d0 + 1]
+    f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(kt[d0], limit, state[d0], q[r1], q[r2], w_old[d0],
+                                                           w_old[d0 + 1])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_compatible(trow, kt, d0, limit, state, q, w_old, tol_t):
+    """laws/circle.py compatible for the contact whose first direction is d0."""
+    return circle.compatible(kt[d0], limit, state[d0], q[trow[d0]], q[trow[d0 + 1]], w_old[d0], w_old[d0 + 1], tol_t)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
     """The nonlinear law (return mapping): forces f (local, like q), new sliders and states
@@ -73,12 +96,8 @@ def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
         N = lpar[c, P_KN] * v
         f[nr] = N
         limit = lpar[c, P_MU] * N
-        if lcode[c] == LAW_CIRCLE:
-            r1, r2 = trow[d0], trow[d0 + 1]
-            f[r1], f[r2], w_new[d0], w_new[d0 + 1], s = circle.law(kt[d0], limit, q[r1], q[r2], w_old[d0],
-                                                                   w_old[d0 + 1])
-            state[d0] = s
-            state[d0 + 1] = s
+        if lcode[c] == LAW_CIRCLE:  # (out of line: keeps the paper's law compact where it is inlined)
+            _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state)
         else:
             for d in range(d0, d0 + ndir[c]):
                 tr = trow[d]
@@ -101,9 +120,7 @@ def piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w
         f[nr] = N
         limit = lpar[c, P_MU] * N
         if lcode[c] == LAW_CIRCLE:
-            r1, r2 = trow[d0], trow[d0 + 1]
-            f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(kt[d0], limit, state[d0], q[r1], q[r2],
-                                                                   w_old[d0], w_old[d0 + 1])
+            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
         else:
             for d in range(d0, d0 + ndir[c]):
                 tr = trow[d]
@@ -129,9 +146,7 @@ def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, l
             return False
         limit = lpar[c, P_MU] * lpar[c, P_KN] * v
         if lcode[c] == LAW_CIRCLE:
-            tol_t = rtol * (abs(limit) + kt[d0] * length_scale)
-            if not circle.compatible(kt[d0], limit, state[d0], q[trow[d0]], q[trow[d0 + 1]], w_old[d0],
-                                     w_old[d0 + 1], tol_t):
+            if not _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)):
                 return False
             continue
         for d in range(d0, d0 + ndir[c]):

@@ -223,7 +223,7 @@ def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J
 def event_march(sys, fpar, ipar, ws, out, q0, f0):
     """Event-driven quasi-static march from t_start to t_end with outputs every fpar[DT]
     (module docstring); same arguments, layout and counters as kernels.march.march."""
-    Kst, A, AT = sys.K, sys.A, sys.AT
+    Kst, A = sys.K, sys.A
     nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
     ndir, trow, kt = sys.n_directions, sys.tangential_row, sys.kt
     counters = out.counters
@@ -264,7 +264,6 @@ def event_march(sys, fpar, ipar, ws, out, q0, f0):
     kind = np.zeros(nmax, np.int64)
     owner = np.zeros(nmax, np.int64)
     scale = np.zeros(nmax)
-    ba = np.empty(nb)
     bb = np.empty(nb)
     broot = np.empty(nb)
     keys, used, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_lu, ws.cache_piv

@@ -45,7 +45,7 @@ from numba import njit
 
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
-    C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
+    LAW_CIRCLE, C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
@@ -382,6 +382,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
     kfac = (1.0 - af) if inertia else 1.0
     has_damping = np.any(Cd != 0.0)
+    has_circle = np.any(lcode == LAW_CIRCLE)
     has_stiffness = np.any(Kst != 0.0)
     acc_pred = np.empty(n)
     vel_pred = np.empty(n)
@@ -490,7 +491,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     for d in range(nd):
                         visited[it, d] = state1[d]
                     counters[C_N_VISITED] = it + 1
-                    if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no piecewise-linear form: Newton on the consistent tangent
+                    if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
                         status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
                                                     delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
                                                     used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,

@@ -56,6 +56,8 @@ ALIASES = {"1": "newmark", "2": "newmark-adaptive", "3": "piecewise-linear", "2+
            "23": "piecewise-linear-adaptive", "4": "quasi-static"}
 
 PAPER_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static")
+#: What ``slipstep compare`` runs by default: the paper's methods and the event-driven one beyond it.
+COMPARE_METHODS = PAPER_METHODS + ("quasi-static-events",)
 
 
 def get_method(name: str) -> Method:
