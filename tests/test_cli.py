@@ -98,7 +98,7 @@ def compared(tmp_path_factory):
     out = tmp_path_factory.mktemp("compare")
     result = invoke("compare", "paper", "--periods", "1", "--repeats", "2", "--output-dir", str(out), "--json")
     assert result.exit_code == 0, result.output
-    return {row["method"]: row for row in json.loads(result.stdout)}, out
+    return {row["method"]: row for row in json.loads(result.stdout)}, out / "paper"  # <output-dir>/<case>/
 
 
 def test_compare_json_rows_and_keys(compared):
@@ -209,4 +209,4 @@ def test_compare_schemes_lists_every_variant(tmp_path):
     assert by[("newmark", "both")]["steps"] < by[("newmark", "fixed")]["steps"]
     assert by[("central-difference", "piecewise-linear")]["status"] == "n/a"
     assert by[("newmark", "fixed")]["time_ratio"] == 1.0
-    assert (tmp_path / "schemes.md").read_text().startswith("| scheme |")
+    assert (tmp_path / "paper" / "schemes.md").read_text().startswith("| scheme |")

@@ -3,27 +3,105 @@
 Implements the methods of Gastaldi & Berruti (2018), "Competitive Time Marching Solution
 Methods for Systems with Friction-Induced Nonlinearities", on any linear structure with
 any number of spring-slider contact elements.
+
+The public names below are imported on first use (PEP 562), so ``import slipstep`` is fast
+and a script that only loads a case does not pay for numba or xarray until it runs.
 """
 
-from slipstep import post
-from slipstep.advise import advise
-from slipstep.config import builtin_cases, load_case, load_system
-from slipstep.errors import InputError, SolverError, Status
-from slipstep.methods.registry import METHODS, PAPER_METHODS, get_method
-from slipstep.methods.schemes import Scheme, generalized_alpha, hht, newmark
-from slipstep.methods.simulation import RunOptions, Simulation, run, state_t_min
-from slipstep.model.contact import ContactElement
-from slipstep.model.damper import DamperContact, Platform, rigid_damper
-from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
-from slipstep.model.structure import Structure
-from slipstep.results import load as load_result, save as save_result
-from slipstep.system import CompiledSystem, System
+from __future__ import annotations
 
-__version__ = "0.1.0"
+import importlib
+import sys
+import types
 
-__all__ = [
-    "advise", "post", "CompiledSystem", "ContactElement", "DamperContact", "Excitation", "Harmonic", "InputError", "METHODS",
-    "PAPER_METHODS", "Platform", "RunOptions", "Scheme", "Signal", "Simulation", "SolverError", "Status",
-    "Structure", "System", "Tabulated", "builtin_cases", "generalized_alpha", "get_method", "hht", "load_case",
-    "load_result", "load_system", "newmark", "rigid_damper", "run", "save_result", "state_t_min",
-]
+# public name -> (module, attribute in it); None: the module itself
+_EXPORTS = {
+    "post": ("slipstep.post", None),
+    "advise": ("slipstep.advise", "advise"),
+    "builtin_cases": ("slipstep.casefiles", "builtin_cases"),
+    "load_case": ("slipstep.config", "load_case"),
+    "load_system": ("slipstep.config", "load_system"),
+    "InputError": ("slipstep.errors", "InputError"),
+    "Interrupted": ("slipstep.errors", "Interrupted"),
+    "OutputError": ("slipstep.errors", "OutputError"),
+    "SolverError": ("slipstep.errors", "SolverError"),
+    "Status": ("slipstep.errors", "Status"),
+    "METHODS": ("slipstep.methods.registry", "METHODS"),
+    "PAPER_METHODS": ("slipstep.methods.registry", "PAPER_METHODS"),
+    "get_method": ("slipstep.methods.registry", "get_method"),
+    "Scheme": ("slipstep.methods.schemes", "Scheme"),
+    "generalized_alpha": ("slipstep.methods.schemes", "generalized_alpha"),
+    "hht": ("slipstep.methods.schemes", "hht"),
+    "newmark": ("slipstep.methods.schemes", "newmark"),
+    "RunOptions": ("slipstep.methods.simulation", "RunOptions"),
+    "Simulation": ("slipstep.methods.simulation", "Simulation"),
+    "run": ("slipstep.methods.simulation", "run"),
+    "state_t_min": ("slipstep.methods.simulation", "state_t_min"),
+    "ContactElement": ("slipstep.model.contact", "ContactElement"),
+    "DamperContact": ("slipstep.model.damper", "DamperContact"),
+    "Platform": ("slipstep.model.damper", "Platform"),
+    "rigid_damper": ("slipstep.model.damper", "rigid_damper"),
+    "Excitation": ("slipstep.model.excitation", "Excitation"),
+    "Harmonic": ("slipstep.model.excitation", "Harmonic"),
+    "Signal": ("slipstep.model.excitation", "Signal"),
+    "Tabulated": ("slipstep.model.excitation", "Tabulated"),
+    "Structure": ("slipstep.model.structure", "Structure"),
+    "load_result": ("slipstep.results", "load"),
+    "save_result": ("slipstep.results", "save"),
+    "CompiledSystem": ("slipstep.system", "CompiledSystem"),
+    "System": ("slipstep.system", "System"),
+    # substructures and assemblies (issue 11)
+    "DamperLink": ("slipstep.model.assembly", "DamperLink"),
+    "HarmonicForce": ("slipstep.model.assembly", "HarmonicForce"),
+    "LinkContact": ("slipstep.model.assembly", "LinkContact"),
+    "PlatformLink": ("slipstep.model.assembly", "PlatformLink"),
+    "assemble": ("slipstep.model.assembly", "assemble"),
+    "blade_chain": ("slipstep.model.assembly", "blade_chain"),
+    "engine_order_forces": ("slipstep.model.assembly", "engine_order_forces"),
+    "Point": ("slipstep.model.substructure", "Point"),
+    "Substructure": ("slipstep.model.substructure", "Substructure"),
+    "craig_bampton": ("slipstep.model.substructure", "craig_bampton"),
+    "frame_blade": ("slipstep.model.substructure", "frame_blade"),
+    "load_mtx": ("slipstep.model.substructure", "load_mtx"),
+    "load_npz": ("slipstep.model.substructure", "load_npz"),
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str):
+    if name == "__version__":
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            value = version("slipstep")
+        except PackageNotFoundError:
+            value = "0+unknown"
+    elif name in _EXPORTS:
+        module_name, attr = _EXPORTS[name]
+        module = importlib.import_module(module_name)
+        value = module if attr is None else getattr(module, attr)
+    else:
+        raise AttributeError(f"module 'slipstep' has no attribute {name!r}")
+    globals()[name] = value  # the next access is a plain attribute
+    return value
+
+
+def __dir__():
+    return __all__
+
+
+class _Package(types.ModuleType):
+    """The package module: when the import system binds a submodule whose name is also a public
+    function of it (``slipstep.advise``, the module, and ``slipstep.advise()``, the function),
+    the function is bound, as the eager ``from slipstep.advise import advise`` used to do."""
+
+    def __setattr__(self, name, value):
+        target = _EXPORTS.get(name)
+        if (target is not None and target[1] is not None and isinstance(value, types.ModuleType)
+                and value.__name__ == target[0]):
+            value = getattr(value, target[1], value)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -27,6 +27,15 @@ Quantities reported:
   reached), so the paper case is free of flutter in every state it visits, while the
   variant with mu = 0.5 at all points visits flutter-prone states and is reported.
 
+* Quasi-static DOFs inside a dynamic structure (method quasi-static-dofs, issue 11): when
+  some DOFs are held by contacts only (a damper between blades) and others are not, the
+  damper's internal frequencies with the blades fixed (paper Remark 2) are compared with the
+  excitation: when they are at least 5 times above it and 1 kHz away (Remark 3: the damper
+  then acts only as a spring coupling, its ringing carries no physics) and, when given, the
+  inertia ratio of Eq. 9 is below ``rho_limit``, the damper's DOFs can be treated without
+  inertia while the blades stay dynamic; T_min then comes from the condensed dynamic part.
+  Method 4 for the whole system is not recommended when such a dynamic part exists.
+
 All state combinations are enumerated when their number is at most ``max_states``
 (lift-off is per contact: prod_c (1 + 3^{directions of c}) combinations), else only the
 visited ones.
@@ -166,6 +175,7 @@ class Advice:
     notes: list[str] = field(default_factory=list)
     runs: dict = field(default_factory=dict)
     rho_limit: float = 0.05
+    massless: dict | None = None  # the quasi-static-dofs analysis (module docstring), None if not applicable
 
     @property
     def flutter_free(self) -> bool:
@@ -225,6 +235,13 @@ class Advice:
             L.append(f"States without a quasi-static equilibrium (K + K_D singular): {len(self.singular_states)}"
                      + (", of which visited: " + "; ".join(self._label(s) for s in self.singular_visited)
                         if self.singular_visited else ", none visited"))
+        if self.massless is not None:
+            q = self.massless
+            L.append(f"Quasi-static DOFs (held by contacts only): {', '.join(q['dofs'])}; their internal frequencies "
+                     f"with the rest fixed: {', '.join(f'{v / 1e3:.3g}' for v in q['internal_Hz'])} kHz; T_min of "
+                     f"the dynamic part {q['t_min_s'] * 1e6:.4g} us against {self.stick_t_min_s * 1e6:.4g} us "
+                     f"(step x{q['step_gain']:.3g}); method quasi-static-dofs "
+                     + ("applies" if q["applies"] else "does not apply") + f": {q['why']}")
         L.append(f"Recommendation: {self.recommendation}")
         L += [f"  - {r}" for r in self.reasons]
         L += [f"Note: {n}" for n in self.notes]
@@ -298,7 +315,13 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
         adaptive_n = n * period / float(dt.sum())
 
     reasons: list[str] = []
-    if f5 is not None and fe and max(fe) < f5 / 2 and not singular_v:
+    partial = _massless_analysis(system, cs, stick.t_min_s, fe, rho, rho_limit)
+    if partial is not None and partial["applies"]:
+        rec = "quasi-static-dofs (Method 3+4: the contact-held DOFs without inertia, the rest dynamic)"
+        reasons.append(partial["why"])
+        reasons.append(f"the step is then set by the dynamic part: T_min {partial['t_min_s'] * 1e6:.4g} us instead of "
+                       f"{stick.t_min_s * 1e6:.4g} us, and there is no ringing to filter")
+    elif f5 is not None and fe and max(fe) < f5 / 2 and not singular_v and partial is None:
         rec = "quasi-static (Method 4)"
         reasons.append(f"the excitation ({max(fe):g} Hz) is far below {f5 / 1e3:.3g} kHz, where inertia reaches "
                        f"{rho_limit:.0%} of the centrifugal load (rho = {rho:.2g})")
@@ -325,9 +348,50 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
     if fe and stick.frequencies_Hz:
         low = min((i.frequencies_Hz[0] for i in infos if i.visited and i.frequencies_Hz and not i.singular),
                   default=stick.frequencies_Hz[0])
+        if partial is not None:  # an assembly: the structure's low modes are physics, the ringing is the damper's
+            low = min(partial["internal_Hz"], default=low)
         if low < 5 * max(fe):
             reasons.append(f"the lowest internal frequency of the visited states ({low / 1e3:.3g} kHz) is within a "
                            "factor 5 of the excitation: the ringing cannot be filtered safely (paper Remark 3)")
     return Advice(system.name, names, fe, period, rotor_speed_rpm, radius_m, displacement_amplitude_m, rho, f5,
                   stick.t_min_s, fixed_dt, fixed_n, adaptive_n, enumerated, infos, flutter_v, flutter_nv, singular,
-                  singular_v, rec, reasons, notes, runs, rho_limit)
+                  singular_v, rec, reasons, notes, runs, rho_limit, partial)
+
+
+def _massless_analysis(system, cs, t_min_stick: float, fe: list[float], rho, rho_limit: float) -> dict | None:
+    """Whether the contact-held DOFs can be quasi-static inside the dynamic rest (module
+    docstring); None when there are no such DOFs or nothing else."""
+    from slipstep.methods import massless as ML
+
+    idx = ML.contact_held_dofs(system)
+    if idx.size == 0 or idx.size == cs.M.shape[0]:
+        return None
+    dofs = [system.structure.dof_names[i] for i in idx]
+    stick = np.ones(cs.kt.shape[0], np.int8)
+    internal = [float(f) for f in ML.internal_frequencies(cs, stick, idx)]
+    try:
+        t_min = ML.condensed_t_min(ML.inertia_free(cs, idx), stick, idx)[0]
+    except InputError:
+        return {"dofs": dofs, "internal_Hz": internal, "t_min_s": math.nan, "step_gain": math.nan, "applies": False,
+                "why": "the contacts do not hold those DOFs in full stick (no quasi-static equilibrium)"}
+    fmax = max(fe) if fe else None
+    low = min(internal) if internal else math.inf
+    if fmax is None:
+        applies, why = False, "the case has no harmonic excitation to compare the internal frequencies with"
+    elif low < 5 * fmax or low - fmax < 1000.0:
+        applies, why = False, (f"their lowest internal frequency ({low / 1e3:.3g} kHz) is within a factor 5 or 1 kHz "
+                               f"of the excitation ({fmax:g} Hz): their dynamics couple with the structure's "
+                               "(paper Remark 3), keep their inertia")
+    elif rho is not None and rho >= rho_limit:
+        applies, why = False, (f"their inertia reaches {rho:.2g} of the centrifugal load at the excitation "
+                               f"(paper Eq. 9, limit {rho_limit:.0%})")
+    else:
+        applies = True
+        why = (f"their lowest internal frequency ({low / 1e3:.3g} kHz) is far above the excitation ({fmax:g} Hz): "
+               "they act mainly as a spring coupling (paper Remark 3); their inertia adds the ringing and forces "
+               "small against the contact forces (a few % of the friction forces can still shift a resonant "
+               "amplitude by a few %: compare with a dynamic run at the peak)"
+               + ("" if rho is None else f"; inertia ratio {rho:.2g} < {rho_limit:.0%} (paper Eq. 9)")
+               + "; treat them without inertia")
+    return {"dofs": dofs, "internal_Hz": internal, "t_min_s": float(t_min), "step_gain": float(t_min / t_min_stick),
+            "applies": applies, "why": why}

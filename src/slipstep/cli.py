@@ -1,37 +1,85 @@
 """The ``slipstep`` command line: run a case, compare the paper's methods, list cases/methods.
 
 No numerics here: commands load a case (slipstep.config), call slipstep.methods /
-slipstep.compare, and print. Exit codes: 0 success, 1 a march that stopped early
-(the partial result is still written), 2 bad input (one red line naming the field and the fix).
+slipstep.compare, and print. Exit codes (every command): 0 success, 1 a march that stopped
+early (the partial result is still written), 2 bad input (one red line naming the key and the
+fix), 3 an I/O or environment failure (disk full, read-only directory, out of memory), 4 an
+internal error (one line; the traceback is saved to a file), 130 aborted by Ctrl-C.
+
+Fast start: this module imports only typer, rich's console and light slipstep modules; the
+numerical stack (numpy, numba, xarray, pydantic) is imported inside the commands that need
+it. Command modules ``slipstep/cli_<name>.py`` with ``register(app)`` are found and registered
+by :func:`_register_plugins`; they import only typer and the standard library at module level.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import sys
 import math
+import os
+import sys
 import warnings
 from pathlib import Path
 from typing import Optional
 
 import typer
 from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
+from typer.core import TyperGroup
+from typer.exceptions import TyperException
 
-from slipstep.config import CASES_DIR, builtin_cases, load_case, read_toml
-from slipstep.errors import InputError, SolverError
-from slipstep.methods.registry import ALIASES, COMPARE_METHODS, METHODS, get_method
+from slipstep.casefiles import CASES_DIR, builtin_cases, case_stem, read_toml
+from slipstep.errors import InputError, OutputError, SolverError
+from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS
+from slipstep.text import escape_text
+
+EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
+_PASS_THROUGH = (typer.Exit, typer.Abort, TyperException, SystemExit)  # typer's own exits and usage errors
+_FAST_COMMANDS = ("cases", "methods")  # listings that take no argument: answered without typer's coercion
+
+
+class _Group(TyperGroup):
+    """The command group: any exception escaping a command becomes one line and an exit code;
+    ``--version`` is answered here (a typed option on the callback would make typer build its
+    pydantic adapters, 150 ms, for commands such as ``cases`` that need none)."""
+
+    def parse_args(self, ctx, args):
+        if args[:1] == ["--version"]:
+            print(f"slipstep {version()}")
+            ctx.exit(0)
+        command = self.commands.get(args[0]) if len(args) == 1 and args[0] in _FAST_COMMANDS else None
+        if command is not None and not command.params and command.callback is not None:
+            # a listing without options (cases, methods): called directly, without typer's parameter
+            # machinery, which imports pydantic (150 ms) to coerce the implicit --help flag
+            try:
+                command.callback()
+            except _PASS_THROUGH:
+                raise
+            except BaseException as exc:  # noqa: BLE001
+                ctx.exit(report_failure(exc))
+            ctx.exit(0)
+        return super().parse_args(ctx, args)
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except _PASS_THROUGH:
+            raise
+        except BaseException as exc:  # noqa: BLE001 (every failure gets its exit code)
+            raise typer.Exit(report_failure(exc)) from None
+
 
 app = typer.Typer(
     name="slipstep",
+    cls=_Group,
     help=(
         "Time-marching simulation of structures with friction contacts (Gastaldi & Berruti 2018 methods).\n\n"
         "CASE is a built-in case name (see `slipstep cases`, e.g. `paper`) or a TOML case file.\n"
         "Methods: newmark (1), newmark-adaptive (2), piecewise-linear (3), piecewise-linear-adaptive (2+3), "
         "quasi-static (4), full-newton.\n\n"
-        "Exit codes: 0 ok; 1 the march stopped early (partial result written); 2 bad input."
+        "Exit codes: 0 ok; 1 the march stopped early (partial result written); 2 bad input; "
+        "3 I/O or environment failure; 4 internal error; 130 aborted (Ctrl-C).\n\n"
+        "`slipstep --version` prints the version."
     ),
     no_args_is_help=True,
     add_completion=False,
@@ -43,50 +91,219 @@ out = Console(width=None if sys.stdout.isatty() else 140)
 err = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
 
 
+def safe(value) -> str:
+    """``value`` as plain text for the terminal: control characters escaped (print it with
+    markup=False, or wrap it in rich.text.Text, so that '[/bad]' is not markup)."""
+    return escape_text(value)
+
+
+def say(text, console: Console | None = None, style: str | None = None) -> None:
+    """Print one line of plain text (no markup, no highlighting, control characters escaped)."""
+    (console or out).print(safe(text), style=style, markup=False, highlight=False, soft_wrap=True)
+
+
+def fail_line(kind: str, message) -> None:
+    say(f"{kind}: {' '.join(str(message).split())}", err, "bold red")
+
+
+def report_failure(exc: BaseException) -> int:
+    """Print the one-line message of a failure and return its exit code."""
+    if isinstance(exc, InputError):
+        fail_line("input error", exc)
+        return EXIT_INPUT
+    if isinstance(exc, SolverError):
+        fail_line("solver error", exc)
+        return EXIT_INPUT
+    if isinstance(exc, OutputError):
+        fail_line("output error", exc)
+        return EXIT_IO
+    if isinstance(exc, KeyboardInterrupt):
+        fail_line("interrupted", "aborted by the user (Ctrl-C); files being written were not replaced")
+        return EXIT_ABORTED
+    if isinstance(exc, MemoryError):
+        fail_line("out of memory", "the process ran out of memory. Fix: simulate fewer periods or use --max-memory "
+                                   "to be refused before the run")
+        return EXIT_IO
+    if isinstance(exc, OSError):
+        from slipstep.io import output_error
+
+        fail_line("I/O error", output_error(getattr(exc, "filename", None) or "(file)", exc))
+        return EXIT_IO
+    path = _save_traceback(exc)
+    where = f"the traceback is in {path}" if path else "the traceback could not be saved"
+    fail_line("internal error", f"{type(exc).__name__}: {str(exc)[:200]} -- this is a bug in slipstep; please report "
+                                f"it with the command you ran ({where})")
+    return EXIT_INTERNAL
+
+
+def _save_traceback(exc: BaseException) -> str | None:
+    import tempfile
+    import time
+    import traceback
+
+    from slipstep.io import write_text
+
+    text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    name = f"slipstep-error-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
+    for directory in (Path(tempfile.gettempdir()), Path.cwd()):
+        try:
+            return str(write_text(directory / name, f"slipstep {version()}\n{' '.join(sys.argv)}\n\n{text}"))
+        except Exception:  # noqa: BLE001 (best effort)
+            continue
+    return None
+
+
 @contextlib.contextmanager
 def user_errors():
-    """Turn InputError / SolverError into one red line on stderr and exit code 2; show warnings
-    as yellow lines on stderr (stdout stays clean for --json)."""
+    """Show warnings as yellow lines on stderr (stdout stays clean for --json) and turn a failure
+    into its one-line message and exit code (see :func:`report_failure`)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        for category in _SILENT_WARNINGS:
+            warnings.simplefilter("ignore", category)
         try:
             yield
-        except (InputError, SolverError, FileNotFoundError) as exc:
-            kind = "solver error" if isinstance(exc, SolverError) else "input error"
-            err.print(f"{kind}: {' '.join(str(exc).split())}", style="bold red", markup=False,
-                      highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        finally:
-            for w in caught:
-                err.print(f"warning: {' '.join(str(w.message).split())}", style="yellow", markup=False,
-                          highlight=False, soft_wrap=True)
+        except _PASS_THROUGH:
+            _show_warnings(caught)
+            raise
+        except BaseException as exc:  # noqa: BLE001
+            _show_warnings(caught)  # before the failure line, which stays the last line
+            raise typer.Exit(report_failure(exc)) from None
+        _show_warnings(caught)
 
 
-def _output_dir(path: Path) -> Path:
-    """Create the output directory or raise an InputError naming --output-dir."""
+# library noise that is not the user's business (an import interrupted by Ctrl-C leaves unclosed files)
+_SILENT_WARNINGS = (ResourceWarning, DeprecationWarning, PendingDeprecationWarning, ImportWarning)
+
+
+def _show_warnings(caught: list) -> None:
+    for w in caught:
+        say(f"warning: {' '.join(str(w.message).split())}", err, "yellow")
+    caught.clear()
+
+
+def version() -> str:
+    """The installed version (one place: pyproject.toml, read through importlib.metadata)."""
+    from importlib.metadata import PackageNotFoundError, version as dist_version
+
+    try:
+        return dist_version("slipstep")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+@app.callback()
+def main():
+    """Time-marching simulation of structures with friction contacts."""
+    _ignore_file_size_signal()
+
+
+def _ignore_file_size_signal() -> None:
+    """A file size limit (ulimit -f) then fails the write with EFBIG (exit 3, previous file
+    kept) instead of killing the process with SIGXFSZ."""
+    import signal
+
+    with contextlib.suppress(AttributeError, ValueError, OSError):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
+# -- options shared by the commands ------------------------------------------------------------
+
+def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Path:
+    """Create the output directory and check that it takes a file, before any long run:
+    InputError (exit 2) for a path that cannot be a directory, OutputError (exit 3) for one
+    the environment refuses (read-only, no permission, disk full)."""
+    import tempfile
+
+    if not str(path).strip():
+        raise InputError(option, "is empty", "give a directory path (e.g. slipstep-out)")
+    if "\x00" in str(path):
+        raise InputError(option, "contains a NUL character", "give a directory path")
+    path = Path(path) / below if below else Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(option, f"{str(path)!r} is an existing file, not a directory", "give a directory path")
     try:
         path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise InputError(option, f"{str(path)!r} cannot be created (a part of it is a file)",
+                         "give a directory path") from None
+    except NotADirectoryError:
+        raise InputError(option, f"{str(path)!r} cannot be created (a part of it is a file)",
+                         "give a directory path") from None
     except OSError as exc:
-        raise InputError("output_dir", f"{str(path)!r} cannot be created ({exc.strerror})",
-                         "give a writable directory path (--output-dir)") from None
+        from slipstep.io import output_error
+
+        raise output_error(path, exc) from None
+    try:
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        from slipstep.io import output_error
+
+        raise output_error(path, exc) from None
     return path
 
 
-def _case_stem(case: str) -> str:
-    return Path(case).stem if Path(case).suffix else case
+# the names plugin modules (cli_frf) import from earlier versions of this module
+_case_stem = case_stem
 
 
-def _run_options(spec, periods, step_ratio, steps_per_period) -> dict:
-    """Command-line options over the case's \\[run] table; unset ones keep RunOptions defaults."""
-    opts = {}
+def _output_dir(path, option: str = "--output-dir") -> Path:
+    return output_dir_option(path, option)
+
+
+def _method(cli_value: Optional[str], spec):
+    from slipstep.methods.registry import get_method
+
+    field, value = ("--method", cli_value) if cli_value is not None else ("[run] method", spec.method)
+    if value is None:
+        return get_method("newmark")
+    if not value.strip():
+        raise InputError(field, "is empty", "give a method name or paper number (see `slipstep methods`)")
+    try:
+        return get_method(value)
+    except InputError as exc:
+        raise InputError(field, exc.problem, exc.fix) from None
+
+
+def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None) -> tuple[dict, dict]:
+    """Command-line options over the case's \\[run] table; unset ones keep RunOptions defaults.
+    Returns (options, where each option came from: the flag or the case key). --duration wins
+    over --periods, as duration does in RunOptions; a --periods given on the command line wins
+    over the case's duration_s."""
+    opts, origin = {}, {}
     for key, cli_value, case_value in (("periods", periods, spec.periods), ("step_ratio", step_ratio, spec.step_ratio),
                                        ("steps_per_period", steps_per_period, spec.steps_per_period)):
-        value = cli_value if cli_value is not None else case_value
-        if value is not None:
-            opts[key] = value
-    if spec.duration_s is not None and periods is None:
-        opts["duration"] = spec.duration_s
-    return opts
+        flag = "--" + key.replace("_", "-")
+        if cli_value is not None:
+            opts[key], origin[key] = cli_value, flag
+        elif case_value is not None:
+            opts[key], origin[key] = case_value, f"[run] {key}"
+        else:
+            origin[key] = flag
+    if duration is not None:
+        opts["duration"], origin["duration"] = duration, "--duration"
+    elif spec.duration_s is not None and periods is None:
+        opts["duration"], origin["duration"] = spec.duration_s, "[run] duration_s"
+    else:
+        origin["duration"] = "[run] duration_s"
+    if max_memory is not None:
+        from slipstep.methods.memory import parse_size
+
+        opts["max_memory"] = parse_size("--max-memory", max_memory)
+    origin["max_memory"] = "--max-memory"
+    return opts, origin
+
+
+@contextlib.contextmanager
+def option_names(origin: dict):
+    """Re-raise an InputError about a run option under the name the user gave it."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.field in origin:
+            raise InputError(origin[exc.field], exc.problem, exc.fix) from None
+        raise
 
 
 def _fmt(value, digits: int = 4) -> str:
@@ -99,6 +316,26 @@ def _json_value(value):
     if hasattr(value, "item"):
         return value.item()
     return value
+
+
+def _table(title, *columns, show_header: bool = True):
+    from rich.table import Table
+    from rich.text import Text
+
+    table = Table(title=Text(safe(title)) if title else None, show_header=show_header)
+    for col in columns:
+        table.add_column(col)
+    return table
+
+
+def _row(table, *cells):
+    from rich.text import Text
+
+    table.add_row(*(Text(safe(c)) for c in cells))
+
+
+MAX_MEMORY_HELP = ("Memory a run may take, e.g. 8GB (default: half of the available memory); the estimate is "
+                   "checked before anything is allocated.")
 
 
 @app.command()
@@ -114,20 +351,39 @@ def run(
     step_ratio: Optional[float] = typer.Option(None, help="r in dt = r T_min/pi for dynamic methods (default 1)."),
     steps_per_period: Optional[int] = typer.Option(None, help="Steps per period of the quasi-static method "
                                                               "(default 300)."),
-    output_dir: Path = typer.Option(Path("slipstep-out"), help="Directory of the result file <case>_<method>.nc."),
-    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table) for scripts."),
+    duration: Optional[float] = typer.Option(None, help="Simulated time \\[s] after the preload, instead of periods "
+                                                        "(default: the case's \\[run] duration_s)."),
+    output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
+    max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
 ):
-    """Simulate CASE with one method; print a summary and write the result Dataset (netCDF)."""
-    from slipstep.methods.simulation import Simulation
-    from slipstep.results import save
+    """Simulate CASE with one method; print a summary and write the result Dataset (netCDF).
 
+    A run longer than about a second shows a progress bar on a terminal. Ctrl-C stops the march at
+    the current step and writes the partial result (status INTERRUPTED, exit code 1); a second
+    Ctrl-C aborts. The result file is replaced atomically: an interrupted or failed write keeps
+    the previous file.
+    """
     with user_errors():
+        from slipstep.config import load_case
+        from slipstep.live import deferred_interrupt
+        from slipstep.methods.simulation import Simulation
+        from slipstep.results import save
+
         system, spec = load_case(case)
-        chosen = get_method(method or spec.method or "newmark")
-        sim = Simulation(system, chosen, **_run_options(spec, periods, step_ratio, steps_per_period))
+        chosen = _method(method, spec)
+        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration)
+        directory = output_dir_option(output_dir)
+        with option_names(origin):
+            sim = Simulation(system, chosen, **opts)
+        sim.progress = err.is_terminal and not as_json
+        sim.keep_interrupted = True
         ds = sim.run()
-        path = _output_dir(output_dir) / f"{_case_stem(case)}_{chosen.name}.nc"
-        save(ds, path)
+        path = directory / f"{case_stem(case)}_{chosen.name}.nc"
+        with deferred_interrupt(lambda: say("saving the result: Ctrl-C again aborts the save (the previous file "
+                                            "is kept)", err, "yellow"),
+                                armed=ds.attrs["status"] == "INTERRUPTED"):
+            save(ds, path)
     a = ds.attrs
     keys = ("case", "method", "paper_method", "status", "status_message", "steps", "iterations", "solves",
             "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s")
@@ -136,7 +392,7 @@ def run(
     if as_json:
         print(json.dumps(summary))
     else:
-        table = Table(title=f"slipstep run: {a['case']}, {a['method']} ({a['paper_method']})", show_header=False)
+        table = _table(f"slipstep run: {a['case']}, {a['method']} ({a['paper_method']})", show_header=False)
         table.add_column("quantity", style="cyan")
         table.add_column("value")
         rows = [("method", f"{a['method']} ({a['paper_method']})"), ("status", a["status"]),
@@ -147,11 +403,11 @@ def run(
                 ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
                 ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"), ("output", str(path))]
         for name, value in rows:
-            table.add_row(name, str(value))
+            _row(table, name, value)
         out.print(table)
     if a["status"] != "OK":
-        err.print(f"solver stopped early: {a['status_message']}", style="bold red", markup=False, soft_wrap=True)
-        raise typer.Exit(1)
+        say(f"solver stopped early: {a['status_message']}; the partial result is in {path}", err, "bold red")
+        raise typer.Exit(EXIT_STOPPED)
 
 
 COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
@@ -167,6 +423,9 @@ COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
     ("  after low-pass [% CF]", "max_force_diff_filtered_pct_cf", 1.0),
 )
 
+PAPER_METHODS_TEXT = ",".join(PAPER_METHODS)
+COMPARE_METHODS_TEXT = ",".join(COMPARE_METHODS)
+
 
 @app.command()
 def compare(
@@ -174,15 +433,16 @@ def compare(
     periods: Optional[float] = typer.Option(None, help="Periods per run (default: the case's \\[run] value, else 3)."),
     repeats: int = typer.Option(21, help="Timed kernel runs per method, interleaved across the methods after every "
                                         "kernel is warmed; the median and the minimum are reported."),
-    methods: str = typer.Option(",".join(COMPARE_METHODS), help="Comma-separated methods (names or paper numbers); "
-                                                              "Method 1 (newmark) always runs as the reference."),
-    output_dir: Path = typer.Option(Path("slipstep-out"), help="Directory for comparison.csv/.json, "
-                                                               "fig8_time_ratios.png, fig5_iterations.png."),
+    methods: str = typer.Option(COMPARE_METHODS_TEXT, help="Comma-separated methods (names or paper numbers); "
+                                                           "Method 1 (newmark) always runs as the reference."),
+    output_dir: str = typer.Option("slipstep-out", help="Directory of the comparisons: the files go to "
+                                                        "OUTPUT_DIR/<case-file-stem>/."),
     as_json: bool = typer.Option(False, "--json", help="Print the table as a JSON list (one object per method)."),
     schemes: Optional[str] = typer.Option(None, help="Compare integration schemes instead (paper App. A): 'all' or "
                                                      "a comma list, e.g. 'newmark,hht(0.1),rk4'; every scheme in "
                                                      "every variant it supports (fixed, adaptive, "
                                                      "piecewise-linear, both)."),
+    max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
 ):
     """Run the paper's methods on CASE side by side (paper Figs. 5 and 8).
 
@@ -190,96 +450,115 @@ def compare(
     from Method 1 over the last period (raw and low-pass filtered; displacements in um, contact forces in % of
     the constant load CF).
 
-    Writes comparison.csv, comparison.json, fig8_time_ratios.png and fig5_iterations.png to OUTPUT_DIR.
+    Writes comparison.csv, comparison.json, fig8_time_ratios.png and fig5_iterations.png to
+    OUTPUT_DIR/<case-file-stem>/ (schemes.json and schemes.md with --schemes).
     """
-    from slipstep import compare as cmp
-
     if schemes is not None:
         return _compare_schemes(case, schemes, periods, repeats, output_dir, as_json)
     with user_errors():
+        from slipstep import compare as cmp
+        from slipstep.config import load_case
+
         system, spec = load_case(case)
-        _output_dir(output_dir)
-        opts = _run_options(spec, periods, None, None)
+        if not methods.strip():
+            raise InputError("--methods", "is empty", f"give a comma list of methods, e.g. {PAPER_METHODS_TEXT}")
+        opts, origin = _run_options(spec, periods, None, None, max_memory)
+        directory = output_dir_option(output_dir, below=case_stem(case))
         n_periods = opts.pop("periods", 3)
         datasets: dict = {}
-        rows = cmp.compare(system, methods=methods, periods=n_periods, repeats=repeats, datasets=datasets, **opts)
-        files = cmp.write_outputs(rows, datasets, output_dir, title=f"{system.name}: kernel time relative to Method 1")
+        with option_names({**origin, "repeats": "--repeats", "method": "--methods"}):
+            rows = cmp.compare(system, methods=methods, periods=n_periods, repeats=repeats, datasets=datasets, **opts)
+        files = cmp.write_outputs(rows, datasets, directory, title=f"{system.name}: kernel time relative to Method 1")
     if as_json:
         print(json.dumps(rows, default=_json_value))
         return
-    table = Table(title=f"slipstep compare: {system.name}, {n_periods:g} period(s), "
-                        f"{repeats} interleaved kernel runs per method after warming every kernel")
+    table = _table(f"slipstep compare: {system.name}, {n_periods:g} period(s), {repeats} interleaved kernel runs "
+                   "per method after warming every kernel")
     table.add_column("", style="cyan")
     for r in rows:
-        table.add_column(r["paper_method"], justify="right")
+        table.add_column(safe(r["paper_method"]), justify="right")
     for label, key, scale in COMPARE_ROWS:
-        cells = [str(r[key]) if scale is None else _fmt(r[key] * scale, 3) for r in rows]
-        table.add_row(escape(label), *cells)
+        _row(table, label, *(str(r[key]) if scale is None else _fmt(r[key] * scale, 3) for r in rows))
     out.print(table)
-    out.print(f"CF = {rows[0]['force_scale_N']:.4g} N; differences over the last period vs Method 1; "
-              f"low-pass cut-off {rows[0]['filter_cutoff_Hz']:.4g} Hz.", soft_wrap=True)
+    say(f"CF = {rows[0]['force_scale_N']:.4g} N; differences over the last period vs Method 1; "
+        f"low-pass cut-off {rows[0]['filter_cutoff_Hz']:.4g} Hz.")
     for path in files.values():
-        out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)
+        say(f"wrote {path}")
     failed = [r["method"] for r in rows if r["status"] != "OK"]
     if failed:
-        err.print(f"methods that stopped early: {', '.join(failed)}", style="bold red", soft_wrap=True)
-        raise typer.Exit(1)
+        say(f"methods that stopped early: {', '.join(failed)}", err, "bold red")
+        raise typer.Exit(EXIT_STOPPED)
 
 
 def _compare_schemes(case, schemes, periods, repeats, output_dir, as_json):
     """`compare --schemes`: every scheme x variant, cost and error against a fine-step reference."""
-    from slipstep.integrators.compare import compare_schemes, format_table
-
     with user_errors():
+        from slipstep.config import load_case
+        from slipstep.integrators.compare import compare_schemes, format_table
+        from slipstep.io import write_text
+
         system, spec = load_case(case)
-        _output_dir(output_dir)
+        if not schemes.strip():
+            raise InputError("--schemes", "is empty", "give 'all' or a comma list such as newmark,hht(0.1),rk4")
         chosen = "all" if schemes.strip() == "all" else [s.strip() for s in schemes.split(",") if s.strip()]
         n_periods = periods if periods is not None else (spec.periods if spec.periods is not None else 3)
-        rows = compare_schemes(system, schemes=chosen, periods=n_periods, repeats=repeats)
-    path = output_dir / "schemes.json"
-    path.write_text(json.dumps(rows, default=_json_value, indent=1))
-    (output_dir / "schemes.md").write_text(format_table(rows) + "\n")
+        directory = output_dir_option(output_dir, below=case_stem(case))
+        with option_names({"scheme": "--schemes", "periods": "--periods", "repeats": "--repeats"}):
+            rows = compare_schemes(system, schemes=chosen, periods=n_periods, repeats=repeats)
+        path = write_text(directory / "schemes.json", json.dumps(rows, default=_json_value, indent=1))
+        table_path = write_text(directory / "schemes.md", format_table(rows) + "\n")
     if as_json:
         print(json.dumps(rows, default=_json_value))
         return
-    out.print(format_table(rows), markup=False, highlight=False, soft_wrap=True)
-    out.print(f"errors: last period against piecewise-linear Newmark at step ratio 0.1; wrote {path} and "
-              f"{output_dir / 'schemes.md'}", markup=False, highlight=False, soft_wrap=True)
+    for line in format_table(rows).splitlines():
+        say(line)
+    say(f"errors: last period against piecewise-linear Newmark at step ratio 0.1; wrote {path} and {table_path}")
 
 
 @app.command()
 def cases():
     """List the built-in cases."""
-    table = Table(title="built-in cases (use the name as CASE)")
-    table.add_column("name", style="cyan")
-    table.add_column("description")
     with user_errors():
+        table = _table("built-in cases (use the name as CASE)")
+        table.add_column("name", style="cyan")
+        table.add_column("description")
         for name in builtin_cases():
-            table.add_row(name, str(read_toml(CASES_DIR / f"{name}.toml").get("description", "")))
+            _row(table, name, str(read_toml(CASES_DIR / f"{name}.toml").get("description", "")))
     out.print(table)
 
 
 @app.command()
 def methods():
     """List the time-marching methods and their paper numbers."""
+    from slipstep.methods.registry import ALIASES, METHODS
+
     numbers = {v: k for k, v in ALIASES.items() if k != "23"}
-    table = Table(title="methods (use the name or the paper number with --method)")
-    for header in ("name", "paper", "number", "description"):
-        table.add_column(header)
+    table = _table("methods (use the name or the paper number with --method)", "name", "paper", "number", "description")
     for m in METHODS.values():
-        table.add_row(m.name, m.paper_label, numbers.get(m.name, "-"), m.description)
+        _row(table, m.name, m.paper_label, numbers.get(m.name, "-"), m.description)
     out.print(table)
 
 
-def _register_plugins() -> None:
-    """Post-processing commands (plot/report/...) live in slipstep.cli_post when installed."""
-    try:
-        from slipstep.cli_post import register
-    except ModuleNotFoundError as exc:
-        if exc.name != "slipstep.cli_post":
-            raise
-        return
-    register(app)
+def _register_plugins(target: typer.Typer | None = None) -> None:
+    """Register every command module ``slipstep/cli_<name>.py`` (its ``register(app)``) on
+    ``target`` (default: the slipstep app), in name order. A module that cannot be imported is
+    skipped with a warning on stderr, so one broken plugin never takes the command line down."""
+    import importlib
+
+    import slipstep
+
+    target = app if target is None else target
+    stems = sorted({p.stem for d in slipstep.__path__ for p in Path(d).glob("cli_*.py")})
+    for stem in stems:
+        name = f"slipstep.{stem}"
+        try:
+            module = importlib.import_module(name)
+        except Exception as exc:  # noqa: BLE001
+            say(f"warning: command module {name} not loaded ({type(exc).__name__}: {exc})", err, "yellow")
+            continue
+        register = getattr(module, "register", None)
+        if callable(register):
+            register(target)
 
 
 _register_plugins()

@@ -15,7 +15,8 @@ import typer
 
 from slipstep.errors import InputError
 
-from slipstep.cli import out as _out, user_errors as _user_errors  # one console setup
+from slipstep.casefiles import case_stem
+from slipstep.cli import output_dir_option, say, user_errors as _user_errors  # one console setup
 
 
 def _load_case(case: str):
@@ -25,7 +26,7 @@ def _load_case(case: str):
 
 
 def plot(result: Path = typer.Argument(..., help="a result file written by `slipstep run` (.nc)"),
-         output_dir: Path = typer.Option(Path("figures"), "--output-dir", "-o", help="folder for the PNG files"),
+         output_dir: str = typer.Option("figures", "--output-dir", "-o", help="folder for the PNG files"),
          case: Optional[str] = typer.Option(None, "--case", help="the case of the result, to filter the loops "
                                             "(default: the case named in the result, if it is a built-in one)")):
     """Write the figures of a result (time histories, loops, step size, iterations, states) as PNG."""
@@ -34,22 +35,17 @@ def plot(result: Path = typer.Argument(..., help="a result file written by `slip
         from slipstep.config import builtin_cases
         from slipstep.results import load
 
-        if not result.exists():
-            raise InputError("RESULT", f"file {str(result)!r} does not exist", "give the path of a .nc result file")
-        try:
-            ds = load(result)
-        except (OSError, ValueError) as exc:
-            raise InputError("RESULT", f"{str(result)!r} is not a readable result ({exc})",
-                             "give a .nc file written by `slipstep run`") from None
+        ds = load(result, field="RESULT")  # refuses foreign, corrupt and HDF5-external files
+        directory = output_dir_option(output_dir, "--output-dir")
         name = case or ds.attrs.get("case")
         system = _load_case(name) if name and (case or name in builtin_cases()) else None
-        paths = plots.write_figures(ds, output_dir, system=system, prefix=f"{result.stem}_")
+        paths = plots.write_figures(ds, directory, system=system, prefix=f"{result.stem}_")
         for p in paths:
-            _out.print(str(p), markup=False, highlight=False)
+            say(p)
 
 
 def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
-           output: Optional[Path] = typer.Option(None, "--output", "-o", help="HTML file (default CASE_report.html)"),
+           output: Optional[str] = typer.Option(None, "--output", "-o", help="HTML file (default CASE_report.html)"),
            periods: float = typer.Option(3.0, help="excitation periods to simulate"),
            rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] for the Eq. 9 check"),
            radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
@@ -58,13 +54,21 @@ def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper)
     with _user_errors():
         from slipstep.report import write_report
 
+        path = Path(output) if output is not None else Path(f"{case_stem(case)}_report.html")
+        if output is not None and not output.strip():
+            raise InputError("--output", "is empty", "give an HTML file name such as paper_report.html")
+        if path.is_dir():
+            raise InputError("--output", f"{str(path)!r} is a directory", "give an HTML file name such as "
+                             f"{str(path / (case_stem(case) + '_report.html'))!r}")
+        if path.parent.exists() and not path.parent.is_dir():
+            raise InputError("--output", f"{str(path.parent)!r} is a file, not a directory",
+                             "give a path in a directory")
+        output_dir_option(path.parent, "--output")  # a read-only directory fails now, not after the run
         system = _load_case(case)
-        stem = Path(case).stem if Path(case).suffix else case
-        path = output or Path(f"{stem}_report.html")
         xd = None if displacement_um is None else displacement_um * 1e-6
         write_report(system, path, periods=periods, rotor_speed_rpm=rotor_speed_rpm, radius_m=radius_m,
                      displacement_amplitude_m=xd)
-        _out.print(str(path), markup=False, highlight=False)
+        say(path)
 
 
 def advise(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
@@ -82,7 +86,8 @@ def advise(case: str = typer.Argument(..., help="built-in case name (e.g. paper)
         if as_json:
             print(json.dumps(_jsonable(result.to_dict())))
         else:
-            _out.print(result.text(), markup=False, highlight=False, soft_wrap=True)
+            for line in result.text().splitlines():
+                say(line)
 
 
 def _jsonable(value):

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import gc
+import io
 import json
 import math
 from pathlib import Path
@@ -37,6 +38,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
+from slipstep.io import plain_text_figures, save_figure, write_text
 from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.post.filtering import (
@@ -246,18 +248,16 @@ def _grid_last(grid: np.ndarray, ref: xr.Dataset) -> np.ndarray:
 def write_csv(rows: list[dict], path) -> Path:
     """The table as CSV (one line per method, header = keys of the first row)."""
     path = Path(path)
-    with open(path, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
+    buffer = io.StringIO(newline="")
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_text(path, buffer.getvalue())
 
 
 def write_json(rows: list[dict], path) -> Path:
     """The table as a JSON list of objects."""
-    path = Path(path)
-    path.write_text(json.dumps(rows, indent=2, default=_jsonable) + "\n")
-    return path
+    return write_text(Path(path), json.dumps(rows, indent=2, default=_jsonable) + "\n")
 
 
 def _jsonable(value):
@@ -291,7 +291,7 @@ def plot_time_ratios(rows: list[dict], path, title: str = "") -> Path:
     ax.axhline(1.0, color="grey", lw=0.8, ls="--")
     ax.set_title(title or "Computational time relative to standard Newmark (paper Fig. 8)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return Path(path)
 
@@ -311,11 +311,12 @@ def plot_solves_histogram(datasets: dict, path, methods=(REFERENCE, "piecewise-l
         ax.set_title(f"{ds.attrs['paper_method']} ({name}): mean {solves.mean():.2f}", fontsize=10)
     fig.suptitle("Iterations per time step (paper Fig. 5)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return Path(path)
 
 
+@plain_text_figures
 def write_outputs(rows: list[dict], datasets: dict, output_dir, title: str = "") -> dict[str, Path]:
     """Write comparison.csv, comparison.json, fig8_time_ratios.png and fig5_iterations.png."""
     out = Path(output_dir)

@@ -15,14 +15,15 @@ from __future__ import annotations
 
 import math
 import re
-import sys
 from collections import defaultdict
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError
 
+from slipstep.casefiles import CASES_DIR, builtin_cases, case_path, read_toml  # noqa: F401 (re-exported)
+from slipstep.config_check import check_case, key_path, spec_error
 from slipstep.errors import InputError
 from slipstep.model.contact import ContactElement
 from slipstep.model.damper import DamperContact, Platform, rigid_damper
@@ -30,15 +31,9 @@ from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
 from slipstep.model.structure import Structure
 from slipstep.system import System
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 UM = 1e-6
 MM = 1e-3
 N_PER_UM = 1e6
-CASES_DIR = Path(__file__).parent / "cases"
 
 
 class _Strict(BaseModel):
@@ -124,24 +119,24 @@ class CaseSpec(_Strict):
     force_table: list[TableSpec] = []
     period_s: Optional[float] = None
     run: RunSpec = RunSpec()
+    _data: dict = PrivateAttr(default_factory=dict)  # the TOML data, for messages naming its keys
 
 
 def _loc(err) -> str:
+    """A pydantic error location as a dotted path (slipstep.config_assembly names its fields so)."""
     return ".".join(str(p) for p in err["loc"]) or "case"
 
 
 def parse_case(data: dict, source: str = "case") -> CaseSpec:
+    """Validate the TOML data of a case: the schema (pydantic: keys, types), then the checks in
+    the user's terms (slipstep.config_check: names, duplicates, ranges, shapes)."""
     try:
-        return CaseSpec.model_validate(data)
+        spec = CaseSpec.model_validate(data)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        field = _loc(first)
-        if first["type"] == "extra_forbidden":
-            raise InputError(field, f"is not a known key in {source}",
-                             "check the spelling against the case format in the README (units are part of key names)") from None
-        if first["type"] == "missing":
-            raise InputError(field, f"is required in {source} but missing", "add it") from None
-        raise InputError(field, f"{first['msg']} (got {first.get('input')!r})", "give a value of the right type") from None
+        raise spec_error(exc.errors(), data, CaseSpec, source) from None
+    check_case(data)
+    spec._data = data
+    return spec
 
 
 def _signal(harmonics: list[HarmonicSpec], tables: list[TableSpec], components: tuple[str, ...],
@@ -151,62 +146,81 @@ def _signal(harmonics: list[HarmonicSpec], tables: list[TableSpec], components: 
     index = {c: i for i, c in enumerate(components)}
     by_freq: dict[float, tuple[np.ndarray, np.ndarray]] = defaultdict(
         lambda: (np.zeros(len(components)), np.zeros(len(components))))
-    for h in harmonics:
-        if h.component not in index:
-            raise InputError(f"{kind}.component", f"{h.component!r} is not a known component",
-                             f"use one of {list(components)}")
+    for h in harmonics:  # components and duplicates checked by config_check
         amp, ph = by_freq[h.frequency_Hz]
         amp[index[h.component]] = h.amplitude * scale
         ph[index[h.component]] = math.radians(h.phase_deg)
     tabs = []
     for tab in tables:
-        if tab.component not in index:
-            raise InputError(f"{kind}_table.component", f"{tab.component!r} is not a known component",
-                             f"use one of {list(components)}")
         vals = np.zeros((len(tab.times_s), len(components)))
-        if len(tab.values) != len(tab.times_s):
-            raise InputError(f"{kind}_table.values", f"has {len(tab.values)} values for {len(tab.times_s)} times",
-                             "give one value per time")
         vals[:, index[tab.component]] = np.asarray(tab.values) * scale
         tabs.append(Tabulated(np.asarray(tab.times_s), vals))
     harms = tuple(Harmonic(f, amp, ph) for f, (amp, ph) in sorted(by_freq.items()))
     return Signal(components, harms, tuple(tabs), ramp)
 
 
-# model field -> TOML key, so that a case-file user reads the key they wrote
-_TOML_KEYS = {
+# model field -> (key in the case file, pydantic-style location): errors raised by the model
+# layer (slipstep.model) name SI fields; a case-file user reads the key they wrote
+_MODEL_KEYS = {
     "damper": [
-        (r"^damper\.mass\b", "damper.mass_kg"), (r"^damper\.inertia\b", "damper.inertia_kg_m2"),
-        (r"^damper\.centrifugal_force\b", "damper.centrifugal_force_N"),
-        (r"^damper\.platforms\[(.*)\]\.angle$", r"damper.platforms[\1].angle_deg"),
-        (r"^damper\.contacts\[(.*)\]\.position$", r"damper.contacts[\1].position_mm"),
-        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", r"damper.contacts[\1].\2_stiffness_N_per_um"),
-        (r"^contacts\[(.*)\]\.friction_coefficient$", r"damper.contacts[\1].friction_coefficient"),
+        (r"^damper\.mass$", ("damper", "mass_kg")), (r"^damper\.inertia$", ("damper", "inertia_kg_m2")),
+        (r"^damper\.centrifugal_force$", ("damper", "centrifugal_force_N")),
+        (r"^damper\.platforms\[(.*)\]\.angle$", ("damper", "platforms", "{platforms}", "angle_deg")),
+        (r"^damper\.platforms$", ("damper", "platforms")),
+        (r"^damper\.contacts\[(.*)\]\.position$", ("damper", "contacts", "{contacts}", "position_mm")),
+        (r"^damper\.contacts\[(.*)\]\.platform$", ("damper", "contacts", "{contacts}", "platform")),
+        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", ("damper", "contacts", "{contacts}",
+                                                                 "{2}_stiffness_N_per_um")),
+        (r"^contacts\[(.*)\]\.friction_coefficient$", ("damper", "contacts", "{contacts}", "friction_coefficient")),
+        (r"^(contacts|damper\.contacts)$", ("damper", "contacts")),
+        (r"^motion\.component$", ("motion",)),
     ],
     "structure": [
-        (r"^structure\.mass$", "structure.mass_kg"), (r"^structure\.damping$", "structure.damping_N_s_per_m"),
-        (r"^structure\.stiffness$", "structure.stiffness_N_per_m"),
-        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", r"contacts[\1].\2_stiffness_N_per_m"),
-        (r"^contacts\[(.*)\]\.normal_offset$", r"contacts[\1].normal_offset_m"),
-        (r"^excitation\.constant_force$", "structure.constant_force_N"),
+        (r"^structure\.mass$", ("structure", "mass_kg")), (r"^structure\.damping$", ("structure", "damping_N_s_per_m")),
+        (r"^structure\.stiffness$", ("structure", "stiffness_N_per_m")),
+        (r"^structure\.dof_(names|units)$", ("structure", "dof_{1}")),
+        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", ("contacts", "{contacts}", "{2}_stiffness_N_per_m")),
+        (r"^contacts\[(.*)\]\.normal_offset$", ("contacts", "{contacts}", "normal_offset_m")),
+        (r"^contacts\[(.*)\]\.(\w+)$", ("contacts", "{contacts}", "{2}")),
+        (r"^contacts$", ("contacts",)),
+        (r"^excitation\.constant_force$", ("structure", "constant_force_N")),
+        (r"^excitation\.motion\.components$", ("motion_names",)),
+        (r"^excitation\.force\.components$", ("structure", "dof_names")),
     ],
-    "any": [(r"^harmonic\.frequency$", "motion/force.frequency_Hz"), (r"^table\.times$", "motion_table/force_table.times_s"),
-            (r"^ramp_time$", "run.ramp_time_s")],
+    "any": [(r"^harmonic\.frequency$", ("motion",)), (r"^table\.times$", ("motion_table",)),
+            (r"^ramp_time$", ("run", "ramp_time_s"))],
 }
+
+
+def _case_key(field: str, kind: str, data: dict) -> str | None:
+    """The case-file key path of a model field, or None if it has none."""
+    for pattern, loc in _MODEL_KEYS.get(kind, []) + _MODEL_KEYS["any"]:
+        match = re.search(pattern, field)
+        if not match:
+            continue
+        path = []
+        for seg in loc:
+            if seg in ("{contacts}", "{platforms}"):
+                table = path[-1]
+                items = (data.get("damper", {}) if path[:1] == ["damper"] else data).get(table, [])
+                names = [item.get("name") for item in items]
+                seg = names.index(match.group(1)) if match.group(1) in names else 0
+            elif isinstance(seg, str) and "{" in seg:
+                seg = re.sub(r"\{(\d)\}", lambda m: match.group(int(m.group(1))), seg)
+            path.append(seg)
+        return key_path(tuple(path), data)
+    return None
 
 
 def build_system(spec: CaseSpec) -> System:
     """Build the System a case describes (SI inside); errors name the TOML keys."""
     kind = "damper" if spec.damper is not None else "structure"
+    data = getattr(spec, "_data", None) or spec.model_dump(exclude_unset=True)
     try:
         return _build_system(spec)
     except InputError as exc:
-        field = exc.field
-        for pattern, key in _TOML_KEYS.get(kind, []) + _TOML_KEYS["any"]:
-            if re.search(pattern, field):
-                field = re.sub(pattern, key, field)
-                break
-        if field == exc.field:
+        field = _case_key(exc.field, kind, data)
+        if field is None:
             raise
         raise InputError(field, exc.problem, exc.fix) from None
 
@@ -249,32 +263,18 @@ def _build_system(spec: CaseSpec) -> System:
     return System(structure, contacts, exc, motion_names=motion_names, name=spec.name)
 
 
-def read_toml(path: Path) -> dict:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise InputError("case", f"file {str(path)!r} not found",
-                         f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError("case", f"{path} is not valid TOML ({exc})", "fix the TOML syntax") from None
-    except UnicodeDecodeError:
-        raise InputError("case", f"{path} is not UTF-8 text", "give a TOML text file (UTF-8)") from None
-    except OSError as exc:  # a directory, no permission, ...
-        raise InputError("case", f"{str(path)!r} cannot be read ({exc.strerror})",
-                         "give a readable TOML file or a built-in case name") from None
-
-
-def builtin_cases() -> list[str]:
-    return sorted(p.stem for p in CASES_DIR.glob("*.toml"))
-
-
 def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
     """A built-in case by name (``paper``) or a TOML file: (System, default run options)."""
-    path = Path(name_or_path)
-    if not path.suffix and str(name_or_path) in builtin_cases():
-        path = CASES_DIR / f"{name_or_path}.toml"
-    spec = parse_case(read_toml(path), source=str(path))
+    if not str(name_or_path).strip():
+        raise InputError("case", "is empty",
+                         f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})")
+    path = case_path(name_or_path)
+    data = read_toml(path)
+    if "substructures" in data:  # the third kind: an assembly (slipstep.config_assembly)
+        from slipstep.config_assembly import load_assembly_case
+
+        return load_assembly_case(data, path)
+    spec = parse_case(data, source=str(path))
     return build_system(spec), spec.run
 
 

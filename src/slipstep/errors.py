@@ -3,7 +3,8 @@
 Kernels never raise: they return one of the integer codes below together with the
 step at which they stopped, and keep everything computed before it. The Python layer
 turns a code into a :class:`Status` with a message; it raises only if the caller asks
-(``raise_on_failure=True``) or when the input itself is wrong (:class:`InputError`).
+(``raise_on_failure=True``) or when the input itself is wrong (:class:`InputError`);
+:class:`OutputError` is a failure of the environment (disk full, read-only directory).
 """
 
 from __future__ import annotations
@@ -63,8 +64,29 @@ class InputError(ValueError):
         super().__init__(f"{field}: {problem}. Fix: {fix}")
 
 
+class OutputError(RuntimeError):
+    """A file could not be written or read for a reason outside the input itself: a full
+    disk, a read-only directory, no permission, not enough memory (exit code 3 on the
+    command line). Names the path, what happened, and what to do."""
+
+    def __init__(self, path, problem: str, fix: str):
+        self.path = str(path)
+        self.problem = problem
+        self.fix = fix
+        super().__init__(f"{self.path}: {problem}. Fix: {fix}")
+
+
 class SolverError(RuntimeError):
     """A march that stopped early, raised only on request; carries the partial result."""
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a march: the kernel stopped at a step boundary. A KeyboardInterrupt (a loop
+    of runs stops), carrying the partial result Dataset (status INTERRUPTED) in ``result``."""
 
     def __init__(self, message: str, result=None):
         super().__init__(message)

@@ -25,6 +25,7 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from slipstep.io import plain_text_figures as _plain_text_figures  # noqa: E402
 from slipstep.results import STATE_NAMES  # noqa: E402
 
 STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61", "#7b3294")  # one per STATE_NAMES entry
@@ -61,10 +62,16 @@ def _as_list(datasets) -> list[tuple[str, xr.Dataset]]:
 
 def save_figure(fig, path) -> Path:
     """Write ``fig`` as PNG (150 dpi, tight) and close it."""
+    from slipstep import io
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        io.save_figure(fig, path, dpi=150, bbox_inches="tight")
+    except OSError as exc:
+        raise io.output_error(path, exc) from None
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -237,6 +244,7 @@ def plot_state_timeline(ds: xr.Dataset):
     return fig
 
 
+@_plain_text_figures
 def write_figures(ds: xr.Dataset, output_dir, reference: xr.Dataset | None = None, system=None,
                   comparison: list[dict] | None = None, prefix: str = "") -> list[Path]:
     """Every figure that applies to ``ds`` as PNG files in ``output_dir``: time histories

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.io import plain_text_figures
 
 _CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222;line-height:1.4}
 table{border-collapse:collapse;margin:0.6em 0 1.2em}td,th{border:1px solid #bbb;padding:3px 9px;text-align:right}
@@ -60,6 +61,7 @@ def _loop_rows(label: str, summary) -> list[list]:
     return rows
 
 
+@plain_text_figures
 def write_report(system, path, periods: float = 3.0, rotor_speed_rpm: float | None = None,
                  radius_m: float | None = None, displacement_amplitude_m: float | None = None,
                  comparison: list[dict] | None = None, dynamic_method: str = "piecewise-linear") -> Path:
@@ -163,6 +165,10 @@ def write_report(system, path, periods: float = 3.0, rotor_speed_rpm: float | No
         parts.append("".join(f"<p class=\"warn\">Filter warning: {html.escape(m)}</p>" for m in warn_msgs))
     parts += ["<h2>Method advisor</h2>", f"<pre>{html.escape(advice.text())}</pre>", "<h2>Figures</h2>", fig_html,
               "</body></html>"]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("".join(parts), encoding="utf-8")
-    return path
+    from slipstep import io as sio
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise sio.output_error(path, exc) from None
+    return sio.write_text(path, "".join(parts))

@@ -8,6 +8,8 @@ contact, two per quasi-3D contact; each owns a slider and a state).
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import xarray as xr
 
@@ -80,11 +82,138 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
 
 
 def save(ds: xr.Dataset, path) -> None:
-    """Write a result to netCDF (h5netcdf engine)."""
-    ds.to_netcdf(path, engine="h5netcdf")
+    """Write a result to netCDF-4 (h5netcdf engine), atomically (slipstep.io.atomic_path):
+    a failure (disk full, interrupt) leaves any previous file at ``path`` intact and raises
+    :class:`~slipstep.errors.OutputError` for a failure of the disk.
+
+    A file that cannot fit is refused before any byte is written. When the disk (or the file
+    size limit) leaves less than twice the file, the file is built in memory and written with
+    plain writes: HDF5 itself may crash (segmentation fault) when the disk fills under it."""
+    import io
+
+    from slipstep.errors import InputError
+    from slipstep.io import atomic_path, ensure_space
+
+    if not isinstance(ds, xr.Dataset):
+        raise InputError("ds", f"is a {type(ds).__name__}", "give the Dataset returned by slipstep.run")
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise InputError("path", f"is {path!r}", "give a file path")
+    size = ds.nbytes * 1.02 + 262144  # the file: the data plus about 30 KB of HDF5 metadata (measured)
+    free = ensure_space(path, size)
+    with atomic_path(path) as tmp:
+        if free < 2 * size + 32 * 2 ** 20:
+            image = io.BytesIO()
+            ds.to_netcdf(image, engine="h5netcdf")
+            with open(tmp, "wb") as fh:
+                fh.write(image.getbuffer())
+        else:
+            ds.to_netcdf(tmp, engine="h5netcdf")
 
 
-def load(path) -> xr.Dataset:
-    """Read a result written by :func:`save`."""
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        return ds.load()
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def load(path, field: str = "result") -> xr.Dataset:
+    """Read a result written by :func:`save`. Refuses (InputError naming ``field``) a file that
+    is not a slipstep result (schema check: the variables, dims and units of :data:`SCHEMA`),
+    and any HDF5 feature that reads outside the file: external storage, external or soft
+    links, virtual datasets. The checks and the read use the same open file."""
+    from slipstep.errors import InputError
+
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise InputError(field, f"is {path!r}", "give the path of a .nc result file")
+
+    def refuse(problem: str) -> InputError:
+        return InputError(field, f"{str(path)!r} {problem}",
+                          "give a .nc file written by `slipstep run` or slipstep.save_result")
+
+    try:
+        fh = open(path, "rb")
+    except FileNotFoundError:
+        raise InputError(field, f"file {str(path)!r} does not exist", "give the path of a .nc result file") from None
+    except OSError as exc:
+        raise InputError(field, f"{str(path)!r} cannot be read ({exc.strerror})",
+                         "give a readable .nc result file") from None
+    with fh:
+        head = fh.read(8)
+        if head != HDF5_SIGNATURE:
+            kind = "a netCDF-3 file" if head[:3] == b"CDF" else "empty" if not head else "not a netCDF-4/HDF5 file"
+            raise refuse(f"is not a slipstep result ({kind})")
+        fh.seek(0)
+        nbytes = _check_hdf5(fh, refuse)
+        from slipstep.methods.memory import memory_limit
+
+        limit = memory_limit()
+        if nbytes > limit:
+            from slipstep.io import format_bytes
+
+            raise refuse(f"would need {format_bytes(nbytes)} of memory to load, more than the limit "
+                         f"{format_bytes(limit)}")
+        fh.seek(0)
+        try:
+            with xr.open_dataset(fh, engine="h5netcdf") as opened:
+                ds = opened.load()
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise refuse(f"is not a readable netCDF-4 file ({' '.join(str(exc).split())[:200]})") from None
+    problem = schema_problem(ds)
+    if problem:
+        raise refuse(f"is not a slipstep result ({problem})")
+    return ds
+
+
+def _check_hdf5(fh, refuse) -> int:
+    """Walk every object of the HDF5 file: refuse non-hard links, external storage and
+    virtual datasets; return the bytes its datasets hold once loaded."""
+    import h5py
+
+    try:
+        f = h5py.File(fh, "r")
+    except OSError as exc:
+        raise refuse(f"is not a readable HDF5 file ({' '.join(str(exc).split())[:200]})") from None
+    total = 0
+    with f:
+        stack = [f]
+        while stack:
+            group = stack.pop()
+            for name in group:
+                link = group.get(name, getlink=True)
+                if not isinstance(link, h5py.HardLink):
+                    kind = "an external link" if isinstance(link, h5py.ExternalLink) else "a soft or user-defined link"
+                    raise refuse(f"contains {kind} ({group.name.rstrip('/')}/{name}): refused, it reads outside "
+                                 "the file")
+                obj = group[name]
+                if isinstance(obj, h5py.Group):
+                    stack.append(obj)
+                elif isinstance(obj, h5py.Dataset):
+                    if obj.external:
+                        raise refuse(f"stores dataset {obj.name} in external files: refused, it reads outside "
+                                     "the file")
+                    if obj.is_virtual:
+                        raise refuse(f"holds a virtual dataset ({obj.name}): refused, it reads outside the file")
+                    total += int(obj.size) * max(int(obj.dtype.itemsize), 1)
+    return total
+
+
+REQUIRED_ATTRS = ("case", "method", "status", "quasi_static")
+
+
+def schema_problem(ds: xr.Dataset) -> str:
+    """'' if ``ds`` has the layout of :data:`SCHEMA` (variables, dims, units, attributes),
+    else what is wrong."""
+    missing = [a for a in REQUIRED_ATTRS if a not in ds.attrs]
+    if missing:
+        return f"attribute(s) {missing} missing"
+    if "time" not in ds.coords or ds["time"].ndim != 1:
+        return "no time coordinate"
+    quasi_static = bool(ds.attrs["quasi_static"])
+    for name, (dims, units, _) in SCHEMA.items():
+        if name not in ds.variables:
+            if quasi_static and name in DYNAMIC_ONLY:
+                continue
+            return f"variable {name!r} missing"
+        var = ds[name]
+        if var.dims != dims:
+            return f"variable {name!r} has dims {var.dims}, expected {dims}"
+        if var.attrs.get("units") != units:
+            return f"variable {name!r} has units {var.attrs.get('units')!r}, expected {units!r}"
+    return ""

@@ -20,7 +20,7 @@ from slipstep.kernels.codes import N_LAW_PAR, P_KN, P_MU
 from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, compile_signal
 from slipstep.model.structure import Structure
-from slipstep.model.validate import float_array
+from slipstep.model.validate import check_name, float_array
 
 
 class CompiledSystem(NamedTuple):
@@ -73,7 +73,15 @@ class System:
         names = [c.name for c in contacts]
         if len(set(names)) != len(names):
             raise InputError("contacts", f"names are not unique: {names}", "give every contact its own name")
+        check_name("name", self.name)
+        for kind, values in (("contacts", names), ("motion_names", self.motion_names),
+                             ("structure.dof_names", self.structure.dof_names)):
+            for value in values:
+                check_name(kind, value)
         motion_names = tuple(self.motion_names)
+        if len(set(motion_names)) != len(motion_names):
+            raise InputError("motion_names", f"are not unique: {list(motion_names)}",
+                             "give every prescribed motion component its own name")
         if self.excitation.motion is not None:
             if motion_names and motion_names != self.excitation.motion.components:
                 raise InputError("excitation.motion.components",

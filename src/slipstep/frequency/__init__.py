@@ -3,3 +3,13 @@
 The layout of every FRF Dataset (marched, shot, harmonic balance) is declared once, in
 :mod:`slipstep.frequency.schema`.
 """
+
+from slipstep.frequency.harmonics import harmonics
+from slipstep.frequency.linear import linear_limits, linear_response
+from slipstep.frequency.response import STEADY_SOLVERS, frf
+from slipstep.frequency.retune import retune
+from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.frequency.slow_sweep import sine_sweep
+
+__all__ = ["FRF_SCHEMA", "STEADY_SOLVERS", "frf", "harmonics", "linear_limits", "linear_response", "retune", "sine_sweep"]
+

@@ -30,6 +30,13 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     "excitation_work": (("frequency",), "J", "work of the external forces and prescribed motions per cycle"),
     "viscous_dissipation": (("frequency",), "J", "energy dissipated by the damping matrix C per cycle"),
     "periods_to_steady": (("frequency",), "1", "excitation periods marched before the steady state was reached"),
+    "energy_balance_residual": (("frequency",), "1",
+                                "(excitation work - viscous - friction dissipation) / excitation work over the "
+                                "steady-state period (0 for an exactly periodic orbit)"),
+    "steady_change": (("frequency",), "1",
+                      "change of the full state over the last period relative to its amplitude "
+                      "(slipstep.steady.state.period_change)"),
+    "point_time": (("frequency",), "s", "wall time spent on the point"),
     "floquet_multiplier_max": (("frequency",), "1",
                                "largest modulus of the Floquet multipliers (< 1: stable orbit; shooting only)"),
     "linear_free_amplitude": (("frequency", "response"), "m or rad (see response_unit)",

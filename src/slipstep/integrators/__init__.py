@@ -11,9 +11,8 @@ and add its line here.
 from __future__ import annotations
 
 import re
-from fractions import Fraction
-
 from slipstep.errors import InputError
+from slipstep.model.validate import number_text
 from slipstep.integrators.base import VARIANTS, ExplicitIntegrator, ImplicitIntegrator, Integrator
 from slipstep.integrators.central_difference import CentralDifference
 from slipstep.integrators.generalized_alpha import GeneralizedAlpha
@@ -38,10 +37,7 @@ _CALL = re.compile(r"^\s*([A-Za-z0-9_\- ]+?)\s*(?:\((.*)\))?\s*$")
 
 
 def _number(field: str, text: str) -> float:
-    try:
-        return float(Fraction(text.strip()))
-    except (ValueError, ZeroDivisionError):
-        raise InputError(field, f"{text!r} is not a number", "give a number or a fraction such as 1/6") from None
+    return number_text(field, text)  # finite, bounded digits: '1e100000000' is refused, not built
 
 
 def parse_scheme(spec: str) -> tuple[str, list[float], dict[str, float]]:

@@ -4,8 +4,11 @@ results, post, advise and plots) and contact-law codes with the columns of their
 parameter table (CompiledSystem.law, CompiledSystem.law_par)."""
 
 # counters
-C_STEPS, C_SOLVES, C_FACTORISATIONS, C_LAW_CALLS, C_REDOS, C_FALLBACKS, C_STATE_CHANGES, C_FAIL_STEP, C_N_VISITED = range(9)
-N_COUNTERS = 9
+# C_PROGRESS: steps done so far, updated by the kernel every step (read live by the progress bar);
+# C_STOP: set to 1 by another thread to stop the march at the next step (status INTERRUPTED).
+C_STEPS, C_SOLVES, C_FACTORISATIONS, C_LAW_CALLS, C_REDOS, C_FALLBACKS, C_STATE_CHANGES, C_FAIL_STEP, C_N_VISITED, \
+    C_PROGRESS, C_STOP = range(11)
+N_COUNTERS = 11
 # status
 OK, NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, NON_FINITE, INTERRUPTED, DIVERGED = 0, 1, 2, 3, 4, 5, 6, 7
 
@@ -25,3 +28,7 @@ LAW_CIRCLE = 1  # coupled 3D: one slider in the tangent plane, |T| <= mu N (Eucl
 # columns of the law parameter table (nc, N_LAW_PAR); k_t is per direction (CompiledSystem.kt)
 P_KN, P_MU = 0, 1
 N_LAW_PAR = 2
+
+# step solvers of kernels.march (here so that the method registry needs no numba import);
+# EVENTS is not a step solver: the event-driven quasi-static march of kernels/events.py
+MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE, EVENTS = 0, 1, 2, 3, 4

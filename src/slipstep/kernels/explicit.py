@@ -38,6 +38,7 @@ from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
+from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.signals import evaluate_signal
 
 # float parameters
@@ -136,6 +137,10 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     lu_dt = np.nan
     status = OK
     while t < t_end - tiny:
+        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+            status = INTERRUPTED
+            counters[C_FAIL_STEP] = k
+            break
         if k >= cap:
             status = CAPACITY
             break
@@ -225,6 +230,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
         t += dt
         k += 1
         _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, k, t, dt, solves)
+        counters[C_PROGRESS] = k
         for r in range(nq):
             out.q[k, r] = q1[r]
             out.f[k, r] = f1[r]

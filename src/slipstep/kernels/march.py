@@ -48,6 +48,9 @@ from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters a
     LAW_CIRCLE, C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
+from slipstep.kernels.codes import (  # noqa: F401
+    C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR,
+)
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
@@ -59,8 +62,6 @@ N_FPAR = 12
 # int parameters
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
-MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE = 0, 1, 2, 3
-EVENTS = 4  # not a step solver of this march: the event-driven quasi-static march, kernels/events.py
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 
 
@@ -415,6 +416,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
+        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+            status = INTERRUPTED
+            counters[C_FAIL_STEP] = k
+            break
         if k >= cap:
             status = CAPACITY
             break
@@ -626,10 +631,13 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
         for i in range(n):
-            if inertia:
+            if inertia and M[i, i] != 0.0:
                 a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
                 v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
                 a[i] = a_new
+            elif inertia:  # a massless DOF in a dynamic march (methods/massless.py): v = dx/dt, a = 0
+                v[i] = dx[i] / dt
+                a[i] = 0.0
             x[i] += dx[i]
             fe[i] = fe1[i]
             gf[i] = gf1[i]
@@ -639,6 +647,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             t += dt
         k += 1
         _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves)
+        counters[C_PROGRESS] = k
         for rr in range(nq):
             o_q[k, rr] = q1[rr]
             o_f[k, rr] = f1[rr]

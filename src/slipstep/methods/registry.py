@@ -10,6 +10,7 @@
 | full-newton                | (option)   | Newton, current-state J     | fixed                 |
 | newmark-adaptive-stick     | (variant)  | modified Newton, stick J    | contact-state adaptive |
 | quasi-static-events        | (beyond)   | exact events, kernels/events.py | outputs every period/steps_per_period |
+| quasi-static-dofs          | Method 3+4 | piecewise linear, chosen DOFs without inertia (methods/massless.py) | fixed, T_min of the dynamic part |
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.march import EVENTS, FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
+from slipstep.kernels.codes import EVENTS, FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class Method:
     adaptive: bool
     quasi_static: bool
     description: str
+    massless: bool = False  # the DOFs of option massless_dofs without inertia (methods/massless.py)
 
 
 METHODS: dict[str, Method] = {m.name: m for m in (
@@ -44,6 +46,9 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "quasi-static time marching (no inertia), piecewise-linear state loop"),
     Method("full-newton", "Newton", FULL_NEWTON, False, False,
            "Newmark with full Newton (current-state tangent), fixed step"),
+    Method("quasi-static-dofs", "Method 3+4", PIECEWISE_LINEAR, False, False,
+           "piecewise-linear Newmark with the DOFs of option massless_dofs (default: the dampers') "
+           "quasi-static, without inertia", massless=True),
     Method("quasi-static-events", "beyond the paper", EVENTS, False, True,
            "event-driven quasi-static: exact state-transition instants by root finding in each linear phase, "
            "outputs on the steps_per_period grid (harmonic excitation, piecewise-linear laws)"),
@@ -53,7 +58,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
 )}
 
 ALIASES = {"1": "newmark", "2": "newmark-adaptive", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive",
-           "23": "piecewise-linear-adaptive", "4": "quasi-static"}
+           "23": "piecewise-linear-adaptive", "4": "quasi-static",
+           "3+4": "quasi-static-dofs", "34": "quasi-static-dofs"}
 
 PAPER_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static")
 #: What ``slipstep compare`` runs by default: the paper's methods and the event-driven one beyond it.

@@ -16,11 +16,14 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from slipstep.errors import InputError, SolverError, Status
+from slipstep.errors import InputError, Interrupted, SolverError, Status
+from slipstep.live import call_kernel
+from slipstep.methods import memory
 from slipstep.kernels import march as K
 from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.methods import massless as ML
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
@@ -47,6 +50,10 @@ class RunOptions:
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
         when the contact coordinates are at most half the DOFs).
+    max_memory: the memory a run may take [bytes] (estimate checked before any allocation,
+        slipstep.methods.memory); default: half of the available memory.
+    massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
+        shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
     """
 
     periods: float = 3.0
@@ -65,6 +72,8 @@ class RunOptions:
     fallback: bool = True
     dt: float | None = None
     linear_solver: str = "auto"
+    max_memory: float | None = None
+    massless_dofs: object = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -86,6 +95,8 @@ class RunOptions:
             positive("max_step", self.max_step)
         if self.dt is not None:
             positive("dt", self.dt)
+        if self.max_memory is not None:
+            memory.parse_size("max_memory", self.max_memory)
         if self.linear_solver not in ("auto", "direct", "low-rank"):
             raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
         if not isinstance(self.scheme, Scheme):
@@ -95,7 +106,11 @@ class RunOptions:
 
 def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
     """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
-    (paper Eq. 8), and the eigenvalues themselves."""
+    (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
+    quasi-static-dofs method) those are condensed out first (methods/massless.py)."""
+    zero = ML.massless_mask(cs.M)
+    if zero.any():
+        return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
     Keff = cs.K.copy()
     add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
     ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
@@ -113,6 +128,8 @@ class Runner:
 
     failure_hint = ""
     _kernel = None
+    progress = False  # draw a progress bar on stderr for runs longer than a second (the CLI sets it)
+    keep_interrupted = False  # Ctrl-C: return the partial result (True) or raise Interrupted carrying it
 
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
@@ -120,12 +137,15 @@ class Runner:
         self.out.counters[:] = 0
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
-        start = time.perf_counter()
-        status = kernel(*args)
-        self.kernel_time = time.perf_counter() - start
+        # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        status, self.kernel_time = call_kernel(kernel, args, self.out.counters, self.out.t, self.t_end,
+                                               self.out.t.shape[0], self.progress)
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
         self.status = Status(status)
+        if self.status == Status.INTERRUPTED and not self.keep_interrupted:
+            partial = self.dataset()
+            raise Interrupted(partial.attrs["status_message"], partial)
         return self.status
 
     def run(self, raise_on_failure: bool = False):
@@ -143,7 +163,7 @@ class Runner:
             return {}
         step = int(self.out.counters[K.C_FAIL_STEP])
         report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
-        visited = self._visited_states()
+        visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
         return report
@@ -210,7 +230,15 @@ class Simulation(Runner):
             check_event_case(system, cs)
         nd = cs.kt.shape[0]
         self.stick = np.full(nd, STICK, np.int8)
-        self.t_min_stick, _ = state_t_min(cs, self.stick)
+        self.massless = ML.select_massless(system, self.options.massless_dofs) if self.method.massless else None
+        if self.massless is not None:  # those DOFs without inertia; T_min of the dynamic part
+            self.compiled = cs = ML.inertia_free(cs, self.massless)
+            self.t_min_stick, _ = ML.condensed_t_min(cs, self.stick, self.massless)
+        else:
+            if self.options.massless_dofs != "auto":
+                raise InputError("massless_dofs", f"is only used by the quasi-static-dofs method, not {self.method.name}",
+                                 "use method quasi-static-dofs or drop the option")
+            self.t_min_stick, _ = state_t_min(cs, self.stick)
         period = system.period
         opt = self.options
         if opt.duration is not None:
@@ -224,6 +252,7 @@ class Simulation(Runner):
         scheme = opt.scheme
         self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
         self.max_step = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
+        _check_time_scales(t_end, self.dt_limit, self.max_step, opt)
         if opt.dt is not None:
             dt = opt.dt
         elif self.method.quasi_static:
@@ -248,8 +277,8 @@ class Simulation(Runner):
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
             capacity = n_fixed + 1
-        if capacity > 50_000_000:
-            raise InputError("duration", f"needs {capacity} steps", "shorten the run or use the quasi-static method")
+        self.low_rank = use_low_rank(cs, opt.linear_solver)
+        self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
@@ -269,10 +298,9 @@ class Simulation(Runner):
         self.ipar[K.FALLBACK] = int(opt.fallback)
         self.ipar[K.SIGNALS] = 1
         self.ipar[K.PRELOAD] = 0
-        self.low_rank = use_low_rank(cs, opt.linear_solver)
         self.ipar[K.LOWRANK] = int(self.low_rank)
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
@@ -319,9 +347,38 @@ class Simulation(Runner):
         generalised_force(cs, f, ws.gf)
         ws.fe[:] = fe0
         if not self.method.quasi_static:
-            ws.a[:] = np.linalg.solve(cs.M, fe0 - cs.K @ ws.x - ws.gf)
+            ws.a[:] = ML.initial_acceleration(cs.M, fe0 - cs.K @ ws.x - ws.gf)
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
+
+    def start_from(self, x, v=None, a=None, w=None, state=None, t_start: float = 0.0) -> None:
+        """Start the following marches from a given state at time ``t_start`` [s] instead of the
+        preload (continuation of a steady state, shooting). The march then covers
+        [t_start, t_start + duration]. ``v`` defaults to 0 (dynamic methods), ``w`` to the
+        preload sliders, ``state`` to the law's states at (x, w); ``a`` defaults to the
+        consistent acceleration a = M^-1 (f_e - C v - K x - A^T f(x, w)), with the contact
+        force in elastic form T = k_t (u - w), N = k_n v for v > 0 (0 in lift-off)."""
+        cs, ws = self.compiled, self.ws
+        n, nd = cs.M.shape[0], cs.kt.shape[0]
+        x = np.array(x, float).reshape(n)
+        v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)
+        w = self.preload_state[5].copy() if w is None else np.array(w, float).reshape(nd)
+        p0 = evaluate_compiled(_motion_signal(cs), np.array([t_start]))[0]
+        fe0 = evaluate_compiled(_force_signal(cs), np.array([t_start]))[0] + cs.constant_force
+        q = np.empty(cs.A.shape[0])
+        local_displacement(cs, x, p0, q)
+        f = elastic_contact_force(cs, q, w)
+        if state is None:
+            state = np.empty(nd, np.int8)
+            contact_law(cs, q, w.copy(), np.empty_like(q), np.empty(nd), state)
+        gf = cs.A.T @ f
+        if self.method.quasi_static:
+            a = np.zeros(n)
+        elif a is None:
+            a = ML.initial_acceleration(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
+        self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
+        self.q0, self.f0 = q, f
+        self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
 
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
@@ -353,6 +410,8 @@ class Simulation(Runner):
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
             "linear_solver": "low-rank" if self.low_rank else "direct",
+            **({} if self.massless is None else
+               {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
         }
 
 
@@ -368,6 +427,31 @@ def check_event_case(system: System, cs: CompiledSystem) -> None:
     if circles:
         raise InputError("method", f"quasi-static-events needs piecewise-linear contact laws; {circles} use "
                          "'3d-circle'", "use method 'quasi-static' for friction-circle contacts")
+
+
+def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
+    """Refuse end times and step limits whose ratio no march can cover (before any step count
+    is computed from them): a non-finite end time, or more than 1e15 steps."""
+    field_name = "duration" if opt.duration is not None else "periods"
+    if not math.isfinite(t_end):
+        raise InputError(field_name, f"gives an end time of {t_end} s", "give a finite duration or number of periods")
+    limit = min(dt_limit, max_step)
+    if not limit > 0 or t_end / limit > 1e15:
+        raise InputError(field_name, f"would need more than 1e15 steps ({t_end:.3g} s with steps of {limit:.3g} s)",
+                         "check the units of the masses and stiffnesses, or simulate a shorter time")
+
+
+def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Local contact forces from (q, w) in elastic form: T_d = k_t (u_d - w_d), N = k_n v for a
+    contact with v > 0, all zero in lift-off (in stick and in slip alike, since a slipping
+    slider sits at w = u - T / k_t)."""
+    f = np.zeros(cs.A.shape[0])
+    v = q[cs.normal_row]
+    closed = v > 0.0
+    f[cs.normal_row] = np.where(closed, cs.kn * v, 0.0)
+    d_closed = closed[cs.direction_contact]
+    f[cs.tangential_row] = np.where(d_closed, cs.kt * (q[cs.tangential_row] - w), 0.0)
+    return f
 
 
 def default_max_step(period: float | None, dt_stick: float) -> float:
@@ -414,11 +498,39 @@ def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     return linear_solver == "low-rank" and nq > 0
 
 
-def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_static: bool, low_rank: bool) -> float:
+    """The memory estimate of a march of ``capacity`` steps (slipstep.methods.memory) checked
+    against the limit before anything is allocated; returns it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    field_name = "duration" if opt.duration is not None else "periods"
+    fixes = ("simulate fewer periods (or a shorter duration)" +
+             (", use fewer steps_per_period" if quasi_static else ", raise the step ratio"))
+    limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
+    return memory.check(capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank),
+                        limit, field_name, fixes)
+
+
+def _cache_capacities(n: int, nq: int, low_rank: bool) -> tuple[int, int, int]:
+    """(matrix size factorised per state, state cache slots, low-rank base slots): at most
+    about 200 MB of factorisations each."""
     size = nq if low_rank else n  # the matrix factorised per state: C(S) (nq) or J(S) (n)
     cap = int(min(512, max(8, 2e8 // (8 * size * size + 1))))
     capb = int(min(64, max(2, 2e8 // (8 * (n * n + 2 * n * nq) + 1)))) if low_rank else 1
+    return size, cap, capb
+
+
+def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> int:
+    """Bytes of :func:`_allocate_workspace` (its largest arrays)."""
+    n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
+    nb, nqb = (n, nq) if low_rank else (1, 1)
+    return int(8 * ((cap + 2) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
+                    + 4 * n * n + 20 * (n + nq + nd)) + 2 * cap * nd + nd * (max_state_iter + 1))
+
+
+def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
+    n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
+    size, cap, capb = _cache_capacities(n, nq, low_rank)
     nb, nqb = (n, nq) if low_rank else (1, 1)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
@@ -432,7 +544,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
         fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
         dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
-        Lin=z(n, n), J=z(n, n), Minv=np.linalg.inv(cs.M),
+        Lin=z(n, n), J=z(n, n), Minv=ML.inverse_mass(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
         cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 2, np.bool_),
         cache_lu=z(cap + 2, size, size), cache_piv=np.zeros((cap + 2, size), np.int64),
@@ -441,9 +553,14 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int) -> K.Outputs:
+def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
+    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
+    the available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     k = capacity + 1
+    if k > 100_000:
+        limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
+        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
     return K.Outputs(
         t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
         q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),

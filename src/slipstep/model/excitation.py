@@ -107,6 +107,10 @@ class Excitation:
     motion: Signal | None = None
     period: float | None = field(default=None)
 
+    def __post_init__(self):
+        if self.period is not None:
+            object.__setattr__(self, "period", positive("excitation.period", self.period))
+
     @property
     def fundamental_frequency(self) -> float | None:
         if self.period is not None:

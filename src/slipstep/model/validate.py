@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import math
+import re
+
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.text import MAX_NAME_LENGTH, check_name, escape_text  # noqa: F401 (re-exported)
+
+#: no physical input of slipstep reaches this magnitude in SI or in the units of a case file;
+#: beyond it products overflow (1e300 * 1e10 = inf) and the run would give inf/NaN, not an error
+MAX_MAGNITUDE = 1e100
 
 
 def float_array(field: str, value, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
@@ -12,7 +20,9 @@ def float_array(field: str, value, ndim: int | None = None, shape: tuple | None 
     try:
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InputError(field, f"is not numeric ({exc})", "give numbers only") from None
+        if "inhomogeneous" in str(exc):
+            raise InputError(field, "is ragged (rows of different lengths)", "give rows of equal length") from None
+        raise InputError(field, f"is not numeric ({' '.join(str(exc).split())[:120]})", "give numbers only") from None
     if ndim is not None and arr.ndim != ndim:
         raise InputError(field, f"has {arr.ndim} dimension(s), expected {ndim}",
                          f"give a {'vector' if ndim == 1 else 'matrix' if ndim == 2 else f'{ndim}-d array'}")
@@ -23,17 +33,22 @@ def float_array(field: str, value, ndim: int | None = None, shape: tuple | None 
                                  f"make axis {axis} of length {want}")
     if not np.all(np.isfinite(arr)):
         raise InputError(field, "contains NaN or infinite values", "give finite numbers")
+    if arr.size and np.abs(arr).max() > MAX_MAGNITUDE:
+        raise InputError(field, f"holds {np.abs(arr).max():.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
+                         "check the values and their units")
     return arr
 
 
 def positive(field: str, value, allow_zero: bool = False) -> float:
-    """A finite scalar > 0 (or >= 0)."""
+    """A finite scalar > 0 (or >= 0); a boolean is not a number."""
+    _not_bool(field, value)
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise InputError(field, f"is not a number ({value!r})", "give a number") from None
     if not np.isfinite(x):
-        raise InputError(field, "is not finite", "give a finite number")
+        raise InputError(field, f"is {x}, not a finite number", "give a finite number")
+    _not_absurd(field, x)
     if x < 0 or (x == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(field, f"is {x}, must be {bound}", f"give a value {bound}")
@@ -41,13 +56,49 @@ def positive(field: str, value, allow_zero: bool = False) -> float:
 
 
 def finite(field: str, value) -> float:
+    """A finite scalar; a boolean is not a number."""
+    _not_bool(field, value)
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise InputError(field, f"is not a number ({value!r})", "give a number") from None
     if not np.isfinite(x):
-        raise InputError(field, "is not finite", "give a finite number")
+        raise InputError(field, f"is {x}, not a finite number", "give a finite number")
+    return _not_absurd(field, x)
+
+
+def _not_bool(field: str, value) -> None:
+    """Booleans and text are not numbers (float(True) = 1.0 and float('3') = 3.0 would pass)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise InputError(field, f"is {value!r}, a boolean", "give a number")
+    if isinstance(value, (str, bytes)):
+        raise InputError(field, f"is {value!r}, text", "give a number, not a string")
+
+
+def _not_absurd(field: str, x: float) -> float:
+    if abs(x) > MAX_MAGNITUDE:
+        raise InputError(field, f"is {x:.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
+                         "check the value and its unit")
     return x
+
+
+_NUMBER = re.compile(r"^[+-]?(\d{1,40}(\.\d{0,40})?|\.\d{1,40})([eE][+-]?\d{1,4})?$")
+
+
+def number_text(field: str, text: str) -> float:
+    """A number typed as text ('0.1', '1e-3', '1/6'): finite, at most 40 digits and a 4-digit
+    exponent (so '1e100000000' is refused at once instead of built as an integer)."""
+    text = str(text).strip()
+    parts = text.split("/")
+    if len(parts) > 2 or not all(_NUMBER.match(p.strip()) for p in parts):
+        raise InputError(field, f"{text!r} is not a number", "give a number or a fraction such as 1/6")
+    values = [float(p) for p in parts]
+    value = values[0] / values[1] if len(values) == 2 and values[1] != 0 else values[0]
+    if len(values) == 2 and values[1] == 0:
+        raise InputError(field, f"{text!r} divides by zero", "give a number or a fraction such as 1/6")
+    if not math.isfinite(value):
+        raise InputError(field, f"{text!r} is not a finite number", "give a finite number")
+    return _not_absurd(field, value)
 
 
 def square_matrix(field: str, value, n: int | None = None) -> np.ndarray:

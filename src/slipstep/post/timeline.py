@@ -156,7 +156,8 @@ def resample_uniform(ds: xr.Dataset, dt: float | None = None, n: int | None = No
         v = var.transpose("time", ...).values
         flat = v.reshape(t.size, -1)
         if np.issubdtype(v.dtype, np.floating):
-            new = np.column_stack([np.interp(tu, t, flat[:, j]) for j in range(flat.shape[1])])
+            new = np.column_stack([np.interp(tu, t, flat[:, j]) for j in range(flat.shape[1])] or
+                                  [np.zeros((n, 0))])  # e.g. no prescribed motion component
         else:
             new = flat[idx]
         dims = ("time",) + tuple(d for d in var.dims if d != "time")

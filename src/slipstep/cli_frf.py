@@ -1,0 +1,190 @@
+"""The ``slipstep frf`` command: the forced response of a case against frequency.
+
+    slipstep frf CASE --frequencies 150:450:61 [--solver march|shoot] [--direction up|down|both]
+                      [--sine-sweep] [-o DIR] [--json]
+
+Writes ``DIR/<case-stem>_frf.nc`` (the layout of slipstep.frequency.schema) and
+``DIR/<case-stem>_frf.png`` (amplitude with both linear limits, energy per cycle). No
+numerics here: the solvers are called through the table ``SOLVERS`` (one line per solver).
+Exit codes: 0 every point steady, 1 some point not steady or failed (results written), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import typer
+
+from slipstep.cli import _case_stem, _output_dir
+from slipstep.cli import err as _err
+from slipstep.cli import out as _out
+from slipstep.cli import user_errors as _user_errors
+from slipstep.errors import InputError
+
+
+def parse_frequencies(text: str) -> list[float]:
+    """'150:450:61' (start:stop:count, both ends included) or '300,350,400' [Hz]."""
+    text = text.strip()
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise ValueError
+            start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
+            if count < 1:
+                raise ValueError
+            if count == 1:
+                return [start]
+            return [start + (stop - start) * i / (count - 1) for i in range(count)]
+        return [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise InputError("--frequencies", f"cannot read {text!r}",
+                         "give start:stop:count (e.g. 150:450:61) or a comma list (e.g. 300,350,400)") from None
+
+
+def _steady_solver(name: str):
+    def run(system, frequencies, direction, options, progress):
+        from slipstep.frequency import frf
+
+        return frf(system, frequencies, solver=name, direction=direction, progress=progress, **options)
+    return run
+
+
+def _sine_sweep(system, frequencies, direction, options, progress):
+    from slipstep.frequency import sine_sweep
+    from slipstep.frequency.dataset import concat_sweeps
+
+    keep = {k: v for k, v in options.items() if k in ("method", "responses", "min_steps_per_period")}
+    keep["min_steps_per_period"] = keep.get("min_steps_per_period") or 50
+    parts = []
+    for i, d in enumerate(("up", "down") if direction == "both" else (direction,)):
+        parts.append(sine_sweep(system, frequencies, direction=d, **keep))
+        if progress is not None:
+            progress(i + 1, 2 if direction == "both" else 1, None, None)
+    return parts[0] if len(parts) == 1 else concat_sweeps(*parts)
+
+
+# solver name -> f(system, frequencies, direction, options, progress) -> FRF Dataset
+SOLVERS = {
+    "march": _steady_solver("march"),
+    "shoot": _steady_solver("shoot"),
+}
+
+
+def frf(case: str = typer.Argument(..., help="built-in case name or TOML case file"),
+        frequencies: str = typer.Option(..., "--frequencies", "-f",
+                                        help="start:stop:count [Hz], both ends included, or a comma list"),
+        solver: str = typer.Option("march", "--solver", help="steady-state solver: " + ", ".join(SOLVERS)),
+        direction: str = typer.Option("up", "--direction", help="up, down or both (shows jumps)"),
+        sine_sweep: bool = typer.Option(False, "--sine-sweep",
+                                        help="one transient run with the frequency swept (envelope), not steady states"),
+        method: str = typer.Option("piecewise-linear", "--method", help="time-marching method"),
+        tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
+        max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
+        harmonics: int = typer.Option(5, help="harmonics 0..H reported per response DOF"),
+        min_steps_per_period: int | None = typer.Option(None, help="at least this many steps per period"),
+        responses: str | None = typer.Option(None, help="comma list of response DOFs (default all)"),
+        output_dir: Path = typer.Option(Path("slipstep-out"), "--output-dir", "-o", help="folder for the results"),
+        as_json: bool = typer.Option(False, "--json", help="print one JSON object (no progress bar)")):
+    """Forced response of CASE against frequency: steady state per point (each from the previous
+    one), harmonics, energies per cycle, both linear limits; netCDF + PNG."""
+    with _user_errors():
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeRemainingColumn,
+        )
+
+        from slipstep.config import load_system
+        from slipstep.frequency.response import check_frequencies
+        from rich.markup import escape
+
+        from slipstep.results import save as save_netcdf
+        from slipstep.text import escape_text
+        from slipstep.plots_frf import plot_frf
+
+        if direction not in ("up", "down", "both"):
+            raise InputError("--direction", f"is {direction!r}", "use up, down or both")
+        if not sine_sweep and solver not in SOLVERS:
+            raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(SOLVERS)}")
+        freqs = check_frequencies(parse_frequencies(frequencies))
+        system = load_system(case)
+        options = dict(method=method, tolerance=tolerance, max_periods=max_periods, harmonics=harmonics,
+                       min_steps_per_period=min_steps_per_period,
+                       responses=None if responses is None else [r.strip() for r in responses.split(",")])
+        folder = _output_dir(output_dir)
+        start = time.perf_counter()
+        run = _sine_sweep if sine_sweep else SOLVERS[solver]
+        total = freqs.size * (2 if direction == "both" else 1)
+        with Progress(TextColumn("[bold]frf[/] {task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeRemainingColumn(), console=_err, transient=True, disable=as_json) as bar:
+            label = escape(escape_text(_case_stem(case)))  # a file name is text, never markup
+            task = bar.add_task(f"{label} ({'sine sweep' if sine_sweep else solver})",
+                                total=2 if sine_sweep and direction == "both" else (1 if sine_sweep else total))
+            done = [0]
+
+            def progress(i, n, f, steady):
+                done[0] += 1
+                text = "" if f is None else f" {f:.4g} Hz: {steady.status}, {steady.periods} periods"
+                bar.update(task, completed=done[0], description=f"{label}{text}")
+
+            ds = run(system, freqs, direction, options, progress)
+        stem = _case_stem(case)
+        nc, png = folder / f"{stem}_frf.nc", folder / f"{stem}_frf.png"
+        save_netcdf(ds, nc)
+        plot_frf(ds, png)
+        summary = _summary(ds, time.perf_counter() - start)
+        summary.update(output=str(nc), figure=str(png))
+        if as_json:
+            print(json.dumps(summary))
+        else:
+            _out.print(_text(summary), markup=False, highlight=False, soft_wrap=True)
+        if summary["points_not_ok"]:
+            raise typer.Exit(1)
+
+
+def _summary(ds, wall: float) -> dict:
+    import numpy as np
+
+    status = np.asarray(ds["status"].values).astype(str)
+    from slipstep.plots_frf import default_response
+
+    amp = ds["amplitude"]
+    other = [d for d in amp.dims if d not in ("frequency", "response")]
+    peak_each = amp.max(other) if other else amp
+    values = np.nan_to_num(peak_each.values, nan=-1.0)
+    j = list(ds["response"].values).index(default_response(ds))
+    i = int(np.argmax(values[:, j]))
+    periods = ds["periods_to_steady"].values
+    return {
+        "case": ds.attrs.get("case"), "solver": ds.attrs.get("solver"), "sweep": ds.attrs.get("sweep"),
+        "points": int(status.size), "points_not_ok": int((status != "OK").sum()),
+        "peak_frequency_Hz": float(ds["frequency"].values[i]), "peak_response": str(ds["response"].values[j]),
+        "peak_amplitude": float(values[i, j]),
+        "peak_unit": str(ds["response_unit"].values[j]),
+        "periods_total": float(np.nansum(periods)) if np.isfinite(periods).any() else None,
+        "wall_time_s": wall,
+    }
+
+
+def _text(s: dict) -> str:
+    scale, unit = (1e6, "um") if s["peak_unit"] == "m" else ((1e3, "mrad") if s["peak_unit"] == "rad" else (1, ""))
+    lines = [f"{s['case']}: {s['points']} points ({s['solver']}, {s['sweep']}) in {s['wall_time_s']:.2f} s",
+             f"peak {s['peak_amplitude'] * scale:.4g} {unit} of {s['peak_response']} at {s['peak_frequency_Hz']:.4g} Hz"]
+    if s["periods_total"] is not None:
+        lines.append(f"periods marched: {s['periods_total']:.0f}")
+    if s["points_not_ok"]:
+        lines.append(f"{s['points_not_ok']} point(s) not steady or failed (see the status variable)")
+    lines += [s["output"], s["figure"]]
+    return "\n".join(lines)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the frf command to ``app`` (once)."""
+    existing = {c.name or (c.callback.__name__ if c.callback else None) for c in app.registered_commands}
+    if "frf" not in existing:
+        app.command(name="frf")(frf)

@@ -1,0 +1,195 @@
+"""Frequency response by steady states: step through the frequencies, each point's steady
+state starting from the previous point's, upward, downward or both (to show jumps).
+
+Per point (excitation retuned to the frequency, slipstep.frequency.retune): the steady state
+(``solver`` "march": slipstep.steady.march_to_steady, "shoot": slipstep.steady.shoot), its
+harmonics 0..H per response DOF (slipstep.frequency.harmonics), the friction energy per
+cycle per contact and the energy balance over the period (slipstep.post.energy):
+
+    W_exc = int f_e . dx - int f . B dp,   D_visc = int (C v) . dx,   D_fric = sum_d int T_d dw_d
+    energy_balance_residual = (W_exc - D_visc - D_fric) / |W_exc|
+
+(zero for an exactly periodic orbit of a piecewise-linear Newmark march, up to the change
+over the period), and the two linear limits in the frequency domain (slipstep.frequency.linear).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+import xarray as xr
+
+from slipstep.errors import InputError
+from slipstep.frequency.dataset import concat_sweeps, empty_frf, finalise
+from slipstep.frequency.harmonics import amplitudes_phases, fourier_coefficients
+from slipstep.frequency.linear import linear_limits
+from slipstep.frequency.retune import retune
+from slipstep.model.excitation import CompiledSignal, evaluate_compiled
+from slipstep.steady import march_to_steady, shoot
+from slipstep.steady.state import SteadyState
+from slipstep.system import System
+
+STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
+    "march": lambda system, **kw: march_to_steady(system, **kw),
+    "shoot": lambda system, **kw: shoot(system, **kw),
+}
+"""Steady-state solvers of :func:`frf`: name -> f(system, initial=..., tolerance=..., ...)."""
+
+
+def check_frequencies(frequencies) -> np.ndarray:
+    try:
+        f = np.atleast_1d(np.asarray(frequencies, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError("frequencies", f"is {frequencies!r}", "give a list of frequencies in Hz") from None
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise InputError("frequencies", f"must be positive finite numbers (got {f.tolist()[:5]}...)",
+                         "give frequencies in Hz, e.g. 150:450:61")
+    if np.unique(f).size != f.size:
+        raise InputError("frequencies", "contains repeated values", "give each frequency once")
+    return f
+
+
+def period_energies(ds: xr.Dataset, cs) -> tuple[float, float, np.ndarray]:
+    """(W_exc, D_visc, D_fric per direction) [J] over the stored period of ``ds``: the
+    trapezoid rules of slipstep.post.energy (the same discrete sums, without the Dataset)."""
+    t = ds["time"].values
+    x = ds["displacement"].values
+    fe = np.asarray(cs.constant_force, float)[None, :] + evaluate_compiled(
+        CompiledSignal(cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value,
+                       cs.force_ramp), t)
+    dx = np.diff(x, axis=0)
+    work = float((0.5 * (fe[1:] + fe[:-1]) * dx).sum())
+    if cs.B.shape[1]:
+        f = np.zeros((t.size, cs.A.shape[0]))
+        f[:, np.asarray(cs.tangential_row)] = ds["tangential_force"].values
+        f[:, np.asarray(cs.normal_row)] = ds["normal_force"].values
+        fB = f @ cs.B
+        work -= float((0.5 * (fB[1:] + fB[:-1]) * np.diff(ds["prescribed_motion"].values, axis=0)).sum())
+    visc = 0.0
+    if "velocity" in ds:
+        cv = ds["velocity"].values @ cs.C.T
+        visc = float((0.5 * (cv[1:] + cv[:-1]) * dx).sum())
+    T = ds["tangential_force"].values
+    fric = (0.5 * (T[1:] + T[:-1]) * np.diff(ds["slider"].values, axis=0)).sum(axis=0)
+    return work, visc, fric
+
+
+def point_values(steady: SteadyState, system: System, responses, n_harmonics: int) -> dict:
+    """The FRF quantities of one steady state (see the module docstring)."""
+    ds = steady.period
+    cs = system.compile()
+    T = system.period
+    y = ds["displacement"].values[:, [list(ds["dof"].values).index(r) for r in responses]]
+    A, phase = amplitudes_phases(fourier_coefficients(ds["time"].values, y, T, n_harmonics))
+    work, visc, per_dir = period_energies(ds, cs)
+    owner = np.asarray(cs.direction_contact)
+    per_contact = np.array([per_dir[owner == c].sum() for c in range(len(system.contacts))])
+    scale = max(abs(work), 1e-300)
+    return {
+        "amplitude": 0.5 * np.ptp(y, axis=0),
+        "harmonic_amplitude": A,
+        "harmonic_phase": phase,
+        "energy_per_cycle": per_contact,
+        "excitation_work": work,
+        "viscous_dissipation": visc,
+        "energy_balance_residual": (work - visc - per_contact.sum()) / scale,
+        "periods_to_steady": steady.periods,
+        "steady_change": steady.change,
+        "floquet_multiplier_max": (float(np.abs(steady.floquet_multipliers).max(initial=0.0))
+                                   if steady.floquet_multipliers is not None else math.nan),
+        "status": steady.status,
+    }
+
+
+def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", responses=None, n_harmonics: int = 5,
+          initial=None, progress=None, **options) -> tuple[xr.Dataset, SteadyState | None]:
+    """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state)."""
+    if solver not in STEADY_SOLVERS:
+        raise InputError("solver", f"is {solver!r}", f"use one of {sorted(STEADY_SOLVERS)}")
+    names = list(system.structure.dof_names)
+    responses = names if responses is None else list(responses)
+    unknown = [r for r in responses if r not in names]
+    if unknown:
+        raise InputError("responses", f"{unknown} are not DOFs of the system", f"use names from {names}")
+    units = [system.structure.dof_units[names.index(r)] for r in responses]
+    ds = empty_frf(frequencies, responses, units, system.contact_names, n_harmonics)
+    columns = {name: ds[name].values.copy() for name in ds.data_vars}  # filled in NumPy, wrapped at the end
+    steady_solver = STEADY_SOLVERS[solver]
+    prev = initial
+    last = None
+    for i, f in enumerate(frequencies):
+        start = time.perf_counter()
+        system_f = retune(system, float(f))
+        try:
+            steady = steady_solver(system_f, initial=prev, **options)
+        except KeyboardInterrupt:  # keep the points done; the rest are marked
+            columns["status"][i:] = "INTERRUPTED"
+            ds.attrs["interrupted"] = 1
+            break
+        values = point_values(steady, system_f, responses, n_harmonics) if steady.status in ("OK", "NOT_STEADY") \
+            else {"status": steady.status, "periods_to_steady": steady.periods}
+        values["point_time"] = time.perf_counter() - start
+        for name, value in values.items():
+            columns[name][i] = value
+        prev = steady if steady.status in ("OK", "NOT_STEADY") else None
+        last = steady
+        if progress is not None:
+            progress(i + 1, len(frequencies), float(f), steady)
+    for name, values in columns.items():
+        ds[name].values = values
+    ds.attrs.update(method=last.method if last is not None else "", solver=solver)
+    return ds, last
+
+
+def frf(system: System, frequencies, *, solver: str = "march", direction: str = "up", responses=None,
+        harmonics: int = 5, method="piecewise-linear", tolerance: float = 1e-6, linear: bool = True, progress=None,
+        **options) -> xr.Dataset:
+    """Frequency response of ``system`` at ``frequencies`` [Hz] (see the module docstring).
+
+    solver: "march" or "shoot" (STEADY_SOLVERS); direction: "up", "down" or "both" (two
+    sweeps concatenated along ``sweep``, the down sweep starting from the up sweep's last
+    state); responses: DOF names (default all); harmonics: H of the harmonic decomposition;
+    method, tolerance and the other options go to the steady-state solver (max_periods,
+    min_steps_per_period, initial, RunOptions ...); progress(done, total, frequency, steady)
+    is called after every point. Returns a Dataset in the layout of FRF_SCHEMA. Ctrl-C during a
+    point keeps the points done (the others get status INTERRUPTED, attribute interrupted = 1)."""
+    if direction not in ("up", "down", "both"):
+        raise InputError("direction", f"is {direction!r}", "use 'up', 'down' or 'both'")
+    if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)) or harmonics < 0:
+        raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
+    f = np.sort(check_frequencies(frequencies))
+    initial = options.pop("initial", None)
+    common = dict(solver=solver, responses=responses, n_harmonics=harmonics, method=method, tolerance=tolerance,
+                  progress=progress, **options)
+    sweeps = []
+    last = initial
+    for name in (("up", "down") if direction == "both" else (direction,)):
+        grid = f if name == "up" else f[::-1]
+        ds, steady = sweep(system, grid, initial=last, **common)
+        ds.attrs["sweep"] = name
+        sweeps.append(ds)
+        if ds.attrs.get("interrupted"):  # Ctrl-C: no further sweep; the points done are returned
+            if direction == "both" and name == "up":
+                down = ds.copy(deep=True)
+                down["status"].values[:] = "INTERRUPTED"
+                for var in down.data_vars:
+                    if var != "status":
+                        down[var].values[:] = np.nan
+                down.attrs["sweep"] = "down"
+                sweeps.append(down)
+            break
+        last = steady if steady is not None and steady.status in ("OK", "NOT_STEADY") else None
+    out = sweeps[0] if len(sweeps) == 1 else concat_sweeps(*sweeps)
+    if linear:
+        lim = linear_limits(system, out["frequency"].values, list(out["response"].values))
+        for name in ("linear_free_amplitude", "linear_stuck_amplitude"):
+            attrs = out[name].attrs
+            out[name] = (("frequency", "response"), lim[name].values, attrs)
+    from slipstep import __version__
+
+    out.attrs.update(case=system.name, steady_tolerance=tolerance, slipstep_version=__version__,
+                     method=out.attrs.get("method", ""), solver=solver)
+    return finalise(out)

@@ -1,0 +1,138 @@
+"""Periodic steady state by time marching: march one excitation period at a time, each from
+the state the previous one ended in, until the change of the full state (x, v and the
+sliders w) over one period falls below ``tolerance`` relative to its amplitude
+(:func:`slipstep.steady.state.period_change`), or ``max_periods`` have been marched.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from slipstep.errors import InputError, Status
+from slipstep.kernels.codes import C_STEPS
+from slipstep.methods.simulation import Simulation
+from slipstep.steady.state import (
+    State,
+    SteadyState,
+    as_state,
+    period_change,
+    period_scales,
+    state_of,
+)
+from slipstep.system import System
+
+
+def period_simulation(system: System, method, min_steps_per_period: int | None, run_options: dict) -> Simulation:
+    """A Simulation that marches exactly one excitation period per call of ``march()``.
+
+    ``min_steps_per_period`` caps the step at T / N (accuracy: the phase error of the
+    trapezoidal rule is about (Omega dt)^2 / 12, amplified near a resonance by its quality
+    factor); without it the run options' max_step rule applies."""
+    if not isinstance(system, System):
+        raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+    T = system.period
+    if T is None:
+        raise InputError("excitation", "has no period (tables only): a periodic steady state needs one",
+                         "give a harmonic force or motion, or period_s")
+    for key in ("periods", "duration"):
+        if key in run_options:
+            raise InputError(key, "is set by the steady-state solver (one period per march)",
+                             "use max_periods and tolerance instead")
+    opts = dict(run_options)
+    if min_steps_per_period is not None:
+        if isinstance(min_steps_per_period, bool) or not isinstance(min_steps_per_period, (int, np.integer)) \
+                or min_steps_per_period < 2:
+            raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
+        opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
+    return Simulation(system, method, periods=1.0, **opts)
+
+
+def check_tolerance(tolerance: float, max_periods: int) -> None:
+    if not (isinstance(tolerance, (int, float)) and 0 < tolerance < 1):
+        raise InputError("tolerance", f"is {tolerance!r}", "give a relative tolerance between 0 and 1 (e.g. 1e-6)")
+    if isinstance(max_periods, bool) or not isinstance(max_periods, (int, np.integer)) or max_periods < 1:
+        raise InputError("max_periods", f"is {max_periods!r}", "give a whole number >= 1")
+
+
+def start(sim: Simulation, state: State | None, t_start: float) -> None:
+    """Set the state the next march starts from (None: the preload) at time t_start."""
+    if state is None:
+        pre = sim.preload_state
+        sim.start_from(pre[0], pre[1], pre[2], pre[5], pre[6], t_start=t_start)
+    else:
+        sim.start_from(state.x, state.v, state.a, state.w, state.states, t_start=t_start)
+
+
+def march_one_period(sim: Simulation):
+    """March one period from the set start; (status, start state, end state, change e)."""
+    quasi = sim.method.quasi_static
+    pre = sim.preload_state
+    s0 = State(pre[0].copy(), pre[1].copy(), pre[2].copy(), pre[5].copy(), pre[6].copy())
+    status = sim.march()
+    end = state_of(sim.ws, quasi)
+    if status != Status.OK:
+        return status, s0, end, math.inf
+    n_steps = int(sim.out.counters[C_STEPS])
+    scales = period_scales(sim.out, n_steps, sim.compiled, sim.system.structure.dof_units, quasi)
+    return status, s0, end, period_change(s0, end, scales, quasi)
+
+
+def march_periods(sim: Simulation, first_index: int, tolerance: float, max_periods: int):
+    """March periods first_index, first_index + 1, ... (each from the end of the previous,
+    the first from the start already set) until the change is <= tolerance or max_periods
+    have been marched. Returns (status, periods marched, changes, end state, kernel time)."""
+    T = sim.period
+    changes: list[float] = []
+    kernel = 0.0
+    end = None
+    status = Status.OK
+    for k in range(max_periods):
+        status, _, end, e = march_one_period(sim)
+        kernel += sim.kernel_time
+        changes.append(e)
+        if status != Status.OK:
+            return status.name, k + 1, changes, end, kernel
+        if e <= tolerance:
+            return "OK", k + 1, changes, end, kernel
+        if k + 1 < max_periods:
+            start(sim, end, (first_index + k + 1) * T)
+    return "NOT_STEADY", max_periods, changes, end, kernel
+
+
+def march_to_steady(system: System, method="piecewise-linear", *, tolerance: float = 1e-6, max_periods: int = 200,
+                    initial=None, min_steps_per_period: int | None = None, **run_options) -> SteadyState:
+    """Periodic steady state by marching (see the module docstring).
+
+    method: a time-marching method (slipstep.methods.registry); run_options: those of
+    slipstep.RunOptions except periods/duration; initial: a SteadyState or State to start
+    from (default: the static preload at t = 0). Status "NOT_STEADY" when max_periods were
+    marched without reaching the tolerance (the last period is returned all the same)."""
+    wall = time.perf_counter()
+    check_tolerance(tolerance, max_periods)
+    sim = period_simulation(system, method, min_steps_per_period, run_options)
+    n, nd = sim.compiled.M.shape[0], sim.compiled.kt.shape[0]
+    if initial is not None:
+        start(sim, as_state(initial, n, nd), 0.0)
+    status, periods, changes, end, kernel = march_periods(sim, 0, tolerance, max_periods)
+    return finish(sim, status, periods, changes, end, kernel, wall, "march")
+
+
+def finish(sim: Simulation, status: str, periods: int, changes, end: State, kernel: float, wall: float,
+           solver: str, **extra) -> SteadyState:
+    """Wrap the last marched period (in sim.out) as a SteadyState."""
+    ds = sim.dataset()
+    e = changes[-1] if changes else math.inf
+    if status == "OK":
+        message = f"steady after {periods} period(s): change over the last period {e:.2e}"
+    elif status == "NOT_STEADY":
+        message = (f"not steady after {periods} period(s): change over the last period {e:.2e} above the "
+                   "tolerance; raise max_periods or the tolerance")
+    else:
+        message = ds.attrs.get("status_message", status)
+    ds.attrs.update(steady_status=status, steady_change=e, periods_to_steady=periods)
+    return SteadyState(period=ds, periods=periods, status=status, message=message, final_state=end, change=e,
+                       solver=solver, method=sim.method.name, changes=list(changes), kernel_time_s=kernel,
+                       wall_time_s=time.perf_counter() - wall, **extra)
