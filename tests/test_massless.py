@@ -61,7 +61,9 @@ def test_is_method_4_on_the_massless_dofs_and_newmark_on_the_rest():
 
 def test_t_min_is_that_of_the_finite_eigenvalues_of_the_singular_mass_problem():
     system = ss.load_system("blades")
-    sim = ss.Simulation(system, "quasi-static-dofs", periods=1)
+    # error_estimate=False: the T_min / accuracy-cap rule itself, without the default rule's
+    # step-doubling refinement (issue 8), which refines both steps here
+    sim = ss.Simulation(system, "quasi-static-dofs", periods=1, error_estimate=False)
     cs = sim.compiled
     idx = ML.contact_held_dofs(system)
     assert [system.structure.dof_names[i] for i in idx] == ["damper.x_G", "damper.y_G", "damper.phi"]
@@ -72,7 +74,7 @@ def test_t_min_is_that_of_the_finite_eigenvalues_of_the_singular_mass_problem():
     finite = lam[np.isfinite(lam)]
     assert finite.size == cs.M.shape[0] - 3
     assert sim.t_min_stick == pytest.approx(2 * math.pi / math.sqrt(abs(finite).max()), rel=1e-9)
-    full = ss.Simulation(system, "piecewise-linear", periods=1)
+    full = ss.Simulation(system, "piecewise-linear", periods=1, error_estimate=False)
     # the damper's ~10 kHz modes no longer limit the step: the blades' modes (and the accuracy cap) do
     assert sim.t_min_stick > 2.5 * full.t_min_stick
     assert sim.dt == pytest.approx(sim.period / 50) and sim.dt > 2 * full.dt
@@ -93,7 +95,9 @@ def test_blades_peak_agrees_with_the_fully_dynamic_damper_within_1_percent_at_th
     for method in ("piecewise-linear", "quasi-static-dofs"):
         amps = []
         for f in (320.0, 330.0, 340.0):  # around the resonance (first out-of-phase mode with friction)
-            ds = ss.run(retuned(system, f), method, periods=300)
+            # the steps of the T_min / period-50 rule (error_estimate=False: without issue 8's
+            # refinement, which takes QSD from 50 to 112 steps per period and leaves 1.6 % here)
+            ds = ss.run(retuned(system, f), method, periods=300, error_estimate=False)
             assert ds.attrs["status"] == "OK"
             if method == "piecewise-linear":
                 ds = filter_dataset(ds, system, internal_Hz=float(internal))

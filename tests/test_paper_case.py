@@ -155,8 +155,11 @@ def test_newmark_raw_state_changes_are_chatter(newmark):
 # --- iteration and step statistics (physics.md 7) -----------------------------------------
 
 def test_method1_iterations_per_step_at_200_hz(newmark):
+    """physics.md 7: about 11 iterations per step. Issue 8 made the stop stricter (increment
+    AND force residual, contact coordinates AND DOFs, default tolerance 1e-11): 17.2 now; the
+    paper's count corresponds to a looser stop (11.6 with the old increment-only test at 1e-8)."""
     assert newmark.attrs["steps"] == 3 * 187
-    assert 11.0 <= newmark.attrs["mean_solves_per_step"] <= 13.0
+    assert 15.5 <= newmark.attrs["mean_solves_per_step"] <= 18.5
     solves = newmark.solves.values[1:]
     assert solves.sum() == newmark.attrs["solves"]
 

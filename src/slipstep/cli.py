@@ -356,6 +356,8 @@ def run(
     output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
     max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
+    rtol: Optional[float] = typer.Option(None, help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
+                                                    "the local error estimate, never beyond the method's step limit."),
 ):
     """Simulate CASE with one method; print a summary and write the result Dataset (netCDF).
 
@@ -373,6 +375,8 @@ def run(
         system, spec = load_case(case)
         chosen = _method(method, spec)
         opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration)
+        if rtol is not None:
+            opts["rtol"], origin["rtol"] = rtol, "--rtol"
         directory = output_dir_option(output_dir)
         with option_names(origin):
             sim = Simulation(system, chosen, **opts)
@@ -386,7 +390,8 @@ def run(
             save(ds, path)
     a = ds.attrs
     keys = ("case", "method", "paper_method", "status", "status_message", "steps", "iterations", "solves",
-            "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s")
+            "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s",
+            "energy_error_estimate", "peak_force_error_estimate")
     summary = {k: _json_value(a[k]) for k in keys if k in a}
     summary["output"] = str(path)
     if as_json:
@@ -400,6 +405,8 @@ def run(
                 ("mean iterations per step", _fmt(a["mean_solves_per_step"])),
                 ("state changes", a["state_changes"]), ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
                 ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
+                ("est. error, loop energy / peak force",
+                 f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %"),
                 ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
                 ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"), ("output", str(path))]
         for name, value in rows:

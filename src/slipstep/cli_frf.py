@@ -1,6 +1,7 @@
 """The ``slipstep frf`` command: the forced response of a case against frequency.
 
-    slipstep frf CASE --frequencies 150:450:61 [--solver march|shoot] [--direction up|down|both]
+    slipstep frf CASE --frequencies 150:450:61 [--solver march|shoot|hbm] [--direction up|down|both]
+                      [--harmonics 1,3,5] [--samples N] [--check-frequencies f1,f2]
                       [--sine-sweep] [-o DIR] [--json]
 
 Writes ``DIR/<case-stem>_frf.nc`` (the layout of slipstep.frequency.schema) and
@@ -12,6 +13,7 @@ Exit codes: 0 every point steady, 1 some point not steady or failed (results wri
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -66,10 +68,33 @@ def _sine_sweep(system, frequencies, direction, options, progress):
     return parts[0] if len(parts) == 1 else concat_sweeps(*parts)
 
 
+def _hbm(system, frequencies, direction, options, progress):
+    """Harmonic balance (slipstep.hbm.frf): pseudo-arclength continuation over the range, the
+    time-marching cross-check at the peak (and at --check-frequencies); progress over the range."""
+    from slipstep.hbm import frf as hbm_frf
+
+    grid = list(frequencies)[::-1] if direction == "down" else list(frequencies)
+    n = len(grid)
+    span = grid[-1] - grid[0]
+
+    def step(point):
+        f = point.omega / (2 * 3.141592653589793)
+        done = n if span == 0 else round(n * min(max((f - grid[0]) / span, 0.0), 1.0))
+        if progress is not None:
+            progress(done, n, f, None)
+
+    keep = {k: options[k] for k in ("harmonics", "samples", "responses", "check_frequencies") if options.get(k)}
+    check = {"method": options["method"], "tolerance": options["tolerance"], "max_periods": options["max_periods"]}
+    if options.get("min_steps_per_period"):
+        check["steps_per_period"] = options["min_steps_per_period"]
+    return hbm_frf(system, grid, progress=step, check_options=check, **keep)
+
+
 # solver name -> f(system, frequencies, direction, options, progress) -> FRF Dataset
 SOLVERS = {
     "march": _steady_solver("march"),
     "shoot": _steady_solver("shoot"),
+    "hbm": _hbm,
 }
 
 
@@ -83,7 +108,12 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         method: str = typer.Option("piecewise-linear", "--method", help="time-marching method"),
         tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
         max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
-        harmonics: int = typer.Option(5, help="harmonics 0..H reported per response DOF"),
+        harmonics: str = typer.Option("5", help="march/shoot: harmonics 0..H reported per response DOF; hbm: the "
+                                      "retained harmonics, H (all of 0..H) or a set such as 1,3,5"),
+        samples: int | None = typer.Option(None, help="hbm: AFT time samples per period (default 8 H, a power of 2)"),
+        check_at: str | None = typer.Option(None, "--check-frequencies",
+                                                     help="hbm: comma list of frequencies [Hz] cross-checked by "
+                                                          "time marching besides the peak"),
         min_steps_per_period: int | None = typer.Option(None, help="at least this many steps per period"),
         responses: str | None = typer.Option(None, help="comma list of response DOFs (default all)"),
         output_dir: Path = typer.Option(Path("slipstep-out"), "--output-dir", "-o", help="folder for the results"),
@@ -113,9 +143,28 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
             raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(SOLVERS)}")
         freqs = check_frequencies(parse_frequencies(frequencies))
         system = load_system(case)
-        options = dict(method=method, tolerance=tolerance, max_periods=max_periods, harmonics=harmonics,
+        hbm = solver == "hbm" and not sine_sweep
+        if hbm:
+            from slipstep.hbm.cli_support import parse_harmonics
+
+            kept = parse_harmonics(harmonics)
+            if direction == "both":
+                _err.print("note: harmonic balance follows the whole branch by continuation (turning points "
+                           "included); --direction both gives the same curve as up", style="yellow")
+                direction = "up"
+        else:
+            try:
+                kept = int(harmonics)
+            except ValueError:
+                raise InputError("--harmonics", f"is {harmonics!r}",
+                                 "give the highest reported harmonic H as a whole number (a set like 1,3,5 is "
+                                 "for --solver hbm)") from None
+        options = dict(method=method, tolerance=tolerance, max_periods=max_periods, harmonics=kept,
                        min_steps_per_period=min_steps_per_period,
                        responses=None if responses is None else [r.strip() for r in responses.split(",")])
+        if hbm:
+            options.update(samples=samples, check_frequencies=[] if check_at is None else
+                           list(parse_frequencies(check_at)))
         folder = _output_dir(output_dir)
         start = time.perf_counter()
         run = _sine_sweep if sine_sweep else SOLVERS[solver]
@@ -129,6 +178,10 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
 
             def progress(i, n, f, steady):
                 done[0] += 1
+                if steady is None and f is not None:  # a continuation step (hbm): i of n along the range
+                    text = f" step {done[0]}: {f:.5g} Hz"
+                    bar.update(task, completed=i, description=f"{label}{text}")
+                    return
                 text = "" if f is None else f" {f:.4g} Hz: {steady.status}, {steady.periods} periods"
                 bar.update(task, completed=done[0], description=f"{label}{text}")
 
@@ -136,8 +189,18 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         stem = _case_stem(case)
         nc, png = folder / f"{stem}_frf.nc", folder / f"{stem}_frf.png"
         save_netcdf(ds, nc)
-        plot_frf(ds, png)
+        if hbm:
+            from slipstep.hbm.cli_support import summary as hbm_summary
+            from slipstep.hbm.plot import plot_frf as plot_hbm
+
+            plot_hbm(ds, png)
+        else:
+            plot_frf(ds, png)
         summary = _summary(ds, time.perf_counter() - start)
+        if hbm:
+            extra = hbm_summary(ds)
+            summary.update({k: extra[k] for k in ("harmonics", "samples", "turning_points", "checks",
+                                                  "max_harmonic_truncation_estimate", "time_per_point_s")})
         summary.update(output=str(nc), figure=str(png))
         if as_json:
             print(json.dumps(summary))
@@ -179,6 +242,17 @@ def _text(s: dict) -> str:
         lines.append(f"periods marched: {s['periods_total']:.0f}")
     if s["points_not_ok"]:
         lines.append(f"{s['points_not_ok']} point(s) not steady or failed (see the status variable)")
+    if "checks" in s:  # harmonic balance: the retained harmonics, the adequacy estimate, the cross-check
+        from slipstep.hbm.cli_support import harmonics_text
+
+        lines.append(f"harmonics {harmonics_text(s['harmonics'])} ({s['samples']} AFT samples), "
+                     f"{s['time_per_point_s'] * 1e3:.3g} ms per point, {s['turning_points']} turning point(s); "
+                     f"harmonic truncation estimate (max) {s['max_harmonic_truncation_estimate']:.2e}")
+        for c in s["checks"]:
+            de = c["energy_rel_diff"]
+            lines.append(f"cross-check by marching at {c['frequency_Hz']:.5g} Hz ({c['march_status']}, "
+                         f"{c['march_periods']} periods): amplitude differs by {c['amplitude_rel_diff']:.2e}, "
+                         f"friction energy by {'n/a' if de is None or math.isnan(de) else f'{de:.2e}'}")
     lines += [s["output"], s["figure"]]
     return "\n".join(lines)
 

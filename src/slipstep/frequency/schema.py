@@ -49,6 +49,9 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     "check_energy_rel_diff": (("frequency",), "1",
                               "relative difference of the dissipated energy per cycle against the "
                               "time-marching cross-check (harmonic balance only; NaN where not checked)"),
+    "harmonic_truncation_estimate": (("frequency",), "1",
+                                     "estimated relative change of the response amplitude or friction energy "
+                                     "with more harmonics (harmonic balance only: slipstep.hbm.adequacy)"),
     "status": (("frequency",), "1", "status of the point: OK or the name of the failure"),
 }
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),

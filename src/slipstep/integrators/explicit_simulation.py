@@ -9,14 +9,17 @@ and reuses its preload and allocation helpers, so the result has the standard sc
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.methods.simulation import (
-    RunOptions, Runner, Simulation, _allocate_outputs, default_max_step,
+    RunOptions, Runner, Simulation, _allocate_outputs, check_divergence, default_max_step,
 )
+from slipstep.methods import accuracy
+from slipstep.methods.accuracy import highest_frequency
 from slipstep.model.validate import positive
 from slipstep.system import System
 
@@ -28,8 +31,9 @@ EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo",
 class ExplicitSimulation(Runner):
     """One system marched by an explicit integrator, fixed or contact-state adaptive step.
 
-    dt (fixed) = period / ceil(period / min(step_ratio * factor * T_min(all stick), max_step)), with
-    ``factor = integrator.step_limit_factor`` (the stability limit, see the integrator).
+    dt (fixed) = period / ceil(period / min(step_ratio * Omega_crit / omega_max, max_step)), with
+    Omega_crit the integrator's stability limit and omega_max the highest frequency over every
+    visitable contact state (full stick for most systems; slip can couple higher).
     Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
     """
 
@@ -47,18 +51,22 @@ class ExplicitSimulation(Runner):
             raise InputError("scheme", f"{integrator.name} is not an explicit scheme", "use central-difference or rk4")
         self.system, self.integrator, self.adaptive = system, integrator, bool(adaptive)
         ratio = positive("step_ratio", options.get("step_ratio", 1.0))
+        self._options_given, self._accuracy = dict(options), None
         if ratio > 1.0:
             raise InputError("step_ratio", f"is {ratio}: an explicit scheme is unstable above its stability limit",
                              "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)")
         # preload (and validation of the common options) by the implicit set-up, quasi-static loads ramp
-        pre = Simulation(system, "newmark", **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
+        pre = Simulation(system, "newmark", error_estimate=False,
+                         **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
         self.options = pre.options
         self.compiled = cs = pre.compiled
         self.preload_state = pre.preload_state
         self.q0, self.f0 = pre.q0, pre.f0
         self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end
         factor = ratio * integrator.step_limit_factor
-        self.dt_limit = factor * self.t_min_stick
+        # the stability limit over every visitable contact state (methods/accuracy.highest_frequency)
+        w_max = highest_frequency(cs)
+        self.dt_limit = ratio * integrator.omega_crit / w_max if w_max > 0 else factor * self.t_min_stick
         period, t_end = self.period, self.t_end
         opt = self.options
         self.max_step = dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
@@ -95,10 +103,41 @@ class ExplicitSimulation(Runner):
         ws = self.ws
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
-        return self._run_kernel(E.explicit_march)
+        self._run_kernel(E.explicit_march)
+        return check_divergence(self)
 
     def _visited_states(self) -> str:
         return ""
+
+    def accuracy_attrs(self) -> dict:
+        """The step-doubling estimate with a finer twin (an explicit scheme cannot double its
+        step): the same scheme at half the step ratio and cap, err ~ |Q_dt - Q_dt/2| 4/3
+        (methods/accuracy.py); computed once; warns above 1 %."""
+        if self._accuracy is not None:
+            return self._accuracy
+        nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
+               "error_estimate_method": "none"}
+        if self.status != Status.OK or self.period is None:
+            return nan
+        opts = dict(self._options_given, step_ratio=self._options_given.get("step_ratio", 1.0) / 2,
+                    max_step=self.max_step / 2, duration=self.t_end)
+        opts.pop("periods", None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            twin = ExplicitSimulation(self.system, self.integrator, adaptive=self.adaptive, **opts)
+            if twin.march() != Status.OK:
+                return nan
+        n, m = int(self.out.counters[E.C_STEPS]), int(twin.out.counters[E.C_STEPS])
+        e1, p1 = accuracy.loop_energy(self.out, n, self.compiled, self.period)
+        e2, p2 = accuracy.loop_energy(twin.out, m, twin.compiled, self.period)
+        self._accuracy = {"energy_error_estimate": accuracy.richardson(e1, e2, 0.5),
+                          "peak_force_error_estimate": accuracy.richardson(p1, p2, 0.5),
+                          "error_estimate_method": "step halving: the same scheme at half the step"}
+        if self._accuracy["energy_error_estimate"] > accuracy.WARN_LIMIT:
+            warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
+                          f"{100 * self._accuracy['energy_error_estimate']:.2g} % (step halving): lower step_ratio "
+                          f"or max_step", stacklevel=3)
+        return self._accuracy
 
     def method_attrs(self) -> dict:
         name = self.integrator.name

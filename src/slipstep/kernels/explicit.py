@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
@@ -204,8 +205,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                 if not (np.isfinite(x1[i]) and np.isfinite(v1[i]) and np.isfinite(a1[i])):
                     status = NON_FINITE
             for r in range(nq):
-                if not abs(q1[r]) <= bound:
-                    status = NON_FINITE
+                if status == OK and not abs(q1[r]) <= bound:
+                    status = DIVERGED  # |q| beyond 1e6 length scales: the scheme's instability
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----

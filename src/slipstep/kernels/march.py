@@ -19,17 +19,18 @@ Quasi-static (inertia off, paper Eq. 10): Lin = K, r0 = f_e - K x_n, J(S) = K + 
 
 Step solvers:
     0 modified Newton (Method 1): J(all stick) factorised once per dt, iterate on dx until
-      the error estimate theta/(1-theta) max |A delta| <= tol * L (theta: the observed
-      contraction); each iteration = one contact-law call + one solve.
-    3 modified Newton with J(S) of the state whose T_min set the step (Method 2: the state
-      at the step start, or the one a redo found; fixed step: S_n), cached per state: the
-      adaptive step's longer slip steps then contract as fast as Method 1's.
+      BOTH the increment test (the error estimate theta/(1-theta) of the scaled increment on
+      the contact coordinates and the DOFs, theta the larger of the last two contraction
+      ratios, :func:`_newton_update`) and the force-residual test at the new iterate
+      (:func:`_residual_converged`) hold; each iteration = one contact-law call + one solve.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
-      A postulated state without a piecewise-linear form (a coupled slip of the friction-
-      circle law) is solved by Newton on the consistent tangent (solver 1) instead.
+Accuracy control (fpar RTOL > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
+solvers (rule: the fixed step or the contact-state step below), min(dt_acc, dt_max) for the
+piecewise-linear solve; dt_acc follows the local error of each step (:func:`_local_error`),
+a step above it is redone smaller (counted as a redo). Every step then factorises afresh.
 Adaptive step (Method 2): dt = min(step_factor * T_min(S_n), dt_max), with
 T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|) cached per state; redo the step with the
 smaller dt when the new state's limit is below the dt used (a redone step postulates the
@@ -45,24 +46,27 @@ from numba import njit
 
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
-    LAW_CIRCLE, C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
+    C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
 from slipstep.kernels.codes import (  # noqa: F401
-    C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR,
+    C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, LAW_CIRCLE, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE,
+    PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
 
+THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 # float parameters
 BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
-N_FPAR = 12
+RTOL, ERR_SCALE = 12, 13  # accuracy control (rtol > 0: on; the piecewise-linear solve then keeps dt <= DT_MAX only)
+N_FPAR = 14
+ACC_GROWTH = 1.5  # the largest growth of the accuracy step from one step to the next
 # int parameters
 SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
 N_IPAR = 10
-THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 
 
 class Workspace(NamedTuple):
@@ -95,9 +99,9 @@ class Workspace(NamedTuple):
     stick: np.ndarray  # int8 (nd) all STICK
     cache_keys: np.ndarray  # int8 (cap, 2 nd)
     cache_used: np.ndarray  # bool (cap)
-    cache_ok: np.ndarray  # bool (cap + 2): factorisation not singular
-    cache_lu: np.ndarray  # (cap + 2, n, n); slots cap, cap + 1 are scratch (state_solve.py)
-    cache_piv: np.ndarray  # int64 (cap + 2, n)
+    cache_ok: np.ndarray  # bool (cap + 1): factorisation not singular
+    cache_lu: np.ndarray  # (cap + 1, n, n); slot cap is scratch
+    cache_piv: np.ndarray  # int64 (cap + 1, n)
     tmin_keys: np.ndarray  # int8 (cap, nd)
     tmin_used: np.ndarray
     tmin_value: np.ndarray  # (cap,) s
@@ -140,63 +144,104 @@ def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, 
         r[i] = s
 
 
+# convergence parameters of the Newton iterations (the array ``conv``, filled per step by march):
+#   conv[CV_TOL]    tol, the relative tolerance (RunOptions.tolerance)
+#   conv[CV_TOL_Q]  tol * L, the absolute tolerance on the contact coordinates [m]
+#   conv[CV_FLOOR]  tol * L * max diag J(stick): the residual floor [N] (a step at rest)
+#   conv[CV_X + j]  tol * L / max_r |A_rj| (tol * L for a DOF no contact sees): the tolerance on DOF j
+CV_TOL, CV_TOL_Q, CV_FLOOR, CV_X = 0, 1, 2, 3
+#: the residual test never asks for less than this relative residual (round-off of r)
+RESIDUAL_RTOL_MIN = 1e-13
+#: an increment below this fraction of its scale is round-off (its contraction ratio is meaningless)
+ROUNDOFF = 1e-14
+
+
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_update(A, dx, delta, it, prev_norm, tol_abs):
-    """dx += delta; returns (status, converged, norm). Convergence: the error estimate of the
-    linearly converging iteration, theta/(1 - theta) max |A delta| with the contraction
-    theta = |delta_k| / |delta_{k-1}|, below tol_abs (Hairer & Wanner IV.8); the first
-    iteration has no theta yet: max |A delta| itself."""
+def _newton_update(A, dx, delta, it, prev_norm, prev_theta, conv):
+    """dx += delta; returns (status, increment_converged, norm, theta).
+
+    The scaled increment eta = max(max_r |(A delta)_r| / tol_q, max_j |delta_j| / tol_x,j)
+    (contact coordinates and DOFs, conv), its contraction theta_k = eta_k / eta_{k-1} and
+    the robust contraction theta = max(theta_k, theta_{k-1}) (slow or irregular contraction
+    cannot hide behind one lucky ratio). The increment test, the error estimate of a
+    linearly converging iteration (Hairer & Wanner IV.8; Deuflhard's natural monotonicity):
+        theta < 1  and  eta theta / (1 - theta) <= 1
+    The first increment has no theta yet: eta <= 1 itself (then the residual decides). An
+    increment below ROUNDOFF of its scale (L or |x_j|: about 50 machine epsilons) is round-off, whose ratios
+    say nothing about contraction: accepted as converged."""
     n = dx.shape[0]
     nq = A.shape[0]
     for i in range(n):
         dx[i] += delta[i]
         if not np.isfinite(dx[i]):
-            return NON_FINITE, False, 0.0
-    norm = 0.0
-    if nq == 0:
-        for i in range(n):
-            norm = max(norm, abs(delta[i]))
-    else:
-        for rr in range(nq):
-            s = 0.0
-            for j in range(n):
-                s += A[rr, j] * delta[j]
-            norm = max(norm, abs(s))
+            return NON_FINITE, False, 0.0, 0.0
+    eta = 0.0
+    tol_q = conv[CV_TOL_Q]
+    for rr in range(nq):
+        s = 0.0
+        for j in range(n):
+            s += A[rr, j] * delta[j]
+        eta = max(eta, abs(s) / tol_q)
+    for i in range(n):
+        eta = max(eta, abs(delta[i]) / conv[CV_X + i])
     if it == 0:
-        return OK, norm <= tol_abs, norm
-    theta = norm / prev_norm if prev_norm > 0.0 else 0.0
-    return OK, norm == 0.0 or (theta < 1.0 and norm * theta / (1.0 - theta) <= tol_abs), norm
+        return OK, eta <= 1.0, eta, 0.0
+    theta_k = eta / prev_norm if prev_norm > 0.0 else 0.0
+    theta = max(theta_k, prev_theta) if it >= 2 else theta_k
+    converged = eta * conv[CV_TOL] <= ROUNDOFF or (theta < 1.0 and eta * theta / (1.0 - theta) <= 1.0)
+    return OK, converged, eta, theta_k
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _residual_converged(r, r0, gf1, kfac, conv):
+    """The force-residual test at the current iterate (r = r0 - Lin dx - kfac A^T f):
+        max_i |r_i| <= max(tol, RESIDUAL_RTOL_MIN) * max(F, floor)
+    with F the step's force scale, the largest term of the balance over the DOFs,
+    F = max_i max(|r0_i|, kfac |(A^T f)_i|, |(Lin dx)_i|), (Lin dx = r0 - kfac A^T f - r),
+    and floor = tol L max diag J(stick) (conv)."""
+    rmax = 0.0
+    scale = conv[CV_FLOOR] / conv[CV_TOL]
+    for i in range(r.shape[0]):
+        c = kfac * gf1[i]
+        rmax = max(rmax, abs(r[i]))
+        scale = max(scale, abs(r0[i]), abs(c), abs(r0[i] - c - r[i]))
+    return rmax <= max(conv[CV_TOL], RESIDUAL_RTOL_MIN) * scale
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
-                     dx, delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs, counters):
+                     dx, delta, r, q1, f1, w1, state1, gf1, max_iter, conv, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
-    factorised full-stick Jacobian (lu0, piv0). Returns (status, solves); on success q1, f1,
-    w1, state1, gf1 hold the converged step."""
+    factorised full-stick Jacobian (lu0, piv0). Converged when BOTH the increment test of
+    :func:`_newton_update` (on the contact coordinates and the DOFs) and the force-residual
+    test of :func:`_residual_converged` at the new iterate hold. Returns (status, solves);
+    on success q1, f1, w1, state1, gf1 hold the converged step."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
     prev_norm = 0.0
-    for it in range(max_iter):
+    theta = 0.0
+    inc_ok = False
+    for it in range(max_iter + 1):
         _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
+        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
+            return OK, it
+        if it == max_iter:
+            break
         lu_solve(lu0, piv0, r, delta)
-        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
-        if converged:
-            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
-                             state1, gf1, r, counters)
-            return OK, it + 1
     return NOT_CONVERGED, max_iter
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                  dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs, singular_rtol, counters):
+                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
-    cached); the full-stick one where J(S) is singular. As :func:`_modified_newton` otherwise."""
+    cached); the full-stick one where J(S) is singular. The same two-part convergence test
+    as :func:`_modified_newton` (increment and force residual, both)."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
     stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
@@ -204,9 +249,15 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
     if not ok:
         return SINGULAR, 0
     prev_norm = 0.0
-    for it in range(max_iter):
+    theta = 0.0
+    inc_ok = False
+    for it in range(max_iter + 1):
         _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
+        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
+            return OK, it
+        if it == max_iter:
+            break
         use, use_state = stick_slot, stick
         slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
                                    stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
@@ -216,13 +267,9 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
             solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
         else:
             lu_solve(lus[use], pivs[use], r, delta)
-        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
-        if converged:
-            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
-                             state1, gf1, r, counters)
-            return OK, it + 1
     return NOT_CONVERGED, max_iter
 
 
@@ -244,28 +291,30 @@ def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
-                    gf1, max_iter, tol_abs, theta_give_up, from_zero, counters):
-    """:func:`_modified_newton` with the factorised J(S) of a state S (solver 3), given up as
-    soon as it stops contracting (|delta_k| >= theta_give_up |delta_(k-1)|): J(S) softer than
-    the tangent of the state the step reaches (a slip state entering stick) can make the
-    iteration diverge, where the stiffest tangent, J(all stick), cannot; that one then goes
-    on from the dx reached (from_zero False, theta_give_up inf). Returns (status, solves);
-    NOT_CONVERGED when given up."""
+                    gf1, max_iter, conv, theta_give_up, from_zero, counters):
+    """:func:`_modified_newton` (the same convergence tests) with the factorised J(S) of a
+    state S (solver 3), given up as soon as it stops contracting (the contraction ratio of
+    the increment >= theta_give_up): J(S) softer than the tangent of the state the step
+    reaches (a slip state entering stick) can make the iteration diverge, where the stiffest
+    tangent, J(all stick), cannot; that one then goes on from the dx reached (from_zero False,
+    theta_give_up inf). Returns (status, solves); NOT_CONVERGED when given up."""
     if from_zero:
         for i in range(dx.shape[0]):
             dx[i] = 0.0
     prev_norm = 0.0
-    for it in range(max_iter):
+    theta = 0.0
+    inc_ok = False
+    for it in range(max_iter + 1):
         _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
+        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
+            return OK, it
+        if it == max_iter:
+            break
         lu_solve(lu, piv, r, delta)
-        last = prev_norm
-        status, converged, prev_norm = _newton_update(A, dx, delta, it, prev_norm, tol_abs)
+        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
-        if converged:
-            _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
-            return OK, it + 1
-        if it > 0 and prev_norm >= theta_give_up * last:
+        if it > 0 and theta >= theta_give_up:
             return NOT_CONVERGED, it + 1
     return NOT_CONVERGED, max_iter
 
@@ -279,12 +328,56 @@ def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir
     J(S) solve is not one LU) and where J(S) is singular."""
     if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
         nowhere = np.empty(0)
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state, stick,
-                                   key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
+                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             return ok, lus[slot], pivs[slot]
     return _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
                                 lus, pivs, lr, nominal, singular_rtol, counters)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
+    """Accuracy control: the local displacement error of a Newmark step (Zienkiewicz & Xie
+    1991), e_j = dt^2 |beta - 1/6| (a_{n+1} - a_n)_j, a_{n+1} = a0 dx - a2 v_n - a3 a_n; for a
+    massless DOF (M_jj = 0, methods/massless.py: a quasi-static path) the error of its linear
+    interpolation in time, e_j = |dx_j - v_j dt| / 8 (dt^2/8 of its second derivative).
+    Measured on the contact coordinates (A e; on the DOFs without contacts) against
+    err_tol = rtol L. Returns max |e| / err_tol (> 1: reject the step). The step that
+    follows is dt (0.9 / err)^(1/3), within [0.2, ACC_GROWTH] dt (the local error is O(dt^3))."""
+    n = dx.shape[0]
+    c = dt * dt * max(abs(beta - 1.0 / 6.0), 1.0 / 12.0)
+    e = np.empty(n)
+    for j in range(n):
+        if M[j, j] != 0.0:
+            e[j] = c * (a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j])
+        else:
+            e[j] = (dx[j] - v[j] * dt) / 8.0
+    err = 0.0
+    if A.shape[0] == 0:
+        for j in range(n):
+            err = max(err, abs(e[j]))
+    else:
+        for rr in range(A.shape[0]):
+            s = 0.0
+            for j in range(n):
+                s += A[rr, j] * e[j]
+            err = max(err, abs(s))
+    return err / err_tol
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt):
+    """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF (the residual floor's scale)."""
+    n = A.shape[1]
+    out = np.zeros(n)
+    for c in range(kn.shape[0]):
+        for i in range(n):
+            out[i] += kn[c] * A[nrow[c], i] ** 2
+        for d in range(fdir[c], fdir[c] + ndir[c]):
+            for i in range(n):
+                out[i] += kt[d] * A[trow[d], i] ** 2
+    return out
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -351,6 +444,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     B = sys.B
     g = sys.g
     nrow = sys.normal_row
+    kn = sys.kn
     lcode = sys.law
     lpar = sys.law_par
     fdir = sys.first_direction
@@ -372,7 +466,15 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     nq = A.shape[0]
     nd = state.shape[0]
     beta, gamma, am, af = fpar[BETA], fpar[GAMMA], fpar[ALPHA_M], fpar[ALPHA_F]
-    tol_abs = fpar[TOL] * length_scale
+    conv = np.empty(CV_X + n)  # the Newton convergence tolerances (see CV_TOL)
+    conv[CV_TOL] = fpar[TOL]
+    conv[CV_TOL_Q] = fpar[TOL] * length_scale
+    kd_stick = _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt)
+    for i in range(n):  # DOF j's length: L over its largest gather entry (a rotation: L / lever arm)
+        amax = 0.0
+        for rr in range(nq):
+            amax = max(amax, abs(A[rr, i]))
+        conv[CV_X + i] = fpar[TOL] * (length_scale / amax if amax > 0.0 else length_scale)
     state_rtol = fpar[STATE_RTOL]
     singular_rtol = fpar[SINGULAR_RTOL]
     solver = ipar[SOLVER]
@@ -415,6 +517,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     dt_state_limit = 0.0  # step limit of dt_state (adaptive)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
+    accuracy = fpar[RTOL] > 0.0 and n_preload == 0 and inertia
+    err_tol = fpar[RTOL] * fpar[ERR_SCALE]
+    dt_acc = fpar[DT]  # the accuracy step, adapted after every step (accuracy control)
+    dt_next = dt_acc
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
         if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
             status = INTERRUPTED
@@ -435,10 +541,12 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             dt_nominal = dt_state_limit
         else:
             dt_nominal = fpar[DT]
+        if accuracy:  # the step of the local error estimate, never beyond the convergence / stability rule
+            dt_nominal = min(dt_acc, fpar[DT_MAX]) if solver == PIECEWISE_LINEAR else min(dt_nominal, dt_acc)
         dt = dt_nominal
         if n_preload == 0 and t + dt > t_end - tiny:
             dt = t_end - t
-        nominal = abs(dt - dt_nominal) <= 1e-12 * dt_nominal
+        nominal = abs(dt - dt_nominal) <= 1e-12 * dt_nominal and not accuracy
         load_factor = (k + 1.0) / n_preload if n_preload > 0 else 1.0
         solves = 0
         for attempt in range(max_redo + 1):
@@ -459,6 +567,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         else:
                             Lin[i, j] = Kst[i, j]
                 ws.lin_dt[0] = dt
+                kdiag = 0.0
+                for i in range(n):
+                    kdiag = max(kdiag, Lin[i, i] + kfac * kd_stick[i])
+                conv[CV_FLOOR] = fpar[TOL] * length_scale * kdiag
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
             if signals:
                 evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
@@ -499,7 +611,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
                         status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
                                                     delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
-                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
+                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
                                                     singular_rtol, counters)
                         solves += more
                         break
@@ -558,7 +670,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if ok0:
                         status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
-                                                        max_iter, tol_abs, counters)
+                                                        max_iter, conv, counters)
                     solves += more
                     if status != OK:
                         status = pl_status  # the more telling reason: singular state or cycling
@@ -566,7 +678,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 if solver == FULL_NEWTON:
                     status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
                                                 qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                                                keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, tol_abs,
+                                                keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
                                                 singular_rtol, counters)
                 elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
                     tstate = dt_state if adaptive else state
@@ -581,21 +693,20 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     status, more = SINGULAR, 0
                     if okS:
                         status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
-                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs,
+                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
                                                        THETA_GIVE_UP, True, counters)
-                    solves += more
                     if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
                         counters[C_FALLBACKS] += 1
                         restart = status != NOT_CONVERGED  # else go on from the dx reached
+                        solves += more
                         ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
                                                               key, keys, used, ok_flags, lus, pivs, lr, nominal,
                                                               singular_rtol, counters)
                         status, more = SINGULAR, 0
                         if ok0:
                             status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
-                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, tol_abs,
+                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
                                                            np.inf, restart, counters)
-                        solves += more
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
                         ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,
@@ -605,10 +716,17 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if ok0:
                         status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
-                                                        max_iter, tol_abs, counters)
+                                                        max_iter, conv, counters)
                     else:
                         status, more = SINGULAR, 0
                 solves += more
+            if accuracy and status == OK:
+                err = _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
+                if err > 1.0 and attempt < max_redo:  # reject: redo with the step the estimate asks for
+                    counters[C_REDOS] += 1
+                    dt = dt * max(0.2, 0.9 * err ** (-1.0 / 3.0))
+                    continue
+                dt_next = dt * min(ACC_GROWTH, max(0.2, 0.9 * err ** (-1.0 / 3.0))) if err > 0.0 else ACC_GROWTH * dt
             if status != OK or not adaptive or attempt == max_redo:
                 break
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
@@ -625,6 +743,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             dt = limit
             nominal = True
         counters[C_SOLVES] += solves
+        if accuracy and status == OK:
+            dt_acc = dt_next
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
             out.t[k + 1] = t + dt if n_preload == 0 else t

@@ -22,6 +22,8 @@ from slipstep.methods import memory
 from slipstep.kernels import march as K
 from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
+from slipstep.methods import accuracy
+from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
 from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
 from slipstep.methods.registry import Method, get_method
@@ -30,6 +32,9 @@ from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
 from slipstep.system import CompiledSystem, System
+
+#: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
+RTOL_LOCAL_FACTOR = 0.1
 
 SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear",
                 K.MODIFIED_NEWTON_STATE: "modified-newton-state", K.EVENTS: "events"}
@@ -42,14 +47,25 @@ class RunOptions:
     periods / duration: simulated time after the preload (duration [s] wins if given).
     step_ratio: r in dt = r * T_min / (2 pi sqrt(beta)) (dynamic methods).
     steps_per_period: quasi-static step count per excitation period.
-    tolerance: Newton stop: the estimated error theta/(1-theta) max |A delta| of the modified-Newton
-        iteration (theta its observed contraction) <= tolerance * length scale.
+    tolerance: Newton stop (modified and full Newton), both tests at once (kernels/march.py):
+        increment: theta/(1-theta) eta <= 1, eta = max(max |A delta| / (tol L), max_j |delta_j| /
+        (tol L_j)), L_j = L / max_r |A_rj|, theta the larger of the last two contraction ratios; and
+        residual: max |r| <= tol * (the step's largest force term). Default 1e-11: with 1e-8 and
+        the increment test alone, Method 1 left 28 % of random small systems more than 1e-6 of
+        their range from the converged solution (benchmarks/random_systems.py).
     state_tolerance: relative tolerance of the compatibility check (physics.md 3).
     max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
         when the contact coordinates are at most half the DOFs).
+    rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate
+        of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is
+        within about rtol; it never exceeds the contact-state / convergence rule of Newton
+        methods, nor the stability limit; the piecewise-linear solve obeys only the latter.
+    error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
+        peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
+        step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
     max_memory: the memory a run may take [bytes] (estimate checked before any allocation,
         slipstep.methods.memory); default: half of the available memory.
     massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
@@ -61,7 +77,7 @@ class RunOptions:
     step_ratio: float = 1.0
     steps_per_period: int = 300
     scheme: Scheme = field(default_factory=newmark)
-    tolerance: float = 1e-8
+    tolerance: float = 1e-11
     state_tolerance: float = 1e-9
     singular_tolerance: float = 1e-12
     max_iterations: int = 500
@@ -72,6 +88,8 @@ class RunOptions:
     fallback: bool = True
     dt: float | None = None
     linear_solver: str = "auto"
+    rtol: float | None = None
+    error_estimate: bool = True
     max_memory: float | None = None
     massless_dofs: object = "auto"
 
@@ -95,6 +113,10 @@ class RunOptions:
             positive("max_step", self.max_step)
         if self.dt is not None:
             positive("dt", self.dt)
+        if self.rtol is not None:
+            value = positive("rtol", self.rtol)
+            if not 1e-8 <= value <= 0.2:
+                raise InputError("rtol", f"is {value}", "give a relative accuracy between 1e-8 and 0.2 (e.g. 1e-3)")
         if self.max_memory is not None:
             memory.parse_size("max_memory", self.max_memory)
         if self.linear_solver not in ("auto", "direct", "low-rank"):
@@ -130,6 +152,10 @@ class Runner:
     _kernel = None
     progress = False  # draw a progress bar on stderr for runs longer than a second (the CLI sets it)
     keep_interrupted = False  # Ctrl-C: return the partial result (True) or raise Interrupted carrying it
+
+    def accuracy_attrs(self) -> dict:
+        """The time-discretisation error estimate attrs (see Simulation.accuracy_attrs)."""
+        return {}
 
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
@@ -208,6 +234,7 @@ class Runner:
             "length_scale_m": self.compiled.length_scale,
         })
         attrs.update(failure)
+        attrs.update(self.accuracy_attrs())
         return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"],
                              compiled=self.compiled)
 
@@ -250,22 +277,18 @@ class Simulation(Runner):
                              "give duration (seconds) or a harmonic excitation")
         self.period, self.t_end = period, t_end
         scheme = opt.scheme
-        self.dt_limit = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
+        self._accuracy = None
+        self._coarse = None
+        self.dt_limit, self.dt_stability = self._step_limits(scheme)
         self.max_step = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
         _check_time_scales(t_end, self.dt_limit, self.max_step, opt)
-        if opt.dt is not None:
-            dt = opt.dt
-        elif self.method.quasi_static:
-            base = period if period is not None else t_end
-            dt = base / opt.steps_per_period
-        elif not math.isfinite(self.dt_limit):
-            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
-                             "add contacts or stiffness")
-        elif period is not None:
-            limit = min(self.dt_limit, self.max_step)
-            dt = period / math.ceil(period / limit * (1 - 1e-12))
-        else:
-            dt = min(self.dt_limit, self.max_step)
+        dt = self._fixed_step(self.dt_limit, self.max_step)
+        if opt.dt is not None and opt.dt > self.dt_stability * (1 + 1e-12):
+            raise InputError("dt", f"is {opt.dt:.4g} s, beyond the stability limit {self.dt_stability:.4g} s of the "
+                             f"scheme {scheme.name} (Omega_crit = {scheme.omega_crit:.4g})",
+                             "give a smaller dt or use an unconditionally stable scheme (2 beta >= gamma)")
+        if self._pilot_allowed():
+            dt = self._pilot_step(dt)
         if dt > t_end * (1 + 1e-12):
             field_name = "duration" if opt.duration is not None else "periods"
             raise InputError(field_name, f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
@@ -273,7 +296,10 @@ class Simulation(Runner):
         self.dt = dt
         dt_max = self.max_step
         n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
-        if self.method.adaptive:
+        if opt.rtol is not None and not self.method.quasi_static:  # the local error is O(dt^3)
+            base = min(self.t_min_stick / math.pi, dt_max)
+            capacity = math.ceil(4 * t_end / base * max(1.0, (1e-2 / opt.rtol) ** (1 / 3))) + 100
+        elif self.method.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
         else:
             capacity = n_fixed + 1
@@ -282,12 +308,15 @@ class Simulation(Runner):
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
-        self.fpar[K.STEP_FACTOR] = opt.step_ratio * scheme.step_limit_factor
-        self.fpar[K.DT_MAX] = dt_max
+        self.fpar[K.STEP_FACTOR] = min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor)
+        self.fpar[K.DT_MAX] = min(dt_max, self.dt_stability)
         self.fpar[K.TOL] = opt.tolerance
         self.fpar[K.STATE_RTOL] = opt.state_tolerance
         self.fpar[K.SINGULAR_RTOL] = opt.singular_tolerance
         self.fpar[K.T_START], self.fpar[K.T_END] = 0.0, t_end
+        if opt.rtol is not None and not self.method.quasi_static:
+            self.fpar[K.RTOL] = opt.rtol
+            self.fpar[K.ERR_SCALE] = RTOL_LOCAL_FACTOR * cs.length_scale
         self.ipar = np.zeros(K.N_IPAR, np.int64)
         self.ipar[K.SOLVER] = self.method.solver
         self.ipar[K.ADAPTIVE] = int(self.method.adaptive)
@@ -304,6 +333,68 @@ class Simulation(Runner):
         self.status = None
         self.kernel_time = math.nan
         self._preload()
+
+    # -- the step rule (README "Methods"; methods/accuracy.py) ------------------------------
+    def _step_limits(self, scheme) -> tuple[float, float]:
+        """(dt_limit, dt_stability): the step limit r * factor * T_min(stick) of the Newton
+        iteration's convergence (paper 4.2), capped at the scheme's stability limit
+        Omega_crit / omega_max (omega_max over every visitable contact state) with a warning.
+        With rtol and the piecewise-linear solve only the stability limit is kept."""
+        opt = self.options
+        dt_stability = math.inf
+        if math.isfinite(scheme.omega_crit) and not self.method.quasi_static:
+            w = accuracy.highest_frequency(self.compiled)
+            dt_stability = scheme.omega_crit / w if w > 0 else math.inf
+        conv = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
+        if opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR and not self.method.quasi_static:
+            conv = dt_stability  # nothing iterates within a linear phase: only stability limits the step
+        if conv > dt_stability * (1 + 1e-12) and opt.dt is None:
+            warnings.warn(f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
+                          f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
+                          f"is capped at the stability limit", stacklevel=4)
+            conv = dt_stability
+        return conv, dt_stability
+
+    def _fixed_step(self, limit: float, max_step: float) -> float:
+        """The fixed step: min(limit, max_step), rounded down to whole steps per period."""
+        opt, period = self.options, self.period
+        if opt.dt is not None:
+            return opt.dt
+        if self.method.quasi_static:
+            return (period if period is not None else self.t_end) / opt.steps_per_period
+        if not math.isfinite(limit) and not math.isfinite(max_step):
+            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
+                             "add contacts or stiffness")
+        if period is not None:
+            return period / math.ceil(period / min(limit, max_step) * (1 - 1e-12))
+        return min(limit, max_step)
+
+    def _pilot_allowed(self) -> bool:
+        opt = self.options
+        return (opt.error_estimate and not self.method.quasi_static and self.period is not None and opt.dt is None
+                and opt.max_step is None and opt.rtol is None)
+
+    def _twin(self, method: str, **changes):
+        return accuracy.twin(self, method, **changes)
+
+    def _pilot_step(self, dt0: float) -> float:
+        return accuracy.pilot_step(self, dt0)
+
+    def _check_divergence(self) -> Status:
+        """A march that ends OK but whose energy grew without a source is DIVERGED."""
+        if not self.method.quasi_static:
+            accuracy.check_divergence(self)
+        return self.status
+
+    def accuracy_attrs(self) -> dict:
+        """energy_error_estimate, peak_force_error_estimate, error_estimate_method: see
+        :func:`slipstep.methods.accuracy.estimate` (computed once per Simulation)."""
+        if self._accuracy is not None:
+            return self._accuracy
+        result = accuracy.estimate(self)
+        if self.status == Status.OK:
+            self._accuracy = result
+        return result
 
     # -- set-up ---------------------------------------------------------------------------
     def _preload(self):
@@ -336,20 +427,44 @@ class Simulation(Runner):
         # initial point of the march: p(0), f_e(0), consistent acceleration
         p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
         fe0 = evaluate_compiled(_force_signal(cs), np.zeros(1))[0] + cs.constant_force
-        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale:
+        if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale and not self.method.quasi_static:
             warnings.warn("the prescribed motion does not start from zero (p(0) != 0): a dynamic run receives it "
-                          "as an impulse and rings at the internal frequencies for as long as nothing damps them; "
-                          "a quasi-static run jumps in its first step. Start motions from zero (sine phase) or "
-                          "set ramp_time.", stacklevel=3)
-        w_pre = ws.w.copy()
-        local_displacement(cs, ws.x, p0, q)
-        contact_law(cs, q, w_pre, f, ws.w, ws.state)
-        generalised_force(cs, f, ws.gf)
+                          "as an impulse and rings at the internal frequencies for as long as nothing damps them. "
+                          "Start motions from zero (sine phase) or set ramp_time.", stacklevel=3)
+        if self.method.quasi_static and (np.any(p0 != 0) or np.any(fe0 != cs.constant_force)):
+            q[:], f[:] = self._static_start(ipar)
+        else:
+            w_pre = ws.w.copy()
+            local_displacement(cs, ws.x, p0, q)
+            contact_law(cs, q, w_pre, f, ws.w, ws.state)
+            generalised_force(cs, f, ws.gf)
         ws.fe[:] = fe0
         if not self.method.quasi_static:
             ws.a[:] = ML.initial_acceleration(cs.M, fe0 - cs.K @ ws.x - ws.gf)
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
+
+    def _static_start(self, ipar) -> tuple[np.ndarray, np.ndarray]:
+        """Quasi-static runs start from the static equilibrium at p(0), f_e(0): one
+        piecewise-linear quasi-static step from the preload (x, w) to t = 0 (K x + A^T f(q, w)
+        = f_e(0) with q = A x - B p(0) + g, the sliders moved by that solve). Returns (q, f)."""
+        cs, ws = self.compiled, self.ws
+        fpar = self.fpar.copy()
+        delta = 1e-9 * (self.period if self.period is not None else self.t_end)
+        fpar[K.T_START], fpar[K.T_END], fpar[K.DT] = -delta, 0.0, delta
+        fpar[K.RTOL] = 0.0
+        ipar = ipar.copy()
+        ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK, K.PRELOAD]] = 0, 1, K.PIECEWISE_LINEAR, 0, 1, 0
+        out = _allocate_outputs(cs, 1)
+        nq = cs.A.shape[0]
+        q, f = np.zeros(nq), np.zeros(nq)
+        local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
+        contact_law(cs, q, ws.w.copy(), f, np.empty_like(ws.w), np.empty_like(ws.state))
+        status = K.march(cs, fpar, ipar, ws, out, q, f)
+        if status != K.OK:
+            raise SolverError(f"the static equilibrium at t = 0 (p(0), f_e(0)) failed: {Status(status).message}")
+        _reset_cache(ws)
+        return out.q[1].copy(), out.f[1].copy()
 
     def start_from(self, x, v=None, a=None, w=None, state=None, t_start: float = 0.0) -> None:
         """Start the following marches from a given state at time ``t_start`` [s] instead of the
@@ -379,6 +494,9 @@ class Simulation(Runner):
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
         self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
+        # the step-doubling twins march from the preload: no estimate for a continued march
+        self._accuracy = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
+                          "error_estimate_method": "none (started from a given state)"}
 
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
@@ -387,7 +505,8 @@ class Simulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        return self._run_kernel(event_march if self.method.solver == K.EVENTS else K.march)
+        self._run_kernel(event_march if self.method.solver == K.EVENTS else K.march)
+        return self._check_divergence()
 
     # -- results --------------------------------------------------------------------------
     def _visited_states(self) -> str:
@@ -409,6 +528,7 @@ class Simulation(Runner):
             "steps_per_period": self.options.steps_per_period if self.method.quasi_static else None,
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
+            "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "linear_solver": "low-rank" if self.low_rank else "direct",
             **({} if self.massless is None else
                {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),

@@ -42,6 +42,9 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
             raise InputError(key, "is set by the steady-state solver (one period per march)",
                              "use max_periods and tolerance instead")
     opts = dict(run_options)
+    # one-period continued marches: the step is the T_min / max_step / min_steps_per_period rule
+    # (the default rule's step-doubling refinement pilots a run from the preload: issue 8)
+    opts.setdefault("error_estimate", False)
     if min_steps_per_period is not None:
         if isinstance(min_steps_per_period, bool) or not isinstance(min_steps_per_period, (int, np.integer)) \
                 or min_steps_per_period < 2:

@@ -1,0 +1,119 @@
+"""The linear part of a harmonic balance: excitation phasors and the dynamic compliance.
+
+Per retained harmonic h (angular frequency h Omega) the linear structure is the complex
+dynamic stiffness (x = Re(X exp(i h Omega t)))
+
+    D_h = K - (h Omega)^2 M + i h Omega C + A^T Kc_h A,
+
+where Kc_h is a reference contact stiffness added on both sides of the balance so that
+D_0 stays invertible when K is singular (a damper held only by its contacts): Kc_0 = the
+full-stick contact stiffness diag(k_t, k_n), Kc_h = 0 for h > 0. The balance of harmonic h,
+
+    (K - (h Omega)^2 M + i h Omega C) X_h + A^T F_h = Fe_h,
+
+then gives the DOF phasors from the contact force phasors
+
+    X_h = D_h^-1 ( Fe_h - A^T (F_h - Kc_h A X_h) ),    A X_h = Q_h + B P_h - g [h = 0],
+
+with Q_h the local displacement phasors (q = A x - B p + g), P_h the prescribed-motion
+phasors and Fe_h the external force phasors; the constant loads are Fe_0. The dynamic
+compliance seen by the contacts is G_h = A D_h^-1 A^T.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from slipstep.errors import InputError
+
+
+def excitation_multiples(system, fundamental_hz: float | None = None):
+    """The harmonic excitation as multiples of its fundamental frequency.
+
+    Returns (fundamental [Hz], force phasors dict {m: (n,) complex}, motion phasors dict
+    {m: (nm,) complex}, constant force (n,)): a sin(2 pi m f t + phi) has the phasor
+    a (sin phi - i cos phi) at multiple m (x = Re(X exp(i m Omega t))). Tables cannot be
+    balanced harmonically and are an InputError; ramps are ignored (steady state)."""
+    exc = system.excitation
+    f0 = exc.fundamental_frequency if fundamental_hz is None else fundamental_hz
+    if f0 is None:
+        raise InputError("excitation", "has no harmonic force or motion", "give [[force]] or [[motion]] harmonics")
+    out = []
+    for label, signal in (("force", exc.force), ("motion", exc.motion)):
+        phasors: dict[int, np.ndarray] = {}
+        if signal is not None:
+            if signal.tables:
+                raise InputError(f"{label}_table", "is tabulated: a harmonic balance needs harmonic excitation",
+                                 f"replace the {label} table by [[{label}]] harmonics or use a time-marching solver")
+            for hm in signal.harmonics:
+                ratio = hm.frequency / (1.0 / exc.period if exc.period is not None else f0)
+                m = round(ratio)
+                if m < 1 or abs(ratio - m) > 1e-9 * max(ratio, 1.0):
+                    raise InputError(f"{label}.frequency_Hz", f"{hm.frequency} Hz is not a whole multiple of the "
+                                     f"fundamental {f0} Hz", "give harmonics at multiples of one fundamental")
+                ph = hm.amplitude * (np.sin(hm.phase) - 1j * np.cos(hm.phase))
+                phasors[m] = phasors.get(m, 0.0) + ph
+        out.append(phasors)
+    n = system.n_dofs
+    f_const = np.zeros(n) if exc.constant_force is None else np.asarray(exc.constant_force, float)
+    return f0, out[0], out[1], f_const
+
+
+class LinearPart:
+    """D_h, G_h and the linear local response per retained harmonic at a frequency Omega.
+
+    ``h``: retained harmonics (with 0); ``cs``: CompiledSystem. ``at(omega)`` factorises
+    the D_h (batched); the excitation is scaled by ``level`` (constant loads and offsets are not)."""
+
+    def __init__(self, system, cs, h: np.ndarray):
+        self.cs, self.h = cs, np.asarray(h)
+        self.f0, force, motion, self.f_const = excitation_multiples(system)
+        n, nq = cs.M.shape[0], cs.A.shape[0]
+        nm = cs.B.shape[1]
+        missing = sorted((set(force) | set(motion)) - {int(x) for x in self.h})
+        self.missing = missing
+        self.Fe = np.zeros((self.h.size, n), complex)  # varying forces (scaled by level)
+        self.P = np.zeros((self.h.size, nm), complex)
+        for i, hh in enumerate(self.h):
+            if hh in force:
+                self.Fe[i] = force[hh]
+            if hh in motion:
+                self.P[i] = motion[hh]
+        self.Fc = np.zeros((self.h.size, n), complex)
+        self.Fc[0] = self.f_const
+        kc = np.zeros(nq)
+        kc[cs.tangential_row] = cs.kt
+        kc[cs.normal_row] = cs.kn
+        self.Kc = np.zeros((self.h.size, nq))
+        self.Kc[0] = kc
+        self.KcD = np.einsum("rn,hr,rm->hnm", cs.A, self.Kc, cs.A, optimize=True)  # A^T Kc_h A, constant
+        self.g0 = np.zeros((self.h.size, nq))
+        self.g0[0] = cs.g
+
+    def at(self, omega: float, level: float = 1.0):
+        """Factorise D_h(omega) and form G_h, the linear local response and D_h^-1."""
+        cs, h = self.cs, self.h
+        w = h * omega
+        D = (cs.K[None] - (w ** 2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD)
+        self.omega, self.level = omega, level
+        self.D = D
+        self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
+        self.DinvAT = self.Dinv @ cs.AT[None]  # (nh, n, nq)
+        self.G = cs.A[None] @ self.DinvAT  # (nh, nq, nq)
+        return self
+
+    def external(self, level: float | None = None) -> np.ndarray:
+        """Fe_h (nh, n): constant + level x varying forces."""
+        lv = self.level if level is None else level
+        return self.Fc + lv * self.Fe
+
+    def dofs(self, Q: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """DOF phasors X_h (nh, n) from local displacement and force phasors (nh, nq)."""
+        cs = self.cs
+        rhs = self.external() - (F - self.Kc * (Q + self.level * (self.P @ cs.B.T) - self.g0)) @ cs.A
+        return np.einsum("hnm,hm->hn", self.Dinv, rhs)
+
+    def dD_domega(self) -> np.ndarray:
+        """dD_h/dOmega = -2 h^2 Omega M + i h C."""
+        cs, h = self.cs, self.h
+        return -2.0 * (h ** 2 * self.omega)[:, None, None] * cs.M[None] + 1j * h[:, None, None] * cs.C[None]
