@@ -27,6 +27,12 @@ Step solvers:
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
+      A postulated state without a piecewise-linear form (a coupled slip of the friction-
+      circle law) is solved by Newton on the consistent tangent (solver 1) instead.
+    3 modified Newton with J(S) of the state whose T_min set the step (Method 2: the state
+      at the step start, or the one a redo found; fixed step: S_n), cached per state, given
+      up for J(all stick) from the dx reached when it stops contracting (theta >= 0.5).
+    (4 EVENTS: not a solver of this march; kernels/events.py.)
 Accuracy control (fpar RTOL > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
 solvers (rule: the fixed step or the contact-state step below), min(dt_acc, dt_max) for the
 piecewise-linear solve; dt_acc follows the local error of each step (:func:`_local_error`),
