@@ -11,7 +11,8 @@ from hbm_cases import jenkins_1dof
 from rich.console import Console
 
 import slipstep as ss
-from slipstep.hbm.cli_support import parse_frequencies, parse_harmonics, run_command
+from slipstep.frequency.response import check_frequencies, parse_frequencies
+from slipstep.hbm.cli_support import parse_harmonics, run_command
 
 
 def test_parse_harmonics_and_frequencies():
@@ -23,10 +24,13 @@ def test_parse_harmonics_and_frequencies():
         with pytest.raises(ss.InputError) as err:
             parse_harmonics(bad)
         assert err.value.field == "--harmonics"
-    for bad in ("150:450", "150:450:0", "-5,10", "x"):
+    for bad in ("150:450", "150:450:0", "x"):
         with pytest.raises(ss.InputError) as err:
             parse_frequencies(bad)
         assert err.value.field == "--frequencies"
+    with pytest.raises(ss.InputError) as err:
+        check_frequencies(parse_frequencies("-5,10"))
+    assert err.value.field == "frequencies"
 
 
 def test_run_command_writes_the_result_figure_and_summary(tmp_path):

@@ -26,26 +26,6 @@ from slipstep.cli import user_errors as _user_errors
 from slipstep.errors import InputError
 
 
-def parse_frequencies(text: str) -> list[float]:
-    """'150:450:61' (start:stop:count, both ends included) or '300,350,400' [Hz]."""
-    text = text.strip()
-    try:
-        if ":" in text:
-            parts = text.split(":")
-            if len(parts) != 3:
-                raise ValueError
-            start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
-            if count < 1:
-                raise ValueError
-            if count == 1:
-                return [start]
-            return [start + (stop - start) * i / (count - 1) for i in range(count)]
-        return [float(p) for p in text.split(",") if p.strip()]
-    except ValueError:
-        raise InputError("--frequencies", f"cannot read {text!r}",
-                         "give start:stop:count (e.g. 150:450:61) or a comma list (e.g. 300,350,400)") from None
-
-
 def _steady_solver(name: str):
     def run(system, frequencies, direction, options, progress):
         from slipstep.frequency import frf
@@ -130,7 +110,7 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         )
 
         from slipstep.config import load_system
-        from slipstep.frequency.response import check_frequencies
+        from slipstep.frequency.response import check_frequencies, parse_frequencies
         from rich.markup import escape
 
         from slipstep.results import save as save_netcdf
@@ -164,7 +144,7 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
                        responses=None if responses is None else [r.strip() for r in responses.split(",")])
         if hbm:
             options.update(samples=samples, check_frequencies=[] if check_at is None else
-                           list(parse_frequencies(check_at)))
+                           list(parse_frequencies(check_at, field="--check-frequencies")))
         folder = _output_dir(output_dir)
         start = time.perf_counter()
         run = _sine_sweep if sine_sweep else SOLVERS[solver]

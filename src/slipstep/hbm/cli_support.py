@@ -106,27 +106,6 @@ def summary_table(ds):
     return table
 
 
-def parse_frequencies(text: str):
-    """'a:b:n' -> n frequencies from a to b [Hz] (b < a: a downward sweep); 'f1,f2,...' -> a list."""
-    import numpy as np
-
-    s = str(text).strip()
-    try:
-        if ":" in s:
-            a, b, n = s.split(":")
-            n = int(n)
-            if n < 1:
-                raise ValueError
-            values = np.linspace(float(a), float(b), n)
-        else:
-            values = np.array([float(v) for v in s.split(",") if v.strip()])
-    except ValueError:
-        values = np.array([])
-    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise InputError("--frequencies", f"is {text!r}", "give START:STOP:COUNT in Hz (e.g. 150:450:61) or a list 200,300")
-    return values
-
-
 def run_command(system, frequencies, *, harmonics, samples=None, check_frequencies=(), check="peak", responses=None,
                 output, plot_path=None, console=None, progress=True, as_json=False, level=1.0):
     """The body of ``slipstep frf CASE --solver hbm``: the HBM FRF with a progress bar over the

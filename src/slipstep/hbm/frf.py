@@ -42,18 +42,9 @@ from slipstep.hbm.energy import (
     half_peak_to_peak,
     viscous_dissipation,
 )
+from slipstep.frequency.response import check_frequencies as valid_frequencies
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
-
-
-def _frequencies(values) -> np.ndarray:
-    try:
-        f = np.atleast_1d(np.asarray(values, dtype=float))
-    except (TypeError, ValueError):
-        raise InputError("frequencies", f"is {values!r}", "give a list of frequencies in Hz") from None
-    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise InputError("frequencies", f"is {values!r}", "give one or more positive frequencies in Hz")
-    return f
 
 
 def response_indices(system: System, responses) -> np.ndarray:
@@ -170,7 +161,7 @@ def frf(system: System, frequencies, *, harmonics=5, samples: int | None = None,
     adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
     threshold, and whether to raise H (up to ``max_harmonics``) and recompute instead of warning.
     progress: a callable called with each solved point (slipstep.hbm.Point)."""
-    f = _frequencies(frequencies)
+    f = valid_frequencies(frequencies)
     fund = system.excitation.fundamental_frequency if isinstance(system, System) else None
     if isinstance(system, System) and fund is None:
         raise InputError("excitation", "has no harmonic force or motion", "give [[force]] or [[motion]] harmonics")
@@ -191,7 +182,7 @@ def level_response(system: System, frequency_hz: float, levels, **options) -> xr
     lv = np.atleast_1d(np.asarray(levels, dtype=float))
     if lv.ndim != 1 or lv.size == 0 or not np.all(np.isfinite(lv)) or np.any(lv < 0):
         raise InputError("levels", f"is {levels!r}", "give one or more excitation levels >= 0 (1: as given)")
-    _frequencies([frequency_hz])
+    valid_frequencies([frequency_hz])
     check_levels = np.atleast_1d(options.pop("check_levels", ()))
     opts = {"harmonics": 5, "samples": None, "responses": None, "continuation": True, "check": "peak",
             "check_options": None, "adequacy": True, "adequacy_tolerance": 0.01, "auto_harmonics": False,
