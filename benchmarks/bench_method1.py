@@ -107,7 +107,7 @@ try:
 
     @njit(inline="always")
     def _law(sys, q, w_old, f, w_new, state):
-        _l_core(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
+        _l_core(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row,
                 sys.kt, q, w_old, f, w_new, state)
 
     @njit(inline="always")

@@ -41,6 +41,21 @@ SCRIPT = textwrap.dedent("""
         for solver in ("direct", "low-rank"):
             ds = slipstep.run(chain, method, periods=0.5, linear_solver=solver)
             assert ds.attrs["status"] == "OK", (method, solver)
+    # a friction-circle contact that slips (coupled slip: Newton on the consistent tangent)
+    n = 7
+    K = 4e5 * (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1))
+    A = np.zeros((3, n)); A[0, 2] = A[1, 3] = A[2, 4] = 1.0
+    circle = slipstep.ContactElement("C", A, 1e6, 1e6, 0.3, normal_offset=1e-5, law="3d-circle")
+    force = slipstep.Signal(tuple(f"x{i}" for i in range(n)), (slipstep.Harmonic(30.0, [0, 20.0, 0, -15.0, 0, 8.0, 0]),))
+    ring = slipstep.System(slipstep.Structure(np.eye(n) * 0.2, stiffness=K), (circle,),
+                           slipstep.Excitation(force=force))
+    for method in ALL:
+        if method == "quasi-static-events":  # piecewise-linear laws only
+            continue
+        for solver in ("direct", "low-rank"):
+            ds = slipstep.run(ring, method, periods=0.5, linear_solver=solver)
+            assert ds.attrs["status"] == "OK", (method, solver)
+            assert (ds.contact_state.values == 4).any(), (method, solver)
     print("all kernel paths ran with bounds checking")
 """)
 

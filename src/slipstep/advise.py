@@ -8,7 +8,8 @@ Quantities reported:
       f_5% = sqrt(rho_limit Omega^2 R / x_d) / (2 pi)
   (3600 rpm, R = 0.5 m, x_d = 0.1 um: 30 kHz). Below it the damper's inertia is negligible
   and the quasi-static method (Method 4) applies.
-* Per contact state S (0 lift-off, 1 stick, 2 slip+, 3 slip- per direction): the
+* Per contact state S (kernels/codes.py STATE_NAMES, per direction; a coupled slip of the
+  friction-circle law is analysed with its stiffest, stick, tangent): the
   eigenvalues lambda of M^-1 (K + K_D(S)), internal frequencies sqrt(lambda) / 2 pi and
   T_min = 2 pi / sqrt(max |lambda|) (paper Eq. 8); the Newmark average-acceleration step
   limit dt = T_min / pi and the steps per period it implies (full stick: the fixed step of
@@ -50,9 +51,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError
 from slipstep.methods.simulation import default_max_step
-from slipstep.results import STATE_NAMES
-
-LIFT = 0
+from slipstep.kernels.codes import LAW_CIRCLE, LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
 
 
 def rpm_to_rad_s(rpm: float) -> float:
@@ -117,7 +116,10 @@ def enumerate_states(cs, max_states: int = 4096) -> list[tuple[int, ...]] | None
     total = 1
     for c in range(cs.kn.shape[0]):
         nd = int(cs.n_directions[c])
-        opts = [(LIFT,) * nd] + list(itertools.product((1, 2, 3), repeat=nd))
+        if cs.law[c] == LAW_CIRCLE:  # the directions share every state
+            opts = [(s,) * nd for s in (LIFT, STICK, SLIP_COUPLED)]
+        else:
+            opts = [(LIFT,) * nd] + list(itertools.product((STICK, SLIP_POS, SLIP_NEG), repeat=nd))
         per_contact.append(opts)
         total *= len(opts)
         if total > max_states:

@@ -30,7 +30,7 @@ from typer.exceptions import TyperException
 
 from slipstep.casefiles import CASES_DIR, builtin_cases, case_stem, read_toml
 from slipstep.errors import InputError, OutputError, SolverError
-from slipstep.methods.registry import PAPER_METHODS
+from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS
 from slipstep.text import escape_text
 
 EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
@@ -420,6 +420,8 @@ def run(
 COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
     ("method", "method", None), ("status", "status", None),
     ("kernel time [ms] (median)", "kernel_time_s", 1e3), ("time ratio to Method 1", "time_ratio", 1.0),
+    ("kernel time [ms] (min)", "kernel_time_min_s", 1e3), ("time ratio, min to min", "time_ratio_min", 1.0),
+    ("timing spread (IQR/median)", "time_spread", 1.0),
     ("steps", "steps", None), ("solves (iterations)", "solves", None),
     ("mean solves per step", "mean_solves_per_step", 1.0), ("single-solve step share", "single_solve_share", 1.0),
     ("state changes (raw)", "state_changes", None), ("state changes, last period", "state_changes_last_period", None),
@@ -429,15 +431,17 @@ COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
 )
 
 PAPER_METHODS_TEXT = ",".join(PAPER_METHODS)
+COMPARE_METHODS_TEXT = ",".join(COMPARE_METHODS)
 
 
 @app.command()
 def compare(
     case: str = typer.Argument(..., help="Built-in case name (e.g. paper) or path to a .toml case file."),
     periods: Optional[float] = typer.Option(None, help="Periods per run (default: the case's \\[run] value, else 3)."),
-    repeats: int = typer.Option(5, help="Timed kernel runs per method after the warm-up; the median is reported."),
-    methods: str = typer.Option(PAPER_METHODS_TEXT, help="Comma-separated methods (names or paper numbers); "
-                                                         "Method 1 (newmark) always runs as the reference."),
+    repeats: int = typer.Option(21, help="Timed kernel runs per method, interleaved across the methods after every "
+                                        "kernel is warmed; the median and the minimum are reported."),
+    methods: str = typer.Option(COMPARE_METHODS_TEXT, help="Comma-separated methods (names or paper numbers); "
+                                                           "Method 1 (newmark) always runs as the reference."),
     output_dir: str = typer.Option("slipstep-out", help="Directory of the comparisons: the files go to "
                                                         "OUTPUT_DIR/<case-file-stem>/."),
     as_json: bool = typer.Option(False, "--json", help="Print the table as a JSON list (one object per method)."),
@@ -475,7 +479,8 @@ def compare(
     if as_json:
         print(json.dumps(rows, default=_json_value))
         return
-    table = _table(f"slipstep compare: {system.name}, {n_periods:g} period(s), median of {repeats} kernel runs")
+    table = _table(f"slipstep compare: {system.name}, {n_periods:g} period(s), {repeats} interleaved kernel runs "
+                   "per method after warming every kernel")
     table.add_column("", style="cyan")
     for r in rows:
         table.add_column(safe(r["paper_method"]), justify="right")

@@ -2,8 +2,12 @@
 
 For each method the same System is marched with the same options. The table reports:
 
-* kernel wall time: median over ``repeats`` calls of :meth:`Simulation.march` after a
-  warm-up run (which also JIT-compiles the kernels), and its ratio to Method 1;
+* kernel wall time (:func:`time_kernels`): every method's kernel is warmed first (compiled
+  or loaded from the cache, called through its compiled entry point twice), then the
+  ``repeats`` timed calls of :meth:`Simulation.march` are interleaved across the methods (in
+  a rotating order, garbage collection off), so that load from other processes and the
+  machine's state hit every method alike; the median, the minimum, the ratios of both to
+  Method 1's, and the spread of the samples, interquartile range / median;
 * counts: steps, linear solves, mean solves per step, the share of steps that needed a
   single solve, state changes (raw over the run, and over the last period);
 * accuracy against Method 1 (``newmark``) over the LAST period: the largest difference of
@@ -23,6 +27,7 @@ Writers: :func:`write_csv`, :func:`write_json`, :func:`plot_time_ratios` (Figure
 from __future__ import annotations
 
 import csv
+import gc
 import io
 import json
 import math
@@ -34,7 +39,7 @@ import xarray as xr
 
 from slipstep.errors import InputError
 from slipstep.io import plain_text_figures, save_figure, write_text
-from slipstep.methods.registry import PAPER_METHODS, get_method
+from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.post.filtering import (
     choose_cutoff, excitation_frequencies, lowest_internal_frequency, lowpass, samples_per_period, visited_states,
@@ -46,12 +51,37 @@ REFERENCE = "newmark"
 #: Columns of the comparison table, in order (all keys of a row).
 COLUMNS = (
     "method", "paper_method", "status", "steps", "solves", "mean_solves_per_step", "single_solve_share",
-    "state_changes", "state_changes_last_period", "kernel_time_s", "time_ratio", "dt_min_s", "dt_max_s",
+    "state_changes", "state_changes_last_period", "kernel_time_s", "time_ratio", "kernel_time_min_s",
+    "time_ratio_min", "time_spread", "dt_min_s", "dt_max_s",
     "max_disp_diff_um", "max_force_diff_pct_cf", "max_disp_diff_filtered_um", "max_force_diff_filtered_pct_cf",
 )
 
 
-def compare(system: System, methods=PAPER_METHODS, periods: float = 3, repeats: int = 5,
+def time_kernels(sims: dict, repeats: int, warmups: int = 2) -> dict[str, list[float]]:
+    """Kernel times [s] of ``repeats`` calls of ``march()`` per runner in ``sims`` (name ->
+    runner): all runners warmed ``warmups`` times first, then the timed calls interleaved
+    (round r starts at runner r mod len, so no runner always follows the same one), with
+    garbage collection off."""
+    names = list(sims)
+    for _ in range(warmups):
+        for name in names:
+            sims[name].march()
+    samples: dict[str, list[float]] = {name: [] for name in names}
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for r in range(repeats):
+            k = r % len(names)
+            for name in names[k:] + names[:k]:
+                sims[name].march()
+                samples[name].append(sims[name].kernel_time)
+    finally:
+        if enabled:
+            gc.enable()
+    return samples
+
+
+def compare(system: System, methods=COMPARE_METHODS, periods: float = 3, repeats: int = 21,
             cutoff_Hz: float | None = None, datasets: dict | None = None, **options) -> list[dict]:
     """Run ``methods`` on ``system`` and return one row (dict, keys :data:`COLUMNS` plus
     ``force_scale_N`` and ``filter_cutoff_Hz``) per method, Method 1 first.
@@ -65,15 +95,9 @@ def compare(system: System, methods=PAPER_METHODS, periods: float = 3, repeats: 
         raise InputError("repeats", f"is {repeats!r}", "give a whole number >= 1")
     if cutoff_Hz is not None and not (isinstance(cutoff_Hz, (int, float)) and math.isfinite(cutoff_Hz) and cutoff_Hz > 0):
         raise InputError("cutoff_Hz", f"is {cutoff_Hz!r}", "give a frequency > 0 [Hz], or None to choose it")
-    results, times = {}, {}
-    for name in names:
-        sim = Simulation(system, name, periods=periods, **options)
-        results[name] = sim.run()  # warm-up (JIT compile) and the result
-        samples = []
-        for _ in range(repeats):
-            sim.march()
-            samples.append(sim.kernel_time)
-        times[name] = median(samples)
+    sims = {name: Simulation(system, name, periods=periods, **options) for name in names}
+    results = {name: sim.run() for name, sim in sims.items()}  # the results (and the first, compiling call)
+    times = time_kernels(sims, repeats)
     if datasets is not None:
         datasets.update(results)
     ref = results[REFERENCE]
@@ -169,8 +193,10 @@ def _lowpass_dataset(ds: xr.Dataset, ref: xr.Dataset, cutoff: float) -> dict:
     return out
 
 
-def _row(ds, ref, filtered_ref, kernel_time, ref_time, force_scale, cutoff) -> dict:
+def _row(ds, ref, filtered_ref, samples, ref_samples, force_scale, cutoff) -> dict:
     a = ds.attrs
+    kernel_time, ref_time = median(samples), median(ref_samples)
+    fastest, ref_fastest = min(samples), min(ref_samples)
     solves = ds.solves.values[1:]
     steps = int(a["steps"])
     last = _last_period(ref)
@@ -197,6 +223,10 @@ def _row(ds, ref, filtered_ref, kernel_time, ref_time, force_scale, cutoff) -> d
         "state_changes_last_period": int(np.count_nonzero(changed & in_last)),
         "kernel_time_s": float(kernel_time),
         "time_ratio": float(kernel_time / ref_time) if ref_time > 0 else math.nan,
+        "kernel_time_min_s": float(fastest),
+        "time_ratio_min": float(fastest / ref_fastest) if ref_fastest > 0 else math.nan,
+        "time_spread": float(np.subtract(*np.percentile(samples, [75, 25])) / kernel_time) if kernel_time > 0
+        else math.nan,
         "dt_min_s": float(steps_dt.min()) if steps_dt.size else math.nan,
         "dt_max_s": float(steps_dt.max()) if steps_dt.size else math.nan,
         "max_disp_diff_um": d_um,

@@ -81,6 +81,7 @@ class ContactSpec(_Strict):
     tangential_stiffness_N_per_m: float | list[float]
     friction_coefficient: float
     normal_offset_m: float = 0.0
+    law: Optional[str] = None
 
 
 class HarmonicSpec(_Strict):
@@ -254,7 +255,8 @@ def _build_system(spec: CaseSpec) -> System:
         name=c.name, dof_gather=np.asarray(c.dof_gather),
         motion_gather=None if c.motion_gather is None else np.asarray(c.motion_gather),
         tangential_stiffness=c.tangential_stiffness_N_per_m, normal_stiffness=c.normal_stiffness_N_per_m,
-        friction_coefficient=c.friction_coefficient, normal_offset=c.normal_offset_m) for c in spec.contacts or ())
+        friction_coefficient=c.friction_coefficient, normal_offset=c.normal_offset_m,
+        law=c.law) for c in spec.contacts or ())
     motion = _signal(spec.motion, spec.motion_table, motion_names, 1.0, "motion", ramp)
     force = _signal(spec.force, spec.force_table, structure.dof_names, 1.0, "force", ramp)
     exc = Excitation(constant_force=s.constant_force_N, force=force, motion=motion, period=spec.period_s)

@@ -28,7 +28,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from slipstep.io import plain_text_figures as _plain_text_figures  # noqa: E402
 from slipstep.results import STATE_NAMES  # noqa: E402
 
-STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61")  # lift-off, stick, slip+, slip-
+STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61", "#7b3294")  # one per STATE_NAMES entry
 _SCALE = {"m": (1e6, "um"), "rad": (1e3, "mrad"), "N": (1.0, "N"), "s": (1e3, "ms"), "J": (1e3, "mJ")}
 
 plt.rcParams.update({"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9,

@@ -13,8 +13,9 @@ import os
 import numpy as np
 import xarray as xr
 
-# contact_state values
-STATE_NAMES = ("lift-off", "stick", "slip+", "slip-")
+from slipstep.kernels.codes import STATE_NAMES  # contact_state values (defined once, in the kernels' codes)
+
+STATE_TEXT = ", ".join(f"{code} {name}" for code, name in enumerate(STATE_NAMES))
 
 SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     # name: (dims, units, long_name)
@@ -27,7 +28,7 @@ SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     "tangential_force": (("time", "direction"), "N", "contact tangential force T"),
     "normal_force": (("time", "contact"), "N", "contact normal force N (>= 0: compression)"),
     "slider": (("time", "direction"), "m", "slider position w"),
-    "contact_state": (("time", "direction"), "1", "contact state (0 lift-off, 1 stick, 2 slip+, 3 slip-)"),
+    "contact_state": (("time", "direction"), "1", f"contact state ({STATE_TEXT})"),
     "solves": (("time",), "1", "linear solves (iterations) in the step ending at this time"),
     "step_size": (("time",), "s", "time step ending at this time (0 at the initial point)"),
 }
@@ -61,7 +62,7 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
             continue
         dims, units, long_name = SCHEMA[name]
         variables[name] = xr.Variable(dims, np.array(values), {"units": units, "long_name": long_name})
-    variables["contact_state"].attrs.update(flag_values=np.arange(4, dtype=np.int8), flag_meanings=" ".join(
+    variables["contact_state"].attrs.update(flag_values=np.arange(len(STATE_NAMES), dtype=np.int8), flag_meanings=" ".join(
         s.replace("-", "_").replace("+", "_pos") for s in STATE_NAMES))
     coords = {
         "time": ("time", np.array(out.t[:k]), {"units": "s", "long_name": "time after the static preload"}),
@@ -72,6 +73,7 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
         "direction": ("direction", system.direction_names()),
         "direction_contact": ("direction", [system.contact_names[i] for i in np.asarray(cs.direction_contact)]),
         "friction_coefficient": ("contact", np.asarray(cs.mu), {"units": "1"}),
+        "contact_law": ("contact", [c.law for c in system.contacts]),
         "normal_stiffness": ("contact", np.asarray(cs.kn), {"units": "N/m"}),
         "tangential_stiffness": ("direction", np.asarray(cs.kt), {"units": "N/m"}),
     }

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.kernels.codes import N_LAW_PAR, P_KN, P_MU
 from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, compile_signal
 from slipstep.model.structure import Structure
@@ -31,8 +32,8 @@ class CompiledSystem(NamedTuple):
     B: np.ndarray  # (nq, m) gather from prescribed motions
     g: np.ndarray  # (nq,) offsets (normal interference)
     normal_row: np.ndarray  # (nc,) int64 row of v in q
-    kn: np.ndarray  # (nc,) N/m
-    mu: np.ndarray  # (nc,)
+    kn: np.ndarray  # (nc,) N/m (= law_par[:, P_KN], for readers of results)
+    mu: np.ndarray  # (nc,) (= law_par[:, P_MU])
     first_direction: np.ndarray  # (nc,) int64 index of the contact's first direction
     n_directions: np.ndarray  # (nc,) int64 1 (2D) or 2 (quasi-3D)
     tangential_row: np.ndarray  # (nd,) int64 row of u in q
@@ -52,6 +53,8 @@ class CompiledSystem(NamedTuple):
     motion_table_value: np.ndarray
     motion_ramp: float
     length_scale: float  # m, for tolerances
+    law: np.ndarray  # (nc,) int64 contact-law code (kernels/codes.py LAW_*, names in model.contact.CONTACT_LAWS)
+    law_par: np.ndarray  # (nc, N_LAW_PAR) the law parameter table: P_KN k_n [N/m], P_MU mu (kernels read these)
 
 
 @dataclass(frozen=True)
@@ -172,7 +175,17 @@ class System:
             as_f(ms.frequency), as_f(ms.sin_coefficient), as_f(ms.cos_coefficient),
             as_f(ms.table_time), as_f(ms.table_value), float(ms.ramp_time),
             scale,
+            as_i([c.law_code for c in self.contacts]),
+            _law_table(kn, mu),
         )
+
+
+def _law_table(kn, mu) -> np.ndarray:
+    """The law parameter table (nc, N_LAW_PAR), columns kernels.codes.P_*."""
+    table = np.zeros((len(kn), N_LAW_PAR))
+    table[:, P_KN] = kn
+    table[:, P_MU] = mu
+    return table
 
 
 def _length_scale(f0, fs, ms, stiffnesses) -> float:

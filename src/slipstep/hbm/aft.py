@@ -45,21 +45,21 @@ from slipstep.kernels import contact as _law
 
 def law_arguments(cs) -> tuple:
     """The contact table the kernels' law takes, from a CompiledSystem."""
-    return (cs.normal_row, cs.kn, cs.mu, cs.first_direction, cs.n_directions, cs.tangential_row, cs.kt)
+    return (cs.normal_row, cs.law, cs.law_par, cs.first_direction, cs.n_directions, cs.tangential_row, cs.kt)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def apply_law(args, q, w_old, f, w_new, state):
     """The kernels' nonlinear law at one sample (see slipstep.kernels.contact.law)."""
-    nrow, kn, mu, fdir, ndir, trow, kt = args
-    _law.law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = args
+    _law.law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def apply_linear_law(args, state, q, w_old, f, w_new):
     """The kernels' piecewise-linear law for a postulated state (slipstep.kernels.contact.piecewise_law)."""
-    nrow, kn, mu, fdir, ndir, trow, kt = args
-    _law.piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = args
+    _law.piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
 
 
 # ---- tangents of the piecewise-linear form ---------------------------------------------------

@@ -1,33 +1,35 @@
-"""The spring-slider contact law and its piecewise-linear form (physics.md sections 2-3).
+"""The contact laws over all contacts: gather, scatter, and the laws of
+:mod:`slipstep.kernels.laws` dispatched on each contact's law code (physics.md 2-3).
 
-Per contact c with normal approach v and per tangential direction d with displacement u,
-slider w_old (the converged value of the previous step) and trial force T* = k_t (u - w_old):
+Every contact c has a law code (``lcode[c]``, kernels/codes.py) and a row of the law
+parameter table (``lpar[c]``: k_n, mu); k_t is per tangential direction. The laws:
 
-    v <= 0                      LIFT    T = N = 0,            w = u
-    |T*| <= mu k_n v            STICK   T = T*, N = k_n v,    w = w_old
-    T* >  mu k_n v              SLIP+   T = +mu k_n v,        w = u - T / k_t
-    T* < -mu k_n v              SLIP-   T = -mu k_n v,        w = u - T / k_t
+* LAW_UNCOUPLED (laws/uncoupled.py): the paper's 2D and quasi-3D law, one slider per
+  tangential direction, |T_d| <= mu N each (a quasi-3D contact can carry sqrt(2) mu N);
+  the Jenkins element is this law with a constant normal approach;
+* LAW_CIRCLE (laws/circle.py): coupled 3D friction circle, |T| <= mu N as a vector norm.
 
-In a fixed state S the law is linear (paper Eq. 5): f = K(S) q + s(S, w_old) with
-K(STICK) = diag(k_t, k_n), s = (-k_t w_old, 0); K(SLIP+/-) = [[0, +/-mu k_n], [0, k_n]].
-Assembled (paper Eq. 7): K_D(S) = A^T K(S) A, and the generalised contact force is A^T f.
-The state of a contact is stored per tangential direction (LIFT is shared by both
-directions of a quasi-3D contact).
+Shared normal part: N = k_n v, and v <= 0 is LIFT (T = N = 0, w = u, every direction).
+In a state S with a piecewise-linear form the law is f = K(S) q + s(S, w_old) (paper Eq. 5),
+assembled (paper Eq. 7) as K_D(S) = A^T K(S) A; the generalised contact force is A^T f.
+A coupled slip has no such form: its K is the consistent tangent at (q, w_old), and a step
+in that state is solved by Newton (kernels/march.py). The state of a contact is stored per
+tangential direction (codes.STATE_NAMES).
 """
 
+import numpy as np
 from numba import njit
 
-LIFT = 0
-STICK = 1
-SLIP_POS = 2
-SLIP_NEG = 3
-
-
+from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the state codes)
+    LAW_CIRCLE, LIFT, P_KN, P_MU, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK,
+)
+from slipstep.kernels.laws import circle, uncoupled
 
 # ---- explicit-array cores (the hot path: small argument lists, no tuples) ------------------
 # Contact table arguments, in this order everywhere:
-#   nrow (nc) normal row of each contact in q, kn (nc), mu (nc), fdir (nc) first direction,
-#   ndir (nc) number of directions, trow (nd) tangential row of each direction in q, kt (nd).
+#   nrow (nc) normal row of each contact in q, lcode (nc) law code, lpar (nc, N_LAW_PAR) law
+#   parameters (k_n, mu), fdir (nc) first direction, ndir (nc) number of directions,
+#   trow (nd) tangential row of each direction in q, kt (nd).
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -53,10 +55,34 @@ def scatter(AT, f, out):
         out[j] = s
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state):
+    """laws/circle.py law for the contact whose first direction is d0 (limit = mu N)."""
+    r1, r2 = trow[d0], trow[d0 + 1]
+    f[r1], f[r2], w_new[d0], w_new[d0 + 1], s = circle.law(kt[d0], limit, q[r1], q[r2], w_old[d0], w_old[d0 + 1])
+    state[d0] = s
+    state[d0 + 1] = s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new):
+    """laws/circle.py linear for the contact whose first direction is d0."""
+    r1, r2 = trow[d0], trow[d0 + 1]
+    f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(kt[d0], limit, state[d0], q[r1], q[r2], w_old[d0],
+                                                           w_old[d0 + 1])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _circle_compatible(trow, kt, d0, limit, state, q, w_old, tol_t):
+    """laws/circle.py compatible for the contact whose first direction is d0."""
+    return circle.compatible(kt[d0], limit, state[d0], q[trow[d0]], q[trow[d0 + 1]], w_old[d0], w_old[d0 + 1], tol_t)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
-def law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
-    """The nonlinear law: forces f (local, like q), new sliders and states from q and w_old."""
-    for c in range(kn.shape[0]):
+def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
+    """The nonlinear law (return mapping): forces f (local, like q), new sliders and states
+    from q and w_old."""
+    for c in range(nrow.shape[0]):
         nr = nrow[c]
         v = q[nr]
         d0 = fdir[c]
@@ -67,30 +93,21 @@ def law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
                 w_new[d] = q[trow[d]]
                 state[d] = LIFT
             continue
-        N = kn[c] * v
+        N = lpar[c, P_KN] * v
         f[nr] = N
-        limit = mu[c] * N
-        for d in range(d0, d0 + ndir[c]):
-            tr = trow[d]
-            trial = kt[d] * (q[tr] - w_old[d])
-            if abs(trial) <= limit:
-                f[tr] = trial
-                w_new[d] = w_old[d]
-                state[d] = STICK
-            elif trial > 0.0:
-                f[tr] = limit
-                w_new[d] = q[tr] - limit / kt[d]
-                state[d] = SLIP_POS
-            else:
-                f[tr] = -limit
-                w_new[d] = q[tr] + limit / kt[d]
-                state[d] = SLIP_NEG
+        limit = lpar[c, P_MU] * N
+        if lcode[c] == LAW_CIRCLE:  # (out of line: keeps the paper's law compact where it is inlined)
+            _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state)
+        else:
+            for d in range(d0, d0 + ndir[c]):
+                tr = trow[d]
+                f[tr], w_new[d], state[d] = uncoupled.law(kt[d], limit, q[tr], w_old[d])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
-    """The piecewise-linear law f = K(S) q + s(S, w_old) for a postulated state S."""
-    for c in range(kn.shape[0]):
+def piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
+    """The law in a postulated state S: f = K(S) q + s(S, w_old) where S is linear."""
+    for c in range(nrow.shape[0]):
         nr = nrow[c]
         d0 = fdir[c]
         if state[d0] == LIFT:
@@ -99,29 +116,26 @@ def piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
                 f[trow[d]] = 0.0
                 w_new[d] = q[trow[d]]
             continue
-        N = kn[c] * q[nr]
+        N = lpar[c, P_KN] * q[nr]
         f[nr] = N
-        for d in range(d0, d0 + ndir[c]):
-            tr = trow[d]
-            s = state[d]
-            if s == STICK:
-                f[tr] = kt[d] * (q[tr] - w_old[d])
-                w_new[d] = w_old[d]
-            else:
-                T = mu[c] * N if s == SLIP_POS else -mu[c] * N
-                f[tr] = T
-                w_new[d] = q[tr] - T / kt[d]
+        limit = lpar[c, P_MU] * N
+        if lcode[c] == LAW_CIRCLE:
+            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
+        else:
+            for d in range(d0, d0 + ndir[c]):
+                tr = trow[d]
+                f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
+def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
     """Does the postulated state satisfy its row of the state table at q (within tolerance)?
 
     Tolerances: rtol * L on v (L the system length scale) and rtol * (mu k_n |v| + k_t L)
     on the friction test, so that a point on a stick/slip or contact boundary is accepted.
     """
     tol_v = rtol * length_scale
-    for c in range(kn.shape[0]):
+    for c in range(nrow.shape[0]):
         v = q[nrow[c]]
         d0 = fdir[c]
         if state[d0] == LIFT:
@@ -130,20 +144,25 @@ def compatible(nrow, kn, mu, fdir, ndir, trow, kt, state, q, w_old, rtol, length
             continue
         if v < -tol_v:
             return False
-        limit = mu[c] * kn[c] * v
+        limit = lpar[c, P_MU] * lpar[c, P_KN] * v
+        if lcode[c] == LAW_CIRCLE:
+            if not _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)):
+                return False
+            continue
         for d in range(d0, d0 + ndir[c]):
-            trial = kt[d] * (q[trow[d]] - w_old[d])
             tol_t = rtol * (abs(limit) + kt[d] * length_scale)
-            s = state[d]
-            if s == STICK:
-                if abs(trial) > limit + tol_t:
-                    return False
-            elif s == SLIP_POS:
-                if trial < limit - tol_t:
-                    return False
-            elif trial > -limit + tol_t:
+            if not uncoupled.compatible(kt[d], limit, state[d], q[trow[d]], w_old[d], tol_t):
                 return False
     return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
+    """True if some contact is in a state without a piecewise-linear form (coupled slip)."""
+    for c in range(nrow.shape[0]):
+        if state[fdir[c]] == SLIP_COUPLED:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -157,23 +176,74 @@ def _add_outer(out, k, A, r1, r2):
                 out[i, j] += a * A[r2, j]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old):
+    """The six tangential entries of a friction-circle contact's K(S) (laws/circle.py), at
+    (q, w_old), or without a point (q of length 0) the stick ones."""
+    d0 = fdir[c]
+    mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+    if q.shape[0] == 0:
+        return circle.tangent(kt[d0], mu_kn, 0.0, state[d0], False, 0.0, 0.0, 0.0, 0.0)
+    return circle.tangent(kt[d0], mu_kn, mu_kn * q[nrow[c]], state[d0], True, q[trow[d0]], q[trow[d0 + 1]],
+                          w_old[d0], w_old[d0 + 1])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, factor, out):
-    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7)."""
-    for c in range(kn.shape[0]):
+def contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, q, w_old, factor, out):
+    """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7): the laws' local
+    stiffness (laws/*.tangent), at (q, w_old) for a coupled slip (q of length 0: no point,
+    the stiffest tangent, used for T_min)."""
+    for c in range(nrow.shape[0]):
         d0 = fdir[c]
         if state[d0] == LIFT:
             continue
         nr = nrow[c]
-        _add_outer(out, factor * kn[c], A, nr, nr)
+        kn = lpar[c, P_KN]
+        _add_outer(out, factor * kn, A, nr, nr)
+        if lcode[c] == LAW_CIRCLE:
+            r1, r2 = trow[d0], trow[d0 + 1]
+            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
+            for k, ra, rb in ((k11, r1, r1), (k12, r1, r2), (k21, r2, r1), (k22, r2, r2), (k1v, r1, nr),
+                              (k2v, r2, nr)):
+                if k != 0.0:
+                    _add_outer(out, factor * k, A, ra, rb)
+            continue
+        mu_kn = lpar[c, P_MU] * kn
         for d in range(d0, d0 + ndir[c]):
-            s = state[d]
-            if s == STICK:
-                _add_outer(out, factor * kt[d], A, trow[d], trow[d])
-            elif s == SLIP_POS:
-                _add_outer(out, factor * mu[c] * kn[c], A, trow[d], nr)
-            else:
-                _add_outer(out, -factor * mu[c] * kn[c], A, trow[d], nr)
+            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+            if kuu != 0.0:
+                _add_outer(out, factor * kuu, A, trow[d], trow[d])
+            if kuv != 0.0:
+                _add_outer(out, factor * kuv, A, trow[d], nr)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
+    """out = kfac (K(S) - K(stick)) y, local (the low-rank update of kernels/state_solve.py):
+    lift-off: -k_t on u, -k_n on v; slip: the slip tangent minus k_t on u; stick: 0."""
+    for r in range(out.shape[0]):
+        out[r] = 0.0
+    for c in range(nrow.shape[0]):
+        d0 = fdir[c]
+        nr = nrow[c]
+        if state[d0] == LIFT:
+            out[nr] = -kfac * lpar[c, P_KN] * y[nr]
+            for d in range(d0, d0 + ndir[c]):
+                out[trow[d]] = -kfac * kt[d] * y[trow[d]]
+            continue
+        if lcode[c] == LAW_CIRCLE:
+            if state[d0] == STICK:
+                continue
+            r1, r2 = trow[d0], trow[d0 + 1]
+            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
+            out[r1] = kfac * ((k11 - kt[d0]) * y[r1] + k12 * y[r2] + k1v * y[nr])
+            out[r2] = kfac * (k21 * y[r1] + (k22 - kt[d0]) * y[r2] + k2v * y[nr])
+            continue
+        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+        for d in range(d0, d0 + ndir[c]):
+            if state[d] != STICK:
+                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+                out[trow[d]] = kfac * (kuv * y[nr] + (kuu - kt[d]) * y[trow[d]])
 
 
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------
@@ -188,29 +258,36 @@ def local_displacement(sys, x, p, q):
 @njit(cache=True, nogil=True, error_model="numpy")
 def contact_law(sys, q, w_old, f, w_new, state):
     """The nonlinear law (see :func:`law`)."""
-    law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
+    law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
         q, w_old, f, w_new, state)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def linear_law(sys, state, q, w_old, f, w_new):
     """The piecewise-linear law (see :func:`piecewise_law`)."""
-    piecewise_law(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
-                  state, q, w_old, f, w_new)
+    piecewise_law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row,
+                  sys.kt, state, q, w_old, f, w_new)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def is_compatible(sys, state, q, w_old, rtol):
     """The compatibility check (see :func:`compatible`)."""
-    return compatible(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
-                      sys.kt, state, q, w_old, rtol, sys.length_scale)
+    return compatible(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, state, q, w_old, rtol, sys.length_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def add_contact_stiffness(sys, state, factor, out):
-    """out += factor * K_D(S) (see :func:`contact_stiffness`)."""
-    contact_stiffness(sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions, sys.tangential_row,
-                      sys.kt, sys.A, state, factor, out)
+    """out += factor * K_D(S) without a point (coupled slip: the stick tangent), for T_min."""
+    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, sys.A, state, np.empty(0), np.empty(0), factor, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def add_tangent_stiffness(sys, state, q, w_old, factor, out):
+    """out += factor * A^T K(S; q, w_old) A: the consistent tangent of state S at (q, w_old)."""
+    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, sys.A, state, q, w_old, factor, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

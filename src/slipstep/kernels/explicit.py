@@ -86,7 +86,7 @@ class ExplicitWorkspace(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+def _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
            t, x, v, w_old, f, w_new, state, q, out):
     """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state.
     (lu, piv: the factorised M, or M + dt/2 C for central difference.)"""
@@ -96,7 +96,7 @@ def _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, pi
     evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
                     sys.force_table_value, sys.force_ramp, fe)
     gather(A, B, g, x, p, q)
-    law(nrow, kn, mu, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
+    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
     scatter(AT, f, gf)
     for i in range(n):
         s = fe[i] + sys.constant_force[i] - gf[i]
@@ -113,7 +113,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     Returns the status; out.counters[C_STEPS] steps done."""
     # ---- unpack once (the loop touches local arrays only) ----
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
-    nrow, kn, mu, fdir, ndir, trow, kt = (sys.normal_row, sys.kn, sys.mu, sys.first_direction, sys.n_directions,
+    nrow, lcode, lpar, fdir, ndir, trow, kt = (sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
                                          sys.tangential_row, sys.kt)
     x, v, a, w, state = ws.x, ws.v, ws.a, ws.w, ws.state
     x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
@@ -146,7 +146,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                                    fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt = fpar[DT]
@@ -177,7 +177,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                     for i in range(n):
                         xs[i] = x[i] + c * dt * kx[st - 1, i]
                         vs[i] = v[i] + c * dt * kv[st - 1, i]
-                    _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                    _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
                            t + c * dt, xs, vs, w, fs, w_s, ss, q1, kv[st])
                     for i in range(n):
                         kx[st, i] = vs[i]
@@ -185,7 +185,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                     x1[i] = x[i] + dt / 6.0 * (kx[0, i] + 2.0 * kx[1, i] + 2.0 * kx[2, i] + kx[3, i])
                     v1[i] = v[i] + dt / 6.0 * (kv[0, i] + 2.0 * kv[1, i] + 2.0 * kv[2, i] + kv[3, i])
                 # accepted-step law at q_{n+1}: forces, sliders, states and a_{n+1} (k1 of the next step)
-                _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
                        t + dt, x1, v1, w, f1, w1, state1, q1, a1)
                 counters[C_LAW_CALLS] += 4
                 solves += 4
@@ -194,7 +194,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                 for i in range(n):
                     x1[i] = x[i] + dt * v[i] + h * dt * a[i]
                     vs[i] = v[i] + h * a[i]
-                _accel(sys, A, AT, B, g, nrow, kn, mu, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
                        t + dt, x1, vs, w, f1, w1, state1, q1, a1)
                 for i in range(n):
                     v1[i] = vs[i] + h * a1[i]
@@ -210,7 +210,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, tkeys, tused,
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
                                       tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

@@ -27,6 +27,12 @@ Step solvers:
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
       If the states cycle, fall back to modified Newton for that step (counted).
+      A postulated state without a piecewise-linear form (a coupled slip of the friction-
+      circle law) is solved by Newton on the consistent tangent (solver 1) instead.
+    3 modified Newton with J(S) of the state whose T_min set the step (Method 2: the state
+      at the step start, or the one a redo found; fixed step: S_n), cached per state, given
+      up for J(all stick) from the dx reached when it stops contracting (theta >= 0.5).
+    (4 EVENTS: not a solver of this march; kernels/events.py.)
 Accuracy control (fpar RTOL > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
 solvers (rule: the fixed step or the contact-state step below), min(dt_acc, dt_max) for the
 piecewise-linear solve; dt_acc follows the local error of each step (:func:`_local_error`),
@@ -49,12 +55,16 @@ from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters a
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
     CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
-from slipstep.kernels.codes import C_PROGRESS, C_STOP, FULL_NEWTON, INTERRUPTED, MODIFIED_NEWTON, PIECEWISE_LINEAR  # noqa: F401
-from slipstep.kernels.contact import compatible, contact_stiffness, gather, law, piecewise_law, scatter
+from slipstep.kernels.codes import (  # noqa: F401
+    C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, LAW_CIRCLE, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE,
+    PIECEWISE_LINEAR,
+)
+from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
 
+THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 # float parameters
 BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
 RTOL, ERR_SCALE = 12, 13  # accuracy control (rtol > 0: on; the piecewise-linear solve then keeps dt <= DT_MAX only)
@@ -121,7 +131,7 @@ class Outputs(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
+def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
                      gf1, r, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
     n = dx.shape[0]
@@ -130,7 +140,7 @@ def _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, q
         for j in range(n):
             s += A[rr, j] * dx[j]
         q1[rr] = s
-    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
     counters[C_LAW_CALLS] += 1
     scatter(AT, f1, gf1)
     for i in range(n):
@@ -205,7 +215,7 @@ def _residual_converged(r, r0, gf1, kfac, conv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                      dx, delta, r, q1, f1, w1, state1, gf1, max_iter, conv, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
     factorised full-stick Jacobian (lu0, piv0). Converged when BOTH the increment test of
@@ -218,7 +228,7 @@ def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
@@ -232,7 +242,7 @@ def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0, qbase, w,
+def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                  dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                  keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
@@ -240,7 +250,7 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, k
     as :func:`_modified_newton` (increment and force residual, both)."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
-    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state,
+    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
                                      stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if not ok:
         return SINGULAR, 0
@@ -248,19 +258,19 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, k
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(A, AT, nrow, kn, mu, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
             break
         use, use_state = stick_slot, stick
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, dt_state,
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
                                    stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             use, use_state = slot, state1
         if lowrank:
-            solve_low_rank(use, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, use_state, kfac, r, delta)
+            solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
         else:
             lu_solve(lus[use], pivs[use], r, delta)
         status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
@@ -270,18 +280,66 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, k
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, key,
+def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
     state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
     in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
     carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
-    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, stick, dt_state, stick,
+    nowhere = np.empty(0)  # J(stick) needs no linearisation point
+    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
                                key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if lowrank:
         b = lr.slot_base[slot]
         return ok, lr.base_lu[b], lr.base_piv[b]
     return ok, lus[slot], pivs[slot]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
+                    gf1, max_iter, conv, theta_give_up, from_zero, counters):
+    """:func:`_modified_newton` (the same convergence tests) with the factorised J(S) of a
+    state S (solver 3), given up as soon as it stops contracting (the contraction ratio of
+    the increment >= theta_give_up): J(S) softer than the tangent of the state the step
+    reaches (a slip state entering stick) can make the iteration diverge, where the stiffest
+    tangent, J(all stick), cannot; that one then goes on from the dx reached (from_zero False,
+    theta_give_up inf). Returns (status, solves); NOT_CONVERGED when given up."""
+    if from_zero:
+        for i in range(dx.shape[0]):
+            dx[i] = 0.0
+    prev_norm = 0.0
+    theta = 0.0
+    inc_ok = False
+    for it in range(max_iter + 1):
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
+        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
+            return OK, it
+        if it == max_iter:
+            break
+        lu_solve(lu, piv, r, delta)
+        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
+        if status != OK:
+            return status, it + 1
+        if it > 0 and theta >= theta_give_up:
+            return NOT_CONVERGED, it + 1
+    return NOT_CONVERGED, max_iter
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
+                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+    """(ok, lu, piv): the factorisation of J(S) for the modified Newton of solver 3, S the
+    contact state whose T_min set the step (cached per state like the stick one). Falls back
+    to J(all stick) where S has no constant tangent (coupled slip), in low-rank mode (whose
+    J(S) solve is not one LU) and where J(S) is singular."""
+    if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
+        nowhere = np.empty(0)
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
+                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
+        if ok:
+            return ok, lus[slot], pivs[slot]
+    return _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
+                                lus, pivs, lr, nominal, singular_rtol, counters)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -359,14 +417,14 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
     T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
     slot, found = find_slot(tkeys, tused, state)
     if not found:
         Keff = Kst.copy()
-        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, state, 1.0, Keff)
+        contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
         ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
         wmax2 = 0.0
         for i in range(ev.shape[0]):
@@ -393,7 +451,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     g = sys.g
     nrow = sys.normal_row
     kn = sys.kn
-    mu = sys.mu
+    lcode = sys.law
+    lpar = sys.law_par
     fdir = sys.first_direction
     ndir = sys.n_directions
     trow = sys.tangential_row
@@ -432,6 +491,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
     kfac = (1.0 - af) if inertia else 1.0
     has_damping = np.any(Cd != 0.0)
+    has_circle = np.any(lcode == LAW_CIRCLE)
     has_stiffness = np.any(Kst != 0.0)
     acc_pred = np.empty(n)
     vel_pred = np.empty(n)
@@ -452,6 +512,11 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     k = 0
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
     stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
+    tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
+    tan_state = np.full(nd, -1, np.int8)
+    okS = False
+    luS = lus[0]
+    pivS = pivs[0]
     ok0 = False
     lu0 = lus[0]
     piv0 = pivs[0]
@@ -477,7 +542,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state,
+                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
                                                    tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             dt_nominal = dt_state_limit
         else:
@@ -549,6 +614,13 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     for d in range(nd):
                         visited[it, d] = state1[d]
                     counters[C_N_VISITED] = it + 1
+                    if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
+                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                    delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
+                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
+                                                    singular_rtol, counters)
+                        solves += more
+                        break
                     same = nominal and last_slot >= 0
                     if same:
                         for d in range(nd):
@@ -558,19 +630,20 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if same:
                         slot, ok = last_slot, ok_flags[last_slot]
                     else:
-                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
-                                                   state1, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
+                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                                                   state1, qbase, w, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
                                                    lr, nominal, singular_rtol, counters)
                         last_slot = slot if nominal else -1
                     if not ok:
                         status = SINGULAR
                         break
-                    piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
+                    piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
                     scatter(AT, f1, gf1)
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
                     if lowrank:
-                        solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, state1, kfac, r, dx)
+                        solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac,
+                                       r, dx)
                     else:
                         lu_solve(lus[slot], pivs[slot], r, dx)
                     solves += 1
@@ -586,22 +659,22 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         for j in range(n):
                             s += A[rr, j] * dx[j]
                         q1[rr] = s
-                    if compatible(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-                        piecewise_law(nrow, kn, mu, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
+                    if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
+                        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
                         scatter(AT, f1, gf1)
                         status = OK
                         break
-                    law(nrow, kn, mu, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+                    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
                     counters[C_LAW_CALLS] += 1
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt,
+                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
                                                           stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
                                                           nominal, singular_rtol, counters)
                     more = 0
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, conv, counters)
                     solves += more
@@ -609,18 +682,45 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
                 if solver == FULL_NEWTON:
-                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, r0,
+                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
                                                 qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
                                                 singular_rtol, counters)
+                elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
+                    tstate = dt_state if adaptive else state
+                    if not (nominal and dt == tan_dt and _same(tstate, tan_state)):
+                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
+                                                              dt_state, key, keys, used, ok_flags, lus, pivs, lr,
+                                                              nominal, singular_rtol, counters)
+                        tan_dt = dt if nominal else np.nan
+                        for d in range(nd):
+                            tan_state[d] = tstate[d]
+                    stick_dt = np.nan
+                    status, more = SINGULAR, 0
+                    if okS:
+                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
+                                                       THETA_GIVE_UP, True, counters)
+                    if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
+                        counters[C_FALLBACKS] += 1
+                        restart = status != NOT_CONVERGED  # else go on from the dx reached
+                        solves += more
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
+                                                              key, keys, used, ok_flags, lus, pivs, lr, nominal,
+                                                              singular_rtol, counters)
+                        status, more = SINGULAR, 0
+                        if ok0:
+                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
+                                                           np.inf, restart, counters)
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow,
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,
                                                               kt, stick, dt_state, key, keys, used, ok_flags, lus,
                                                               pivs, lr, nominal, singular_rtol, counters)
                         stick_dt = dt if nominal else np.nan
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, kn, mu, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, conv, counters)
                     else:
@@ -638,7 +738,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
             if _same(state1, dt_state):
                 break
-            limit = _state_step_limit(Kst, Minv, A, nrow, kn, mu, fdir, ndir, trow, kt, state1,
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
                                       tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

@@ -23,6 +23,7 @@ converged to the same equations in their final state, so the same formulas hold.
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.codes import P_KN, P_MU
 from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
 
 
@@ -64,10 +65,12 @@ def _gather_rows(ptr, col, val, X, out, add):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, beta, gamma, inertia,
+def period_sensitivity(M, Cd, Kst, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia,
                        dts, states, n_steps, Z):
     """Propagate Z (rows x | v | a | w: 3 n + nd, columns: the unknowns) through steps
     1..n_steps with step sizes dts[k] and accepted states states[k] (in place)."""
+    kn = lpar[:, P_KN]
+    mu = lpar[:, P_MU]
     n = M.shape[0]
     nq = A.shape[0]
     nd = kt.shape[0]
@@ -108,7 +111,7 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, kn, mu, fdir, ndir, trow, kt, be
                 if inertia:
                     G[:, n:2 * n] = a2 * M - b1 * Cd
                     G[:, 2 * n:3 * n] = a3 * M - b2 * Cd
-            contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, S, 1.0, J)
+            contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, np.empty(0), np.empty(0), 1.0, J)
             Jinv = np.ascontiguousarray(np.linalg.inv(J))
             prev_dt = dt
             for d in range(nd):

@@ -22,7 +22,7 @@ from numba import njit
 
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import C_FACTORISATIONS
-from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
+from slipstep.kernels.contact import STICK, contact_stiffness, coupled, delta_stiffness
 from slipstep.kernels.linalg import lu_factor, lu_solve
 
 
@@ -37,8 +37,8 @@ class LowRank(NamedTuple):
     base_piv: np.ndarray  # int64 (capb + 1, n)
     Z: np.ndarray  # (capb + 1, n, nq): J0^-1 A^T
     AZ: np.ndarray  # (capb + 1, nq, nq): A J0^-1 A^T
-    slot_base: np.ndarray  # int64 (cap + 1): base slot of each state slot
-    slot_identity: np.ndarray  # bool (cap + 1): the state is all stick, C = I
+    slot_base: np.ndarray  # int64 (cap + 2): base slot of each state slot
+    slot_identity: np.ndarray  # bool (cap + 2): the state is all stick, C = I
     Ay: np.ndarray  # (nq) scratch
     t: np.ndarray  # (nq) scratch
     s: np.ndarray  # (nq) scratch
@@ -46,39 +46,22 @@ class LowRank(NamedTuple):
     zc: np.ndarray  # (n) scratch
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def delta_k(nrow, kn, mu, fdir, ndir, trow, kt, state, kfac, y, out):
-    """out = kfac (K(S) - K(stick)) y, local (the state table of contact.py):
-    lift-off: -k_t on u, -k_n on v; slip+/-: -k_t on u and +/- mu k_n from v; stick: 0."""
-    for r in range(out.shape[0]):
-        out[r] = 0.0
-    for c in range(kn.shape[0]):
-        nr = nrow[c]
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            out[nr] = -kfac * kn[c] * y[nr]
-            for d in range(d0, d0 + ndir[c]):
-                out[trow[d]] = -kfac * kt[d] * y[trow[d]]
-            continue
-        for d in range(d0, d0 + ndir[c]):
-            st = state[d]
-            if st != STICK:
-                sign = 1.0 if st == SLIP_POS else -1.0
-                out[trow[d]] = kfac * (sign * mu[c] * kn[c] * y[nr] - kt[d] * y[trow[d]])
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, dt_state, stick, key,
+def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
                     keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
     key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
-    slots. Returns (slot, ok); ok is False when J(S) is singular."""
+    slot cap, a state without a piecewise-linear form (coupled slip: its tangent is taken at
+    (q, w_old)) scratch slot cap + 1, neither cached. Returns (slot, ok); ok is False when
+    J(S) is singular."""
     nd = kd_state.shape[0]
     for d in range(nd):
         key[d] = kd_state[d]
         key[nd + d] = dt_state[d]
     cap = used.shape[0]
-    if nominal:
+    if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state):
+        slot = cap + 1
+    elif nominal:
         slot, found = find_slot(keys, used, key)
         if found:
             return slot, ok_flags[slot]
@@ -89,7 +72,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt
         for i in range(n):
             for j in range(n):
                 J[i, j] = Lin[i, j]
-        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, kd_state, kfac, J)
+        contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, kd_state, q, w_old, kfac, J)
         ok = lu_factor(J, lus[slot], pivs[slot], singular_rtol)
         ok_flags[slot] = ok
         counters[C_FACTORISATIONS] += 1
@@ -105,7 +88,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt
         for i in range(n):
             for j in range(n):
                 J[i, j] = Lin[i, j]
-        contact_stiffness(nrow, kn, mu, fdir, ndir, trow, kt, A, stick, kfac, J)
+        contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, stick, q, w_old, kfac, J)
         ok0 = lu_factor(J, lr.base_lu[b], lr.base_piv[b], singular_rtol)
         lr.base_ok[b] = ok0
         counters[C_FACTORISATIONS] += 1
@@ -138,7 +121,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt
     for c in range(nq):
         for r in range(nq):
             lr.t[r] = lr.AZ[b, r, c]
-        delta_k(nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, lr.t, lr.s)
+        delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, kfac, lr.t, lr.s)
         for r in range(nq):
             C[r, c] = lr.s[r] + (1.0 if r == c else 0.0)
     ok = lu_factor(C, C, pivs[slot], singular_rtol)
@@ -148,7 +131,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, kn, mu, fdir, ndir, trow, kt
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, r, out):
+def solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, kfac, r, out):
     """out = J(kd_state)^-1 r by the low-rank update of ``slot`` (see the module docstring).
     In direct mode the callers use lu_solve(lus[slot], pivs[slot], r, out) instead (kept out of
     this function so that the direct hot path never touches the low-rank arrays)."""
@@ -163,7 +146,7 @@ def solve_low_rank(slot, lus, pivs, lr, A, nrow, kn, mu, fdir, ndir, trow, kt, k
         for j in range(n):
             acc += A[rr, j] * out[j]
         lr.Ay[rr] = acc
-    delta_k(nrow, kn, mu, fdir, ndir, trow, kt, kd_state, kfac, lr.Ay, lr.t)
+    delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, kfac, lr.Ay, lr.t)
     lu_solve(lus[slot], pivs[slot], lr.t, lr.s)
     for i in range(n):
         acc = 0.0

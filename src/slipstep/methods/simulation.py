@@ -20,6 +20,7 @@ from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.live import call_kernel
 from slipstep.methods import memory
 from slipstep.kernels import march as K
+from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
@@ -35,7 +36,8 @@ from slipstep.system import CompiledSystem, System
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
 
-SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear"}
+SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear",
+                K.MODIFIED_NEWTON_STATE: "modified-newton-state", K.EVENTS: "events"}
 
 
 @dataclass(frozen=True)
@@ -251,6 +253,8 @@ class Simulation(Runner):
         self.method = method if isinstance(method, Method) else get_method(method)
         self.options = RunOptions(**options).validated()
         self.compiled = cs = system.compile()
+        if self.method.solver == K.EVENTS:
+            check_event_case(system, cs)
         nd = cs.kt.shape[0]
         self.stick = np.full(nd, STICK, np.int8)
         self.massless = ML.select_massless(system, self.options.massless_dofs) if self.method.massless else None
@@ -501,7 +505,7 @@ class Simulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        self._run_kernel(K.march)
+        self._run_kernel(event_march if self.method.solver == K.EVENTS else K.march)
         return self._check_divergence()
 
     # -- results --------------------------------------------------------------------------
@@ -529,6 +533,20 @@ class Simulation(Runner):
             **({} if self.massless is None else
                {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
         }
+
+
+def check_event_case(system: System, cs: CompiledSystem) -> None:
+    """The event-driven method needs phases that are linear in known harmonic functions of time."""
+    if cs.force_table_time.size or cs.motion_table_time.size:
+        raise InputError("method", "quasi-static-events needs harmonic loads and motions, the case has tables",
+                         "use method 'quasi-static' for tabulated signals")
+    if cs.force_ramp > 0 or cs.motion_ramp > 0:
+        raise InputError("ramp_time", "is set: quasi-static-events needs unramped harmonic signals",
+                         "remove ramp_time or use method 'quasi-static'")
+    circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+    if circles:
+        raise InputError("method", f"quasi-static-events needs piecewise-linear contact laws; {circles} use "
+                         "'3d-circle'", "use method 'quasi-static' for friction-circle contacts")
 
 
 def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
@@ -626,7 +644,7 @@ def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) ->
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     size, cap, capb = _cache_capacities(n, nq, low_rank)
     nb, nqb = (n, nq) if low_rank else (1, 1)
-    return int(8 * ((cap + 1) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
+    return int(8 * ((cap + 2) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
                     + 4 * n * n + 20 * (n + nq + nd)) + 2 * cap * nd + nd * (max_state_iter + 1))
 
 
@@ -639,7 +657,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     lr = LowRank(
         base_keys=i8(capb, nd), base_used=np.zeros(capb, np.bool_), base_ok=np.zeros(capb + 1, np.bool_),
         base_lu=z(capb + 1, nb, nb), base_piv=np.zeros((capb + 1, nb), np.int64), Z=z(capb + 1, nb, nqb),
-        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 1, np.int64), slot_identity=np.zeros(cap + 1, np.bool_),
+        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 2, np.int64), slot_identity=np.zeros(cap + 2, np.bool_),
         Ay=z(nq), t=z(nq), s=z(nq), col=z(n), zc=z(n),
     )
     return K.Workspace(
@@ -648,8 +666,8 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
         Lin=z(n, n), J=z(n, n), Minv=ML.inverse_mass(cs.M),
         key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
-        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 1, np.bool_),
-        cache_lu=z(cap + 1, size, size), cache_piv=np.zeros((cap + 1, size), np.int64),
+        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 2, np.bool_),
+        cache_lu=z(cap + 2, size, size), cache_piv=np.zeros((cap + 2, size), np.int64),
         tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
         lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd), lr=lr,
     )

@@ -8,7 +8,8 @@ and the prescribed motions p:
 u: tangential relative displacement(s), v: normal approach (v > 0 = interference),
 g: a constant offset (``normal_offset`` on v: initial interference > 0, gap < 0).
 The local force is f = [T, N] (or [T1, T2, N]), N >= 0 compression; it acts on the
-structure as ``-A^T f``.
+structure as ``-A^T f``. Each contact has a friction law (:data:`CONTACT_LAWS`, implemented in
+slipstep.kernels.laws); the default is the paper's law for its number of rows.
 """
 
 from __future__ import annotations
@@ -18,7 +19,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.kernels.codes import LAW_CIRCLE, LAW_UNCOUPLED
 from slipstep.model.validate import finite, float_array, positive
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """A contact law a contact element can use: its kernel code and what it bounds."""
+
+    name: str
+    code: int  # slipstep.kernels.codes.LAW_*
+    rows: tuple[int, ...]  # allowed numbers of local rows (2: 2D, 3: quasi-3D / 3D)
+    bounds: str
+    description: str
+
+
+CONTACT_LAWS: dict[str, ContactLaw] = {law.name: law for law in (
+    ContactLaw("2d", LAW_UNCOUPLED, (2,), "abs(T) <= mu N",
+               "the paper's 2D spring-slider with variable normal load N = k_n v and lift-off (default, 2 rows)"),
+    ContactLaw("quasi-3d-uncoupled", LAW_UNCOUPLED, (3,),
+               "abs(T1) <= mu N and abs(T2) <= mu N separately: the vector T can reach sqrt(2) mu N",
+               "the paper's quasi-3D law: one independent spring-slider per tangential direction (default, 3 rows)"),
+    ContactLaw("jenkins", LAW_UNCOUPLED, (2, 3), "abs(T_i) <= mu N0 per direction, N0 = k_n normal_offset constant",
+               "Jenkins element: constant normal load (all-zero normal row, normal_offset > 0), never lifts off "
+               "(default when the normal row is all zero)"),
+    ContactLaw("3d-circle", LAW_CIRCLE, (3,), "norm(T1, T2) <= mu N: the friction circle",
+               "coupled 3D friction: one slider in the tangent plane, radial return, variable normal load and "
+               "lift-off; one tangential stiffness for both directions"),
+)}
 
 
 @dataclass(frozen=True)
@@ -38,6 +66,7 @@ class ContactElement:
     friction_coefficient: float
     motion_gather: np.ndarray | None = None
     normal_offset: float = 0.0
+    law: str | None = None
 
     def __post_init__(self):
         where = f"contacts[{self.name}]"
@@ -66,12 +95,40 @@ class ContactElement:
                              "the contact can never close",
                              "put the normal direction in the last row, or give normal_offset > 0 for a constant "
                              "normal load N = k_n * normal_offset (a Jenkins element)")
+        law = self._resolve_law(A.shape[0], fixed_normal, kt)
+        object.__setattr__(self, "law", law)
         object.__setattr__(self, "dof_gather", A)
         object.__setattr__(self, "motion_gather", B)
         object.__setattr__(self, "tangential_stiffness", tuple(float(k) for k in kt))
         object.__setattr__(self, "normal_stiffness", kn)
         object.__setattr__(self, "friction_coefficient", mu)
         object.__setattr__(self, "normal_offset", offset)
+
+    def _resolve_law(self, rows: int, fixed_normal: bool, kt: np.ndarray) -> str:
+        """The law's name (the default for the rows if none given), checked against the rows."""
+        where = f"contacts[{self.name}]"
+        if self.law is None:
+            return "jenkins" if fixed_normal else ("2d" if rows == 2 else "quasi-3d-uncoupled")
+        if not isinstance(self.law, str) or self.law not in CONTACT_LAWS:
+            raise InputError(f"{where}.law", f"is {self.law!r}", f"use one of {', '.join(map(repr, CONTACT_LAWS))}")
+        law = CONTACT_LAWS[self.law]
+        if rows not in law.rows:
+            raise InputError(f"{where}.law", f"is {law.name!r}, which needs {' or '.join(map(str, law.rows))} rows "
+                             f"of dof_gather, not {rows}",
+                             "use '2d' for a 2-row contact, 'quasi-3d-uncoupled' or '3d-circle' for 3 rows")
+        if law.name == "jenkins" and not fixed_normal:
+            raise InputError(f"{where}.law", "is 'jenkins' (constant normal load) but the normal row of dof_gather "
+                             "or motion_gather is not all zero",
+                             "zero the normal rows and set normal_offset > 0, or use the paper's law")
+        if law.code == LAW_CIRCLE and kt[0] != kt[1]:
+            raise InputError(f"{where}.tangential_stiffness", f"is {list(kt)}: the friction circle ('3d-circle') "
+                             "needs one tangential stiffness for both directions",
+                             "give a single value, or use law = 'quasi-3d-uncoupled'")
+        return law.name
+
+    @property
+    def law_code(self) -> int:
+        return CONTACT_LAWS[self.law].code
 
     @property
     def n_tangential(self) -> int:

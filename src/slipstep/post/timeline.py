@@ -1,6 +1,6 @@
 """Contact-state timeline, state-change counts, full-slip share, uniform resampling.
 
-State codes (slipstep.results.STATE_NAMES): 0 lift-off, 1 stick, 2 slip+, 3 slip-.
+State codes: slipstep.kernels.codes (0 lift-off, 1 stick, 2 slip+, 3 slip-, 4 slip-circle).
 The state stored at t_i is the state of the step (t_{i-1}, t_i]; time shares weight each
 state by that step's length.
 
@@ -8,6 +8,7 @@ A quasi-static state can be recovered from (filtered) forces with a band toleran
 
     N <= eps * max N                       -> lift-off
     |T| >= (1 - eps) mu N, sign of T       -> slip+ (T > 0) / slip- (T < 0)
+    (friction-circle contacts: |T| the vector norm of the contact's T -> slip-circle)
     otherwise                              -> stick
 
 (filtered dynamic forces approach the Coulomb limit from below, so eps ~ 1-3 % counts
@@ -20,9 +21,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
-from slipstep.results import STATE_NAMES
-
-LIFT, STICK, SLIP_POS, SLIP_NEG = 0, 1, 2, 3
+from slipstep.kernels.codes import LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, SLIP_STATES, STATE_NAMES, STICK
 
 
 def state_segments(ds: xr.Dataset) -> dict[str, list[tuple[float, float, str]]]:
@@ -74,6 +73,12 @@ def states_from_forces(ds: xr.Dataset, eps: float = 0.02) -> np.ndarray:
     slip = np.abs(T) >= (1 - eps) * lim
     S[slip & (T > 0)] = SLIP_POS
     S[slip & (T < 0)] = SLIP_NEG
+    laws = ds["contact_law"].values if "contact_law" in ds.coords else ()
+    for c, law in enumerate(laws):
+        if law == "3d-circle":
+            cols = np.flatnonzero(col == c)
+            norm = np.sqrt((T[:, cols] ** 2).sum(axis=1))
+            S[:, cols] = np.where(norm >= (1 - eps) * lim[:, cols[0]], SLIP_COUPLED, STICK)[:, None]
     S[Nd <= eps * max(float(np.abs(N).max(initial=0.0)), 1e-300)] = LIFT
     return S
 
@@ -99,12 +104,12 @@ def debounce(ds: xr.Dataset, states: np.ndarray, min_duration: float) -> np.ndar
 
 
 def full_slip_share(ds: xr.Dataset, states: np.ndarray | None = None) -> float:
-    """Share (0..1) of the record's time with every direction slipping (state 2 or 3),
+    """Share (0..1) of the record's time with every direction slipping (state 2, 3 or 4),
     each stored state weighted by the length of the step that ends there."""
     S = ds["contact_state"].values if states is None else np.asarray(states)
     t = ds["time"].values
     dt = np.diff(t)
-    all_slip = np.all((S[1:] == SLIP_POS) | (S[1:] == SLIP_NEG), axis=1)
+    all_slip = np.all(np.isin(S[1:], SLIP_STATES), axis=1)
     total = t[-1] - t[0]
     return float(dt[all_slip].sum() / total) if total > 0 else 0.0
 
@@ -114,7 +119,7 @@ def state_shares(ds: xr.Dataset) -> xr.DataArray:
     S = ds["contact_state"].values[1:]
     dt = np.diff(ds["time"].values)
     total = dt.sum()
-    shares = np.array([[dt[S[:, d] == s].sum() / total for s in range(4)] for d in range(S.shape[1])])
+    shares = np.array([[dt[S[:, d] == s].sum() / total for s in range(len(STATE_NAMES))] for d in range(S.shape[1])])
     return xr.DataArray(shares, dims=("direction", "state"),
                         coords={"direction": ds["direction"].values, "state": list(STATE_NAMES)},
                         attrs={"units": "1", "long_name": "share of time in each contact state"})

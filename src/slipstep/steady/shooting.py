@@ -87,7 +87,7 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
         Z[2 * n:3 * n, n:2 * n] = -Minv @ cs.C
         Z[2 * n:3 * n, iw:] = -Minv @ (cs.A.T @ H)
     scheme = sim.options.scheme
-    period_sensitivity(cs.M, cs.C, cs.K, cs.A, cs.AT, cs.normal_row, cs.kn, cs.mu, cs.first_direction,
+    period_sensitivity(cs.M, cs.C, cs.K, cs.A, cs.AT, cs.normal_row, cs.law, cs.law_par, cs.first_direction,
                        cs.n_directions, cs.tangential_row, cs.kt, scheme.beta, scheme.gamma, not quasi,
                        sim.out.dt, sim.out.state, int(sim.out.counters[C_STEPS]), Z)
     rows = np.r_[0:n, 3 * n:3 * n + nd] if quasi else np.r_[0:2 * n, 3 * n:3 * n + nd]

@@ -1,0 +1,434 @@
+"""Event-driven quasi-static march (beyond the paper): exact contact-state transitions.
+
+Quasi-static equilibrium (paper Eq. 10) in a fixed contact state S with piecewise-linear
+law f = K(S) q + s(S, w) (stick sliders w fixed during the phase) is linear in the loads
+and motions:
+
+    J(S) x(t) = f_e(t) - A^T K(S) (g - B p(t)) - A^T s(S, w),      J(S) = K + A^T K(S) A
+
+With harmonic loads and motions, f_e and p are combinations of the basis b_0 = 1,
+b_j(t) = sin(w_h t), cos(w_h t), so x(t) = sum_j X_j b_j(t) and q(t) = sum_j Q_j b_j(t)
+with one solve J(S) X_j = RHS_j per basis function (J(S) and the harmonic columns cached
+per state; the constant column, which holds the stick sliders, solved every phase). Every condition of the state
+table is then a known smooth function of time (a trigonometric polynomial), a margin that
+stays >= 0 while S holds:
+
+    in contact      v >= 0;                 lift-off      -v >= 0
+    stick           mu k_n v -/+ k_t (u - w) >= 0 (both signs)
+    slip+ / slip-   +/- dw/dt >= 0, w = u -/+ mu k_n v / k_t (the slider keeps moving)
+
+(the time-continuous limit of the compatibility check of Method 4). The phase ends at the
+first root of any margin: in closed form for one harmonic (c0 + R sin(w t + phi)), else
+by scanning (64 points per period of the highest frequency) and refining the bracket by
+the Illinois method to 1e-13 of the period (a margin counts as crossed below
+-state_tolerance times the sum of its coefficients' magnitudes); there
+the states whose margin reaches zero with a negative slope change (stick -> slip+/-,
+slip -> stick with the slider frozen where it is, contact <-> lift-off, re-contact in stick
+with w = u) and a new phase starts. Outputs are sampled on the uniform grid of
+``fpar[DT]`` at the cost of a sum over the basis (x, q, and the forces and sliders, affine in
+q within a phase; sin and cos advanced by rotation). Piecewise-linear laws only (no coupled
+slip), harmonic signals without tables or ramps (checked in Python).
+"""
+
+import numpy as np
+from numba import njit
+
+from slipstep.kernels.codes import (
+    C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LIFT, NON_FINITE, OK, P_KN,
+    P_MU, SINGULAR, SLIP_NEG, SLIP_POS, STATE_CYCLING, STICK,
+)
+from slipstep.kernels.cache import find_slot
+from slipstep.kernels.contact import contact_stiffness, piecewise_law
+from slipstep.kernels.linalg import lu_factor, lu_solve
+from slipstep.kernels.march import DT, SINGULAR_RTOL, STATE_RTOL, T_END, T_START
+
+# margin kinds
+M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
+MAX_FLIPS = 20  # state changes allowed at one instant before STATE_CYCLING
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _basis(t, om, b):
+    """b_0 = 1, b_(2h+1) = sin(om_h t), b_(2h+2) = cos(om_h t)."""
+    b[0] = 1.0
+    for h in range(om.shape[0]):
+        b[2 * h + 1] = np.sin(om[h] * t)
+        b[2 * h + 2] = np.cos(om[h] * t)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _value(c, b):
+    s = 0.0
+    for j in range(b.shape[0]):
+        s += c[j] * b[j]
+    return s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slope(c, om, b):
+    """d/dt of sum_j c_j b_j(t)."""
+    s = 0.0
+    for h in range(om.shape[0]):
+        s += om[h] * (c[2 * h + 1] * b[2 * h + 2] - c[2 * h + 2] * b[2 * h + 1])
+    return s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _root(c, om, ta, tb, b, tol_t):
+    """The root of sum_j c_j b_j(t) in (ta, tb] (value >= 0 at ta, < 0 at tb): Illinois."""
+    _basis(ta, om, b)
+    fa = _value(c, b)
+    _basis(tb, om, b)
+    fb = _value(c, b)
+    side = 0
+    for _ in range(200):
+        if tb - ta <= tol_t:
+            break
+        t = (ta * fb - tb * fa) / (fb - fa) if fb != fa else 0.5 * (ta + tb)
+        if not (ta < t < tb):
+            t = 0.5 * (ta + tb)
+        _basis(t, om, b)
+        f = _value(c, b)
+        if f < 0.0:
+            tb, fb = t, f
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            ta, fa = t, f
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    return tb
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _first_root_1h(c, om, ta, t_end, tol):
+    """One harmonic: the first t in [ta, t_end] where c0 + a sin(om t) + b cos(om t) falls
+    below 0 and then below -tol, in closed form (a sin + b cos = R sin(om t + phi)); t_end + 1
+    if none."""
+    c0, a, b = c[0], c[1], c[2]
+    R = np.hypot(a, b)
+    if R <= abs(c0) + tol:  # never crosses -tol (or is below it everywhere)
+        return ta if c0 + R < -tol else t_end + 1.0
+    phi = np.arctan2(b, a)
+    two_pi = 2.0 * np.pi
+    r0 = -c0 / R
+    r1 = max(-1.0, (-c0 - tol) / R)
+    e0 = np.pi - np.arcsin(r0)  # sin(psi) decreasing through r0: the zero crossing
+    e1 = np.pi - np.arcsin(r1)  # ... and through the tolerance band's edge, just after it
+    psi_a = om[0] * ta + phi
+    d1 = (e1 - psi_a) % two_pi
+    d0 = d1 - (e1 - e0)
+    t = ta + max(d0, 0.0) / om[0]
+    return t if t <= t_end else t_end + 1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J, keys, used, lus, pivs,
+           Xc, Qc, key, scr, wtmp, MC, kind, owner, scale, singular_rtol, counters):
+    """The basis responses X_j, Q_j of state S and its margins (rows of MC over the basis,
+    their kind, owner and scale). J(S) and the harmonic columns (j >= 1, independent of the
+    sliders) are cached per state; the constant column (it holds s(S, w)) is solved every
+    phase. Returns (ok, n_margins, solves, slot): X_j = Xc[slot, j], Q_j = Qc[slot, j]."""
+    Kst, A, AT = sys.K, sys.A, sys.AT
+    n, nq, nb = Kst.shape[0], A.shape[0], Fb.shape[0]
+    rhs, ylin, flin, fs, zero_q = scr[0, :n], scr[1, :nq], scr[2, :nq], scr[3, :nq], scr[4, :nq]
+    for r in range(nq):
+        zero_q[r] = 0.0
+    nd = state.shape[0]
+    for d in range(nd):
+        key[d] = state[d]
+        key[nd + d] = 0
+    slot, found = find_slot(keys, used, key)
+    solves = 1
+    if not found:
+        for i in range(n):
+            for j in range(n):
+                J[i, j] = Kst[i, j]
+        nowhere = np.empty(0)
+        contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, nowhere, nowhere, 1.0, J)
+        counters[C_FACTORISATIONS] += 1
+        if not lu_factor(J, lus[slot], pivs[slot], singular_rtol):
+            used[slot] = False
+            return False, 0, 0, slot
+    piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, zero_q, w, fs, wtmp)  # s(S, w)
+    for j in range(nb if not found else 1):
+        for r in range(nq):  # y_j = g d_j0 - B P_j
+            s = sys.g[r] if j == 0 else 0.0
+            for c in range(Pb.shape[1]):
+                s -= sys.B[r, c] * Pb[j, c]
+            ylin[r] = s
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, ylin, w, flin, wtmp)
+        for r in range(nq):  # K(S) y_j (+ s for the constant column)
+            if j != 0:
+                flin[r] -= fs[r]
+        for i in range(n):
+            s = Fb[j, i]
+            for r in range(nq):
+                s -= AT[i, r] * flin[r]
+            rhs[i] = s
+        lu_solve(lus[slot], pivs[slot], rhs, Xc[slot, j])
+        for r in range(nq):
+            s = ylin[r]
+            for i in range(n):
+                s += A[r, i] * Xc[slot, j, i]
+            Qc[slot, j, r] = s
+        solves += 1 if j > 0 else 0
+    Q = Qc[slot]
+    # margins
+    k = 0
+    for c in range(nrow.shape[0]):
+        nr = nrow[c]
+        d0 = fdir[c]
+        lift = state[d0] == LIFT
+        for j in range(nb):
+            MC[k, j] = -Q[j, nr] if lift else Q[j, nr]
+        kind[k] = M_LIFT if lift else M_CONTACT
+        owner[k] = c
+        k += 1
+        if lift:
+            continue
+        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            if state[d] == STICK:
+                for side in range(2):
+                    sgn = 1.0 if side == 0 else -1.0
+                    for j in range(nb):
+                        MC[k, j] = mu_kn * Q[j, nr] - sgn * kt[d] * (Q[j, tr] - (w[d] if j == 0 else 0.0))
+                    kind[k] = M_STICK_POS if sgn > 0 else M_STICK_NEG
+                    owner[k] = d
+                    k += 1
+            else:  # +/- dw/dt, w = u -/+ mu k_n v / k_t
+                sgn = 1.0 if state[d] == SLIP_POS else -1.0
+                for h in range(om.shape[0]):
+                    cs_ = sgn * (Q[2 * h + 1, tr] - sgn * mu_kn / kt[d] * Q[2 * h + 1, nr])
+                    cc_ = sgn * (Q[2 * h + 2, tr] - sgn * mu_kn / kt[d] * Q[2 * h + 2, nr])
+                    MC[k, 2 * h + 1] = -om[h] * cc_
+                    MC[k, 2 * h + 2] = om[h] * cs_
+                MC[k, 0] = 0.0
+                kind[k] = M_SLIP_POS if sgn > 0 else M_SLIP_NEG
+                owner[k] = d
+                k += 1
+    for i in range(k):
+        s = 0.0
+        for j in range(nb):
+            s += abs(MC[i, j])
+        scale[i] = s + 1e-300
+    return True, k, solves, slot
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def event_march(sys, fpar, ipar, ws, out, q0, f0):
+    """Event-driven quasi-static march from t_start to t_end with outputs every fpar[DT]
+    (module docstring); same arguments, layout and counters as kernels.march.march."""
+    Kst, A = sys.K, sys.A
+    nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
+    ndir, trow, kt = sys.n_directions, sys.tangential_row, sys.kt
+    counters = out.counters
+    n, nq, nd, m = Kst.shape[0], A.shape[0], kt.shape[0], sys.B.shape[1]
+    nfh, nmh = sys.force_frequency.shape[0], sys.motion_frequency.shape[0]
+    nh = nfh + nmh
+    nb = 1 + 2 * nh
+    om = np.empty(nh)
+    Fb = np.zeros((nb, n))
+    Pb = np.zeros((nb, m))
+    for i in range(n):
+        Fb[0, i] = sys.constant_force[i]
+    for h in range(nfh):
+        om[h] = 2.0 * np.pi * sys.force_frequency[h]
+        for i in range(n):
+            Fb[2 * h + 1, i] = sys.force_sin[i, h]
+            Fb[2 * h + 2, i] = sys.force_cos[i, h]
+    for h in range(nmh):
+        om[nfh + h] = 2.0 * np.pi * sys.motion_frequency[h]
+        for c in range(m):
+            Pb[2 * (nfh + h) + 1, c] = sys.motion_sin[c, h]
+            Pb[2 * (nfh + h) + 2, c] = sys.motion_cos[c, h]
+    period = 2.0 * np.pi / om.max() if nh > 0 else fpar[T_END] - fpar[T_START]
+    rot_c = np.cos(om * fpar[DT])
+    rot_s = np.sin(om * fpar[DT])
+    scan = min(period / 64.0, (fpar[T_END] - fpar[T_START]) / 16.0)
+    tol_t = 1e-13 * period
+    rtol = fpar[STATE_RTOL]
+    scr = np.zeros((5, max(n, nq)))
+    Fp = np.zeros((nb, nq))
+    Wp = np.zeros((nb, nd))
+    ncol = n + 2 * nq + nd
+    G = np.zeros((nb, ncol))
+    vec = np.zeros(ncol)
+    wtmp = np.zeros(nd)
+    nmax = nrow.shape[0] + 2 * nd
+    MC = np.zeros((nmax, nb))
+    kind = np.zeros(nmax, np.int64)
+    owner = np.zeros(nmax, np.int64)
+    scale = np.zeros(nmax)
+    bb = np.empty(nb)
+    broot = np.empty(nb)
+    keys, used, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_lu, ws.cache_piv
+    used[:] = False
+    Xc = np.empty((used.shape[0], nb, n))
+    Qc = np.empty((used.shape[0], nb, nq))
+    state, w, x = ws.state, ws.w, ws.x
+    q1, f1, w1 = ws.q1, ws.f1, ws.w1
+    # ---- initial point ----
+    t = fpar[T_START]
+    t_end = fpar[T_END]
+    dt_out = fpar[DT]
+    for r in range(nq):
+        out.q[0, r] = q0[r]
+        out.f[0, r] = f0[r]
+    out.t[0] = t
+    out.dt[0] = 0.0
+    for i in range(n):
+        out.x[0, i] = x[i]
+    for d in range(nd):
+        out.w[0, d] = w[d]
+        out.state[0, d] = state[d]
+    cap = out.t.shape[0] - 1
+    k = 0
+    tiny = 1e-12 * (t_end - t + 1e-300)
+    status = OK
+    pending = 0  # solves of the phases since the last output
+    flips = 0
+    t0 = fpar[T_START]
+    o_t, o_dt, o_x, o_q, o_f, o_w, o_state, o_solves = out.t, out.dt, out.x, out.q, out.f, out.w, out.state, out.solves
+    while t < t_end - tiny:
+        k_phase = k
+        ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
+                                      keys, used, lus, pivs, Xc, Qc, ws.key, scr, wtmp, MC, kind, owner, scale,
+                                      fpar[SINGULAR_RTOL], counters)
+        X = Xc[slot]
+        Q = Qc[slot]
+        # forces and sliders are affine in q within the phase: their basis columns F_j, W_j
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, scr[4, :nq], w, f1, w1)  # at q = 0
+        for j in range(nb):
+            piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, Q[j], w, Fp[j], Wp[j])
+            if j > 0:
+                for r in range(nq):
+                    Fp[j, r] -= f1[r]
+                for d in range(nd):
+                    Wp[j, d] -= w1[d]
+        for j in range(nb):  # one row per basis function: [x, q, f, w]
+            for i in range(n):
+                G[j, i] = X[j, i]
+            for r in range(nq):
+                G[j, n + r] = Q[j, r]
+                G[j, n + nq + r] = Fp[j, r]
+            for d in range(nd):
+                G[j, n + 2 * nq + d] = Wp[j, d]
+        if not ok:
+            status = SINGULAR
+            break
+        pending += solves
+        counters[C_SOLVES] += solves
+        # ---- the first root of a margin after t ----
+        t_ev = t_end
+        hit = -1
+        ta = t
+        if nh == 1:
+            for i in range(nm):
+                tr_ = _first_root_1h(MC[i], om, t, t_end, rtol * scale[i])
+                if tr_ <= t_end and tr_ < t_ev:
+                    t_ev, hit = tr_, i
+            ta = t_end
+        while ta < t_end - tiny and hit < 0:
+            tb = min(ta + scan, t_end)
+            _basis(tb, om, bb)
+            for i in range(nm):
+                if _value(MC[i], bb) < -rtol * scale[i]:
+                    tr_ = _root(MC[i], om, ta, tb, broot, tol_t)
+                    if tr_ < t_ev:
+                        t_ev, hit = tr_, i
+            ta = tb
+        # ---- outputs in (t, t_ev] (v = a = 0 stay as allocated) ----
+        n_out = 0
+        while k < cap and (k + 1) * dt_out + t0 <= t_ev + tiny:
+            tk = min((k + 1) * dt_out + t0, t_end)
+            if n_out % 64 == 0:  # exact basis, then advanced by rotation (a few ulps per output)
+                _basis(tk, om, bb)
+            else:
+                for h in range(nh):
+                    sn, cn = bb[2 * h + 1], bb[2 * h + 2]
+                    bb[2 * h + 1] = sn * rot_c[h] + cn * rot_s[h]
+                    bb[2 * h + 2] = cn * rot_c[h] - sn * rot_s[h]
+            n_out += 1
+            k += 1
+            b0 = bb[0]
+            for c in range(ncol):
+                vec[c] = b0 * G[0, c]
+            for j in range(1, nb):
+                bj = bb[j]
+                for c in range(ncol):
+                    vec[c] += bj * G[j, c]
+            for i in range(n):
+                o_x[k, i] = vec[i]
+            for r in range(nq):
+                o_q[k, r] = vec[n + r]
+                o_f[k, r] = vec[n + nq + r]
+            for d in range(nd):
+                o_w[k, d] = vec[n + 2 * nq + d]
+                o_state[k, d] = state[d]
+            if k == k_phase + 1:  # the first output of a phase: did the state change?
+                for d in range(nd):
+                    if o_state[k, d] != o_state[k - 1, d]:
+                        counters[C_STATE_CHANGES] += 1
+                        break
+            o_t[k] = tk
+            o_dt[k] = tk - o_t[k - 1]
+            o_solves[k] = pending
+            pending = 0
+        if hit < 0:
+            t = t_end
+            break
+        if k >= cap and t_ev < t_end - tiny:
+            status = 4  # CAPACITY
+            break
+        # ---- the transition at t_ev: every margin reaching zero with a negative slope ----
+        _basis(t_ev, om, bb)
+        for r in range(nq):
+            q1[r] = _value(Q[:, r], bb)
+        for i in range(n):
+            x[i] = _value(X[:, i], bb)
+            if not np.isfinite(x[i]):
+                status = NON_FINITE
+        if status != OK:
+            break
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q1, w, f1, w1)
+        for d in range(nd):
+            wtmp[d] = w1[d]  # sliders at t_ev (slip: where they are; lift: w = u)
+        changed = False
+        for i in range(nm):
+            val = _value(MC[i], bb)
+            if not (i == hit or (val <= 1e-7 * scale[i] and _slope(MC[i], om, bb) < 0.0)):
+                continue
+            changed = True
+            o = owner[i]
+            if kind[i] == M_CONTACT:
+                for d in range(fdir[o], fdir[o] + ndir[o]):
+                    state[d] = LIFT
+            elif kind[i] == M_LIFT:
+                for d in range(fdir[o], fdir[o] + ndir[o]):
+                    state[d] = STICK
+                    wtmp[d] = q1[trow[d]]
+            elif kind[i] == M_STICK_POS:
+                state[o] = SLIP_POS
+            elif kind[i] == M_STICK_NEG:
+                state[o] = SLIP_NEG
+            else:
+                state[o] = STICK
+        for d in range(nd):
+            w[d] = wtmp[d]
+        counters[C_LAW_CALLS] += 1
+        flips = flips + 1 if t_ev - t <= tol_t else 0
+        if flips > MAX_FLIPS or not changed:
+            status = STATE_CYCLING
+            break
+        t = t_ev
+    if status != OK:
+        counters[C_FAIL_STEP] = k + 1
+        if k + 1 <= cap:
+            out.t[k + 1] = t
+    counters[C_STEPS] = k
+    return status
