@@ -87,6 +87,16 @@ def test_case_file_page_lists_every_key_of_each_kind_with_its_unit(pages, kind):
     assert ("### `[damper]`" in section) == (kind == "damper")
 
 
+def test_case_file_page_lists_every_contact_law(pages):
+    contact = pytest.importorskip("slipstep.model.contact")
+    if not hasattr(contact, "CONTACT_LAWS"):
+        pytest.skip("no contact-law table in this tree")
+    rows = _rows(_section(pages["reference/case_file.md"], "{ #contact-laws }", "## Complete example"))
+    assert set(rows) == set(contact.CONTACT_LAWS)
+    for name, law in contact.CONTACT_LAWS.items():
+        assert rows[name][1] == law.bounds and rows[name][2] == law.description
+
+
 def test_unit_suffixes():
     assert gen.unit_of_key("normal_stiffness_N_per_um") == "N/um"
     assert gen.unit_of_key("damping_N_s_per_m") == "N s/m"
