@@ -131,6 +131,14 @@ class Outputs(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def newmark_coefficients(beta, gamma, dt):
+    """(a0, a1, a2, a3, b1, b2) of the Newmark relations in the module docstring:
+    a_{n+1} = a0 dx - a2 v_n - a3 a_n,  v_{n+1} = a1 dx + b1 v_n + b2 a_n."""
+    return (1.0 / (beta * dt * dt), gamma / (beta * dt), 1.0 / (beta * dt), 1.0 / (2.0 * beta) - 1.0,
+            1.0 - gamma / beta, dt * (1.0 - gamma / (2.0 * beta)))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
                      gf1, r, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
@@ -559,12 +567,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             t1 = t + dt if n_preload == 0 else t
             # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K (per dt) ----
             if ws.lin_dt[0] != dt:
-                a0 = 1.0 / (beta * dt * dt)
-                c1 = gamma / (beta * dt)
-                a2 = 1.0 / (beta * dt)
-                a3 = 1.0 / (2.0 * beta) - 1.0
-                b1 = 1.0 - gamma / beta
-                b2 = dt * (1.0 - gamma / (2.0 * beta))
+                a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
                 last_slot = -1
                 for i in range(n):
                     for j in range(n):

@@ -25,6 +25,7 @@ from numba import njit
 
 from slipstep.kernels.codes import P_KN, P_MU
 from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
+from slipstep.kernels.march import newmark_coefficients
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -99,12 +100,7 @@ def period_sensitivity(M, Cd, Kst, A, AT, nrow, lcode, lpar, fdir, ndir, trow, k
         if changed:
             J = Kst.copy()
             if inertia:
-                a0 = 1.0 / (beta * dt * dt)
-                c1 = gamma / (beta * dt)
-                a2 = 1.0 / (beta * dt)
-                a3 = 1.0 / (2.0 * beta) - 1.0
-                b1 = 1.0 - gamma / beta
-                b2 = dt * (1.0 - gamma / (2.0 * beta))
+                a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
                 J += a0 * M + c1 * Cd
             if dt != prev_dt:
                 G[:, 0:n] = -Kst
