@@ -77,8 +77,11 @@ def main(argv=None):
         system = slipstep.load_system(case)
         freqs = np.linspace(f0, f1, points)
         name = Path(case).stem if Path(case).suffix else case
-        print(f"\n{name}: {system.n_dofs} DOFs, {len(system.contacts)} contacts, {points} points "
-              f"{f0:g}-{f1:g} Hz, tolerance {args.tolerance:g}", flush=True)
+        print(
+            f"\n{name}: {system.n_dofs} DOFs, {len(system.contacts)} contacts, {points} points "
+            f"{f0:g}-{f1:g} Hz, tolerance {args.tolerance:g}",
+            flush=True,
+        )
         usable = []
         for label, opts in variants(case):  # warm-up: compile and caches
             try:
@@ -97,10 +100,19 @@ def main(argv=None):
             periods = ds["periods_to_steady"].values
             ok_mask = ds["status"].values == "OK"
             ok = int(ok_mask.sum())
-            row = {"case": name, "variant": label, "wall_s": wall, "per_point_ms": 1e3 * wall / points,
-                   "periods_total": int(np.nansum(periods)), "periods_per_point": float(np.nanmean(periods)),
-                   "points_ok": ok, "points": points, "peak_Hz": float(freqs[int(np.nanargmax(amp))]),
-                   "peak": float(np.nanmax(amp)), "response": resp}
+            row = {
+                "case": name,
+                "variant": label,
+                "wall_s": wall,
+                "per_point_ms": 1e3 * wall / points,
+                "periods_total": int(np.nansum(periods)),
+                "periods_per_point": float(np.nanmean(periods)),
+                "points_ok": ok,
+                "points": points,
+                "peak_Hz": float(freqs[int(np.nanargmax(amp))]),
+                "peak": float(np.nanmax(amp)),
+                "response": resp,
+            }
             if base is None:
                 base = (row, amp, ok_mask)
                 row.update(time_ratio=1.0, periods_ratio=1.0, max_rel_diff=0.0, peak_rel_diff=0.0, compared=ok)
@@ -108,16 +120,23 @@ def main(argv=None):
                 b, bamp, bok = base
                 both = ok_mask & bok  # agreement where both reached the steady state
                 diff = np.abs(amp - bamp) / np.abs(bamp)
-                row.update(time_ratio=wall / b["wall_s"], periods_ratio=row["periods_total"] / b["periods_total"],
-                           max_rel_diff=float(diff[both].max()) if both.any() else float("nan"),
-                           peak_rel_diff=abs(row["peak"] - b["peak"]) / b["peak"], compared=int(both.sum()))
+                row.update(
+                    time_ratio=wall / b["wall_s"],
+                    periods_ratio=row["periods_total"] / b["periods_total"],
+                    max_rel_diff=float(diff[both].max()) if both.any() else float("nan"),
+                    peak_rel_diff=abs(row["peak"] - b["peak"]) / b["peak"],
+                    compared=int(both.sum()),
+                )
             rows.append(row)
-            print(f"  {label:28s} FRF {wall:7.3f} s  {row['per_point_ms']:8.2f} ms/point  periods "
-                  f"{row['periods_total']:6d} ({row['periods_per_point']:6.1f}/point)  ok {ok}/{points}  "
-                  f"time x{row['time_ratio']:.3f}  periods x{row['periods_ratio']:.3f}  "
-                  f"peak {row['peak']:.4e} at {row['peak_Hz']:.4g} Hz  max |diff| {row['max_rel_diff']:.1e} "
-                  f"(on {row['compared']} points steady in both)  "
-                  f"peak diff {row['peak_rel_diff']:.1e}", flush=True)
+            print(
+                f"  {label:28s} FRF {wall:7.3f} s  {row['per_point_ms']:8.2f} ms/point  periods "
+                f"{row['periods_total']:6d} ({row['periods_per_point']:6.1f}/point)  ok {ok}/{points}  "
+                f"time x{row['time_ratio']:.3f}  periods x{row['periods_ratio']:.3f}  "
+                f"peak {row['peak']:.4e} at {row['peak_Hz']:.4g} Hz  max |diff| {row['max_rel_diff']:.1e} "
+                f"(on {row['compared']} points steady in both)  "
+                f"peak diff {row['peak_rel_diff']:.1e}",
+                flush=True,
+            )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     return rows

@@ -88,10 +88,14 @@ def main(argv=None):
         frf(system, freqs, harmonics=H, samples=N, continuation=False, check="none", adequacy=True)
         t_adeq = (time.perf_counter() - t) / len(freqs)
         results[f"H{H}_N{N}"] = {
-            "hbm_s_per_point": per_point, "newton_iterations_per_point": float(its),
-            "tmdsimpy_s_per_point": TMDSIMPY[key], "speedup_vs_tmdsimpy": TMDSIMPY[key] / per_point,
-            "continuation_points": int(ds.frequency.size), "continuation_s_per_point": t_cont / ds.frequency.size,
-            "continuation_s_per_grid_point": t_cont / len(freqs), "with_adequacy_s_per_point": t_adeq,
+            "hbm_s_per_point": per_point,
+            "newton_iterations_per_point": float(its),
+            "tmdsimpy_s_per_point": TMDSIMPY[key],
+            "speedup_vs_tmdsimpy": TMDSIMPY[key] / per_point,
+            "continuation_points": int(ds.frequency.size),
+            "continuation_s_per_point": t_cont / ds.frequency.size,
+            "continuation_s_per_grid_point": t_cont / len(freqs),
+            "with_adequacy_s_per_point": t_adeq,
         }
     # the marched steady state at a few frequencies from the preload, with the HBM difference
     hb = balances[(45, 1024)]
@@ -103,8 +107,16 @@ def main(argv=None):
         p = hb.solve(2 * np.pi * f)
         amp = half_peak_to_peak(hb.h, p.X[:, [0]])
         a, e = relative_differences(amp, contact_energy(hb, p.Z, p.F), ref, excitation_work(hb, p))
-        rows.append({"frequency_Hz": f, "march_s": march_times[-1], "march_periods": ref.periods,
-                     "march_status": ref.status, "amplitude_rel_diff": a, "energy_rel_diff": e})
+        rows.append(
+            {
+                "frequency_Hz": f,
+                "march_s": march_times[-1],
+                "march_periods": ref.periods,
+                "march_status": ref.status,
+                "amplitude_rel_diff": a,
+                "energy_rel_diff": e,
+            }
+        )
     results["march"] = {"s_per_point": statistics.median(march_times), "points": rows}
     # the steady-state FRFs (each point from the previous one's state), same grid, same accuracy cap
     try:
@@ -116,9 +128,11 @@ def main(argv=None):
         for solver in ("march", "shoot"):
             t = time.perf_counter()
             ds = frf_steady(system, grid, solver=solver, min_steps_per_period=2000, max_periods=400)
-            results[f"{solver}_frf"] = {"s_per_point": (time.perf_counter() - t) / grid.size,
-                                        "points": int(grid.size),
-                                        "periods_per_point": float(np.nanmean(ds.periods_to_steady.values))}
+            results[f"{solver}_frf"] = {
+                "s_per_point": (time.perf_counter() - t) / grid.size,
+                "points": int(grid.size),
+                "periods_per_point": float(np.nanmean(ds.periods_to_steady.values)),
+            }
     if args.json:
         print(json.dumps(results, indent=2))
         return
@@ -128,21 +142,29 @@ def main(argv=None):
     sh = results.get("shoot_frf", {}).get("s_per_point", float("nan"))
     for key in TMDSIMPY:
         r = results[f"H{key[0]}_N{key[1]}"]
-        print(f"{f'HBM H={key[0]} N={key[1]} (Newton per point)':34s} {r['hbm_s_per_point']:10.4f} "
-              f"{r['speedup_vs_tmdsimpy']:11.1f}x {m / r['hbm_s_per_point']:9.1f}x {sh / r['hbm_s_per_point']:9.1f}x")
-        print(f"{'  continuation, per point':34s} {r['continuation_s_per_point']:10.4f}   "
-              f"({r['continuation_points']} points; {r['continuation_s_per_grid_point']:.4f} s per grid point)")
+        print(
+            f"{f'HBM H={key[0]} N={key[1]} (Newton per point)':34s} {r['hbm_s_per_point']:10.4f} "
+            f"{r['speedup_vs_tmdsimpy']:11.1f}x {m / r['hbm_s_per_point']:9.1f}x {sh / r['hbm_s_per_point']:9.1f}x"
+        )
+        print(
+            f"{'  continuation, per point':34s} {r['continuation_s_per_point']:10.4f}   "
+            f"({r['continuation_points']} points; {r['continuation_s_per_grid_point']:.4f} s per grid point)"
+        )
         print(f"{'  with the adequacy estimate':34s} {r['with_adequacy_s_per_point']:10.4f}")
         print(f"{'  tmdsimpy (reference)':34s} {r['tmdsimpy_s_per_point']:10.4f}")
     print(f"{'march to steady from the preload':34s} {results['march']['s_per_point']:10.4f}")
     for solver in ("march", "shoot"):
         if f"{solver}_frf" in results:
             r = results[f"{solver}_frf"]
-            print(f"{f'{solver} FRF (from the previous point)':34s} {r['s_per_point']:10.4f}   "
-                  f"({r['periods_per_point']:.1f} periods per point)")
+            print(
+                f"{f'{solver} FRF (from the previous point)':34s} {r['s_per_point']:10.4f}   "
+                f"({r['periods_per_point']:.1f} periods per point)"
+            )
     for row in results["march"]["points"]:
-        print(f"  {row['frequency_Hz']:.0f} Hz: HBM(H=45) vs march: amplitude {row['amplitude_rel_diff']:.2e}, "
-              f"energy {row['energy_rel_diff']:.2e} (march {row['march_periods']} periods, {row['march_status']})")
+        print(
+            f"  {row['frequency_Hz']:.0f} Hz: HBM(H=45) vs march: amplitude {row['amplitude_rel_diff']:.2e}, "
+            f"energy {row['energy_rel_diff']:.2e} (march {row['march_periods']} periods, {row['march_status']})"
+        )
 
 
 if __name__ == "__main__":

@@ -33,8 +33,10 @@ def main():
     repeats = 3 if args.quick else 9
     base, _ = ss.load_case(ROOT / "examples" / "shroud_pair.toml")
     print(f"shroud pair, {args.periods:g} periods, k_t = 1.5e7 N/m both directions; median of {repeats} runs")
-    print(f"{'law':22s} {'method':18s} {'steps':>6s} {'solves':>7s} {'solves/step':>11s} {'max |T|/(mu N)':>14s}"
-          f" {'kernel [ms]':>11s} {'ratio':>6s}")
+    print(
+        f"{'law':22s} {'method':18s} {'steps':>6s} {'solves':>7s} {'solves/step':>11s} {'max |T|/(mu N)':>14s}"
+        f" {'kernel [ms]':>11s} {'ratio':>6s}"
+    )
     for law in ("quasi-3d-uncoupled", "3d-circle"):
         contact = dataclasses.replace(base.contacts[0], law=law, tangential_stiffness=1.5e7)
         system = dataclasses.replace(base, contacts=(contact,))
@@ -45,8 +47,10 @@ def main():
             a = ds.attrs
             T, N = ds.tangential_force.values, ds.normal_force.values[:, 0]
             ratio = float((np.hypot(T[:, 0], T[:, 1]) / np.where(N > 0, 0.3 * N, np.inf)).max())
-            print(f"{law:22s} {m:18s} {a['steps']:6d} {a['solves']:7d} {a['mean_solves_per_step']:11.2f} {ratio:14.4f}"
-                  f" {times[m] * 1e3:11.3f} {times[m] / times['newmark']:6.2f}")
+            print(
+                f"{law:22s} {m:18s} {a['steps']:6d} {a['solves']:7d} {a['mean_solves_per_step']:11.2f} {ratio:14.4f}"
+                f" {times[m] * 1e3:11.3f} {times[m] / times['newmark']:6.2f}"
+            )
 
 
 if __name__ == "__main__":

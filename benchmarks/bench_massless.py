@@ -59,8 +59,10 @@ def main():
     system = ss.load_system("blades")
     internal = float(ML.internal_frequencies(system.compile(), np.ones(3, np.int8), ML.contact_held_dofs(system)).min())
     print(f"blades: {periods:g} periods from the preload, kernel time = median of {repeats} after a warm-up")
-    print(f"{'f [Hz]':>7} {'method':>18} {'dt [us]':>8} {'steps/T':>8} {'solves/T':>9} {'kernel/T [us]':>14} "
-          f"{'speed-up':>9} {'tip amp [um]':>13} {'diff':>8}")
+    print(
+        f"{'f [Hz]':>7} {'method':>18} {'dt [us]':>8} {'steps/T':>8} {'solves/T':>9} {'kernel/T [us]':>14} "
+        f"{'speed-up':>9} {'tip amp [um]':>13} {'diff':>8}"
+    )
     for f in (float(v) for v in args.frequencies.split(",")):
         step = {} if args.steps_per_period is None else {"dt": 1 / f / args.steps_per_period}
         sims = {m: ss.Simulation(retuned(system, f), m, periods=periods, **step) for m in METHODS}
@@ -76,12 +78,19 @@ def main():
             ds = s.dataset()
             if m == "piecewise-linear":
                 ds = filter_dataset(ds, system, internal_Hz=internal)
-            rows[m] = (s.dt, ds.attrs["steps"] / periods, ds.attrs["solves"] / periods,
-                       statistics.median(times[m]) / periods, tip_amplitude(ds))
+            rows[m] = (
+                s.dt,
+                ds.attrs["steps"] / periods,
+                ds.attrs["solves"] / periods,
+                statistics.median(times[m]) / periods,
+                tip_amplitude(ds),
+            )
         base = rows["piecewise-linear"]
         for m, (dt, steps, solves, kt, amp) in rows.items():
-            print(f"{f:7g} {m:>18} {dt * 1e6:8.2f} {steps:8.1f} {solves:9.1f} {kt * 1e6:14.1f} {base[3] / kt:9.2f} "
-                  f"{amp * 1e6:13.3f} {amp / base[4] - 1:8.2%}")
+            print(
+                f"{f:7g} {m:>18} {dt * 1e6:8.2f} {steps:8.1f} {solves:9.1f} {kt * 1e6:14.1f} {base[3] / kt:9.2f} "
+                f"{amp * 1e6:13.3f} {amp / base[4] - 1:8.2%}"
+            )
 
 
 if __name__ == "__main__":

@@ -35,10 +35,14 @@ def main(periods: float = 2000.0) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         ss.save_result(ds, Path(tmp) / "r.nc")
     after_save = peak_bytes()
-    print(f"{points} output points, buffer {buffer / 1e6:.1f} MB, estimate {sim.memory_estimate / 1e6:.1f} MB "
-          f"(PEAK_FACTOR {memory.PEAK_FACTOR})")
-    print(f"peak growth: run + Dataset {(after_run - before) / 1e6:.1f} MB = {(after_run - before) / buffer:.2f} x "
-          f"buffer; with the save {(after_save - before) / 1e6:.1f} MB = {(after_save - before) / buffer:.2f} x buffer")
+    print(
+        f"{points} output points, buffer {buffer / 1e6:.1f} MB, estimate {sim.memory_estimate / 1e6:.1f} MB "
+        f"(PEAK_FACTOR {memory.PEAK_FACTOR})"
+    )
+    print(
+        f"peak growth: run + Dataset {(after_run - before) / 1e6:.1f} MB = {(after_run - before) / buffer:.2f} x "
+        f"buffer; with the save {(after_save - before) / 1e6:.1f} MB = {(after_save - before) / buffer:.2f} x buffer"
+    )
 
 
 if __name__ == "__main__":

@@ -107,8 +107,20 @@ try:
 
     @njit(inline="always")
     def _law(sys, q, w_old, f, w_new, state):
-        _l_core(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row,
-                sys.kt, q, w_old, f, w_new, state)
+        _l_core(
+            sys.normal_row,
+            sys.law,
+            sys.law_par,
+            sys.first_direction,
+            sys.n_directions,
+            sys.tangential_row,
+            sys.kt,
+            q,
+            w_old,
+            f,
+            w_new,
+            state,
+        )
 
     @njit(inline="always")
     def _scatter(sys, f, out):
@@ -170,8 +182,16 @@ def floor_timer(sim: slipstep.Simulation, n_iter: int):
     x0, w_old = sim.preload_state[0].copy(), sim.preload_state[5].copy()
     p = np.full(cs.B.shape[1], 1e-6)  # platforms moved: some contacts stick, some slip
     r0 = sim.preload_state[4].copy()  # about the size of the contact forces
-    args = (np.zeros(nq), np.zeros(nq), np.zeros(nd), np.zeros(nd, np.int8), np.zeros(n), np.zeros(n),
-            np.zeros(n), np.zeros(n))
+    args = (
+        np.zeros(nq),
+        np.zeros(nq),
+        np.zeros(nd),
+        np.zeros(nd, np.int8),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n),
+    )
     floor_kernel(cs, lu, piv, Lin, x0, p, w_old, r0, 10, *args)  # compile
 
     def timed() -> float:
@@ -204,7 +224,9 @@ def main(argv=None) -> dict:
     results: dict = {"machine_cpus": os.cpu_count(), "date": time.strftime("%Y-%m-%d %H:%M")}
 
     print(f"slipstep {slipstep.__version__}: Method 1 (newmark, modified Newton) on one period of the paper case")
-    print(f"python {sys.version.split()[0]}, numpy {np.__version__}, {os.cpu_count()} CPUs (shared: numbers are noisy)\n")
+    print(
+        f"python {sys.version.split()[0]}, numpy {np.__version__}, {os.cpu_count()} CPUs (shared: numbers are noisy)\n"
+    )
 
     # -- 1. compile time in fresh processes ------------------------------------------------
     do_compile = not args.no_compile and (not args.quick or args.compile)
@@ -216,21 +238,33 @@ def main(argv=None) -> dict:
             mid = source_stamp()
             warm = fresh_process(cache_dir)
         after = source_stamp()
-        changed = [p for (p, *st), (_, *st2) in zip(before, mid) if st != st2] if len(before) == len(mid) else ["(files added/removed)"]
+        changed = (
+            [p for (p, *st), (_, *st2) in zip(before, mid) if st != st2]
+            if len(before) == len(mid)
+            else ["(files added/removed)"]
+        )
         rows = [("cold (empty cache)", cold), ("warm (cache from the cold run)", warm)]
-        print(f"   {'process':32s} {'import':>10s} {'setup+preload':>14s} {'first march':>12s} {'process wall':>13s}"
-              f" {'march cache hits/misses':>24s} {'other kernels misses':>21s}")
+        print(
+            f"   {'process':32s} {'import':>10s} {'setup+preload':>14s} {'first march':>12s} {'process wall':>13s}"
+            f" {'march cache hits/misses':>24s} {'other kernels misses':>21s}"
+        )
         for name, r in rows:
-            print(f"   {name:32s} {fmt_time(r['import_s']):>10s} {fmt_time(r['setup_and_preload_s']):>14s}"
-                  f" {fmt_time(r['first_march_s']):>12s} {fmt_time(r['process_wall_s']):>13s}"
-                  f" {r['march_cache_hits']:>11d} / {r['march_cache_misses']:<10d} {r['other_kernel_cache_misses']:>21d}")
+            print(
+                f"   {name:32s} {fmt_time(r['import_s']):>10s} {fmt_time(r['setup_and_preload_s']):>14s}"
+                f" {fmt_time(r['first_march_s']):>12s} {fmt_time(r['process_wall_s']):>13s}"
+                f" {r['march_cache_hits']:>11d} / {r['march_cache_misses']:<10d} {r['other_kernel_cache_misses']:>21d}"
+            )
         compile_s = cold["total_s"] - warm["total_s"]
         recompiled = warm["march_cache_misses"] > 0 or warm["other_kernel_cache_misses"] > 0
         print(f"   compile time (cold - warm, import to first march): {compile_s:.1f} s")
-        print(f"   second process recompiled the march kernel: {'YES (cache not used!)' if recompiled else 'no (loaded from the on-disk cache)'}")
+        print(
+            f"   second process recompiled the march kernel: {'YES (cache not used!)' if recompiled else 'no (loaded from the on-disk cache)'}"
+        )
         if recompiled and (changed or mid != after):
-            print("   NOTE: slipstep source files changed between the two processes (numba keys its cache on each source\n"
-                  f"   file's timestamp, so this recompile is expected): {changed}; rerun when the code is still.")
+            print(
+                "   NOTE: slipstep source files changed between the two processes (numba keys its cache on each source\n"
+                f"   file's timestamp, so this recompile is expected): {changed}; rerun when the code is still."
+            )
         print()
         results["compile"] = {"cold": cold, "warm": warm, "compile_s": compile_s, "warm_recompiled": recompiled}
     else:
@@ -254,29 +288,45 @@ def main(argv=None) -> dict:
     c = sim.out.counters
     steps, solves, laws = int(c[K.C_STEPS]), int(c[K.C_SOLVES]), int(c[K.C_LAW_CALLS])
     per_iter = kernel / solves
-    print(f"2. kernel, one period ({steps} steps, {solves} modified-Newton iterations = solves, "
-          f"{laws} contact-law calls, {solves / steps:.2f} iterations/step); median of {repeats} marches")
+    print(
+        f"2. kernel, one period ({steps} steps, {solves} modified-Newton iterations = solves, "
+        f"{laws} contact-law calls, {solves / steps:.2f} iterations/step); median of {repeats} marches"
+    )
     q25, q75 = np.percentile(times, [25, 75])
-    print(f"   {'kernel time per period':30s} {fmt_time(kernel)}   (IQR {fmt_time(q25).strip()} - {fmt_time(q75).strip()}; "
-          f"min {fmt_time(min(times)).strip()})   target < {fmt_time(TARGET_KERNEL_S).strip()}: "
-          f"{'MET' if kernel < TARGET_KERNEL_S else 'not met'} ({kernel / TARGET_KERNEL_S:.2f} x target)")
+    print(
+        f"   {'kernel time per period':30s} {fmt_time(kernel)}   (IQR {fmt_time(q25).strip()} - {fmt_time(q75).strip()}; "
+        f"min {fmt_time(min(times)).strip()})   target < {fmt_time(TARGET_KERNEL_S).strip()}: "
+        f"{'MET' if kernel < TARGET_KERNEL_S else 'not met'} ({kernel / TARGET_KERNEL_S:.2f} x target)"
+    )
     print(f"   {'steps/s':30s} {steps / kernel:11.3g}")
     print(f"   {'iterations/s':30s} {solves / kernel:11.3g}")
     print(f"   {'time per iteration':30s} {fmt_time(per_iter)}")
     print(f"   {'time per step':30s} {fmt_time(kernel / steps)}\n")
-    results["kernel"] = {"steps": steps, "solves": solves, "law_calls": laws, "kernel_time_s": kernel,
-                         "kernel_time_min_s": min(times), "steps_per_s": steps / kernel,
-                         "iterations_per_s": solves / kernel, "time_per_iteration_s": per_iter,
-                         "target_s": TARGET_KERNEL_S}
+    results["kernel"] = {
+        "steps": steps,
+        "solves": solves,
+        "law_calls": laws,
+        "kernel_time_s": kernel,
+        "kernel_time_min_s": min(times),
+        "steps_per_s": steps / kernel,
+        "iterations_per_s": solves / kernel,
+        "time_per_iteration_s": per_iter,
+        "target_s": TARGET_KERNEL_S,
+    }
 
     # -- 3. arithmetic floor -----------------------------------------------------------------
     floor = statistics.median(floor_times) / solves
     print("3. arithmetic floor: one iteration = q = q_base + A dx, contact law, A^T f, residual, one 3x3 LU solve")
     print(f"   ({FLOOR_FUNCTIONS}, in a numba loop written in this script, {solves} iterations per call)")
-    print(f"   {'floor time per iteration':30s} {fmt_time(floor)}   ({solves} of them = {fmt_time(floor * solves).strip()} per period)")
+    print(
+        f"   {'floor time per iteration':30s} {fmt_time(floor)}   ({solves} of them = {fmt_time(floor * solves).strip()} per period)"
+    )
     print(f"   {'real / floor':30s} {per_iter / floor:8.2f} x   (1 = the kernel does nothing but the arithmetic)\n")
-    results["floor"] = {"time_per_iteration_s": floor, "floor_per_period_s": floor * solves,
-                        "real_over_floor": per_iter / floor}
+    results["floor"] = {
+        "time_per_iteration_s": floor,
+        "floor_per_period_s": floor * solves,
+        "real_over_floor": per_iter / floor,
+    }
 
     # -- 4. whole run() --------------------------------------------------------------------
     n_run = 10 if args.quick else 40
@@ -292,8 +342,10 @@ def main(argv=None) -> dict:
         slipstep.Simulation(system, "newmark", periods=1)
     setup = (time.perf_counter() - t) / n_run
     print(f"4. slipstep.run(system, 'newmark', periods=1), median of {n_run} (status {ds.attrs['status']})")
-    print(f"   {'run() wall time':30s} {fmt_time(wall)}   target < {fmt_time(TARGET_RUN_S).strip()}: "
-          f"{'MET' if wall < TARGET_RUN_S else 'not met'} ({wall / TARGET_RUN_S:.2f} x target)")
+    print(
+        f"   {'run() wall time':30s} {fmt_time(wall)}   target < {fmt_time(TARGET_RUN_S).strip()}: "
+        f"{'MET' if wall < TARGET_RUN_S else 'not met'} ({wall / TARGET_RUN_S:.2f} x target)"
+    )
     print(f"   {'  of which Simulation() set-up':30s} {fmt_time(setup)}   (compile arrays, T_min, allocate, preload)")
     print(f"   {'  of which kernel':30s} {fmt_time(kernel)}")
     print(f"   {'  rest (Dataset, etc.)':30s} {fmt_time(max(wall - setup - kernel, 0.0))}")
@@ -301,12 +353,18 @@ def main(argv=None) -> dict:
 
     print("\nSummary")
     print(f"   {'measure':34s} {'measured':>12s} {'target':>12s}  met")
-    print(f"   {'kernel, one period':34s} {fmt_time(kernel):>12s} {fmt_time(TARGET_KERNEL_S):>12s}  {'yes' if kernel < TARGET_KERNEL_S else 'NO'}")
-    print(f"   {'run() call, one period':34s} {fmt_time(wall):>12s} {fmt_time(TARGET_RUN_S):>12s}  {'yes' if wall < TARGET_RUN_S else 'NO'}")
+    print(
+        f"   {'kernel, one period':34s} {fmt_time(kernel):>12s} {fmt_time(TARGET_KERNEL_S):>12s}  {'yes' if kernel < TARGET_KERNEL_S else 'NO'}"
+    )
+    print(
+        f"   {'run() call, one period':34s} {fmt_time(wall):>12s} {fmt_time(TARGET_RUN_S):>12s}  {'yes' if wall < TARGET_RUN_S else 'NO'}"
+    )
     print(f"   {'iteration / arithmetic floor':34s} {per_iter / floor:10.2f} x {'':>12s}")
     if "compile" in results:
-        print(f"   {'compile (cold - warm process)':34s} {results['compile']['compile_s']:10.1f} s "
-              f"{'':>12s}  {'cached' if not results['compile']['warm_recompiled'] else 'RECOMPILED'}")
+        print(
+            f"   {'compile (cold - warm process)':34s} {results['compile']['compile_s']:10.1f} s "
+            f"{'':>12s}  {'cached' if not results['compile']['warm_recompiled'] else 'RECOMPILED'}"
+        )
     if args.json:
         print(json.dumps(results, indent=1, default=float))
     return results

@@ -70,13 +70,23 @@ def bench_case(label: str, system: slipstep.System, periods: float, repeats: int
     rows = []
     for (name, paper_label, paper_ratio, goal), sim, ts in zip(METHODS, sims, times):
         c = sim.out.counters
-        rows.append({
-            "case": label, "method": name, "paper_method": paper_label, "periods": periods,
-            "status": sim.status.name, "kernel_time_s": statistics.median(ts), "kernel_time_min_s": min(ts),
-            "steps": int(c[K.C_STEPS]), "solves": int(c[K.C_SOLVES]),
-            "factorisations": int(c[K.C_FACTORISATIONS]), "state_changes": int(c[K.C_STATE_CHANGES]),
-            "paper_ratio_max": paper_ratio, "goal_ratio_max": goal,
-        })
+        rows.append(
+            {
+                "case": label,
+                "method": name,
+                "paper_method": paper_label,
+                "periods": periods,
+                "status": sim.status.name,
+                "kernel_time_s": statistics.median(ts),
+                "kernel_time_min_s": min(ts),
+                "steps": int(c[K.C_STEPS]),
+                "solves": int(c[K.C_SOLVES]),
+                "factorisations": int(c[K.C_FACTORISATIONS]),
+                "state_changes": int(c[K.C_STATE_CHANGES]),
+                "paper_ratio_max": paper_ratio,
+                "goal_ratio_max": goal,
+            }
+        )
     ref = rows[0]["kernel_time_s"]
     for r in rows:
         r["time_ratio"] = r["kernel_time_s"] / ref
@@ -97,36 +107,54 @@ def verdict(ratio: float, bound: float | None) -> str:
 def print_table(rows: list[dict], repeats: int) -> None:
     r0 = rows[0]
     print(f"\n{r0['case']}: {r0['periods']:g} period(s), kernel time = median of {repeats} marches")
-    head = (f"   {'method':27s} {'M':>4s} {'kernel [us]':>11s} {'per period':>11s} {'ratio':>7s} {'steps':>6s}"
-            f" {'solves':>7s} {'solves/step':>11s} {'fact.':>6s} {'paper':>10s} {'goal':>10s}")
+    head = (
+        f"   {'method':27s} {'M':>4s} {'kernel [us]':>11s} {'per period':>11s} {'ratio':>7s} {'steps':>6s}"
+        f" {'solves':>7s} {'solves/step':>11s} {'fact.':>6s} {'paper':>10s} {'goal':>10s}"
+    )
     print(head)
     print("   " + "-" * (len(head) - 3))
     for r in rows:
-        print(f"   {r['method']:27s} {r['paper_method']:>4s} {fmt_us(r['kernel_time_s']):>11s}"
-              f" {fmt_us(r['time_per_period_s']):>11s} {r['time_ratio']:7.3f} {r['steps']:6d} {r['solves']:7d}"
-              f" {r['solves'] / max(r['steps'], 1):11.2f} {r['factorisations']:6d}"
-              f" {verdict(r['time_ratio'], r['paper_ratio_max']):>10s} {verdict(r['time_ratio'], r['goal_ratio_max']):>10s}"
-              + ("" if r["status"] == "OK" else f"  status {r['status']}"))
+        print(
+            f"   {r['method']:27s} {r['paper_method']:>4s} {fmt_us(r['kernel_time_s']):>11s}"
+            f" {fmt_us(r['time_per_period_s']):>11s} {r['time_ratio']:7.3f} {r['steps']:6d} {r['solves']:7d}"
+            f" {r['solves'] / max(r['steps'], 1):11.2f} {r['factorisations']:6d}"
+            f" {verdict(r['time_ratio'], r['paper_ratio_max']):>10s} {verdict(r['time_ratio'], r['goal_ratio_max']):>10s}"
+            + ("" if r["status"] == "OK" else f"  status {r['status']}")
+        )
 
 
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
-    ap.add_argument("--repeats", type=int, default=None, help="repeats per method at 200 Hz (default 300, quick 15);"
-                    " the 100 Hz case uses a third as many")
-    ap.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
-                    help="dump the results as a JSON list (to FILE, or stdout if no FILE)")
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="repeats per method at 200 Hz (default 300, quick 15); the 100 Hz case uses a third as many",
+    )
+    ap.add_argument(
+        "--json",
+        nargs="?",
+        const="-",
+        default=None,
+        metavar="FILE",
+        help="dump the results as a JSON list (to FILE, or stdout if no FILE)",
+    )
     args = ap.parse_args(argv)
     rep200 = args.repeats or (15 if args.quick else 300)
     rep100 = max(rep200 // 3, 5)
 
-    print(f"slipstep {slipstep.__version__}: all methods on the paper case; {os.cpu_count()} CPUs "
-          f"(shared: numbers are noisy), {time.strftime('%Y-%m-%d %H:%M')}")
+    print(
+        f"slipstep {slipstep.__version__}: all methods on the paper case; {os.cpu_count()} CPUs "
+        f"(shared: numbers are noisy), {time.strftime('%Y-%m-%d %H:%M')}"
+    )
     rows200 = bench_case("paper, 200 Hz", paper_system(), 1, rep200)
     print_table(rows200, rep200)
     m3 = next(r for r in rows200 if r["method"] == "piecewise-linear")
-    print(f"   Method 3 absolute, one period at 200 Hz: {m3['kernel_time_s'] * 1e6:.1f} us "
-          f"(goal < {GOAL_M3_ABS_S * 1e6:.0f} us: {'ok' if m3['kernel_time_s'] < GOAL_M3_ABS_S else 'MISS'})")
+    print(
+        f"   Method 3 absolute, one period at 200 Hz: {m3['kernel_time_s'] * 1e6:.1f} us "
+        f"(goal < {GOAL_M3_ABS_S * 1e6:.0f} us: {'ok' if m3['kernel_time_s'] < GOAL_M3_ABS_S else 'MISS'})"
+    )
     rows100 = bench_case("paper, 100 Hz", paper_system(100.0), 3, rep100)
     print_table(rows100, rep100)
     print("   (paper, 100 Hz 3 periods: Method 1 9.46 s -> Method 3 5.09 s in their MATLAB code, ratio 0.54)")

@@ -96,9 +96,17 @@ def measure(build, n: int, n_contacts: int, method: str) -> dict:
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     steps = int(sim.out.counters[0])
-    return {"n": system.n_dofs, "contacts": n_contacts, "method": method, "setup_s": setup, "period_s": kernel,
-            "steps": steps, "per_step_us": kernel / max(steps, 1) * 1e6, "peak_MB": peak / 1e6,
-            "status": sim.status.name}
+    return {
+        "n": system.n_dofs,
+        "contacts": n_contacts,
+        "method": method,
+        "setup_s": setup,
+        "period_s": kernel,
+        "steps": steps,
+        "per_step_us": kernel / max(steps, 1) * 1e6,
+        "peak_MB": peak / 1e6,
+        "status": sim.status.name,
+    }
 
 
 def slope(xs, ys) -> float:
@@ -119,9 +127,12 @@ def sweep(build, pairs, methods, budget) -> list[dict]:
             row = measure(build, n, nc, method)
             row["label"] = label
             rows.append(row)
-            print(f"  N={row['n']:6d} contacts={nc:4d} Method {label:3s}: set-up {row['setup_s']:8.3f} s, period "
-                  f"{row['period_s']:8.4f} s, {row['steps']:6d} steps, {row['per_step_us']:9.1f} us/step, "
-                  f"peak {row['peak_MB']:8.1f} MB, {row['status']}", flush=True)
+            print(
+                f"  N={row['n']:6d} contacts={nc:4d} Method {label:3s}: set-up {row['setup_s']:8.3f} s, period "
+                f"{row['period_s']:8.4f} s, {row['steps']:6d} steps, {row['per_step_us']:9.1f} us/step, "
+                f"peak {row['peak_MB']:8.1f} MB, {row['status']}",
+                flush=True,
+            )
             if row["setup_s"] + row["period_s"] > budget:
                 over.add(method)
     return rows
@@ -151,9 +162,11 @@ def main() -> None:
     for label in methods:
         rn = [r for r in by_n if r["label"] == label]
         rc = [r for r in by_c if r["label"] == label]
-        print(f"  Method {label:3s}: {slope([r['n'] for r in rn], [r['per_step_us'] for r in rn]):5.2f} | "
-              f"{slope([r['contacts'] for r in rc], [r['per_step_us'] for r in rc]):5.2f}   "
-              f"(set-up exponent in N: {slope([r['n'] for r in rn], [r['setup_s'] for r in rn]):5.2f})")
+        print(
+            f"  Method {label:3s}: {slope([r['n'] for r in rn], [r['per_step_us'] for r in rn]):5.2f} | "
+            f"{slope([r['contacts'] for r in rc], [r['per_step_us'] for r in rc]):5.2f}   "
+            f"(set-up exponent in N: {slope([r['n'] for r in rn], [r['setup_s'] for r in rn]):5.2f})"
+        )
     if args.json:
         from slipstep.io import atomic_path
 

@@ -23,8 +23,11 @@ COMMANDS = {
     "slipstep --help": [sys.executable, "-c", CLI, "--help"],
     "slipstep cases": [sys.executable, "-c", CLI, "cases"],
     "slipstep methods": [sys.executable, "-c", CLI, "methods"],
-    "import slipstep; slipstep.Simulation (numba, xarray)": [sys.executable, "-c",
-                                                            "import slipstep; slipstep.Simulation"],
+    "import slipstep; slipstep.Simulation (numba, xarray)": [
+        sys.executable,
+        "-c",
+        "import slipstep; slipstep.Simulation",
+    ],
 }
 
 

@@ -35,11 +35,15 @@ TARGET_RATIO = 1.7
 
 def paper_sweep(n_cf: int, n_amp: int, n_mu: int) -> SweepSpec:
     return SweepSpec(
-        base="paper", name=f"bench-{n_cf * n_amp * n_mu}",
+        base="paper",
+        name=f"bench-{n_cf * n_amp * n_mu}",
         run={"method": "quasi-static", "periods": 3, "steps_per_period": 300},
-        parameters=(Parameter("damper.centrifugal_force_N", start=100.0, stop=400.0, num=n_cf),
-                    Parameter("motion.1.amplitude", start=2.0, stop=60.0, num=n_amp, scale="log"),
-                    Parameter("damper.contacts.*.friction_coefficient", start=0.1, stop=0.6, num=n_mu)))
+        parameters=(
+            Parameter("damper.centrifugal_force_N", start=100.0, stop=400.0, num=n_cf),
+            Parameter("motion.1.amplitude", start=2.0, stop=60.0, num=n_amp, scale="log"),
+            Parameter("damper.contacts.*.friction_coefficient", start=0.1, stop=0.6, num=n_mu),
+        ),
+    )
 
 
 def shape_for(n: int) -> tuple[int, int, int]:
@@ -106,18 +110,28 @@ def _print(r: dict) -> None:
 
 def _print_big(r: dict) -> None:
     big = r["big"]
-    print(f"1. {big['cases']} quasi-static variants of the paper case, default local cluster "
-          f"({big['workers']} workers, {big['batch_size']} cases per task)")
-    print(f"   cases:       {big['elapsed_s']:8.1f} s  ({big['cases_per_s']:.0f} cases/s)   target < {TARGET_S:.0f} s: "
-          f"{'met' if big['elapsed_s'] < TARGET_S else 'NOT met'}")
+    print(
+        f"1. {big['cases']} quasi-static variants of the paper case, default local cluster "
+        f"({big['workers']} workers, {big['batch_size']} cases per task)"
+    )
+    print(
+        f"   cases:       {big['elapsed_s']:8.1f} s  ({big['cases_per_s']:.0f} cases/s)   target < {TARGET_S:.0f} s: "
+        f"{'met' if big['elapsed_s'] < TARGET_S else 'NOT met'}"
+    )
     print(f"   start-up:    {big['startup_s']:8.1f} s  (cluster + one warm-up case per worker)")
-    print(f"   whole call:  {big['wall_s']:8.1f} s  (plan, store, start-up, cases, shut-down)   "
-          f"{'met' if big['wall_s'] < TARGET_S else 'NOT met'} with start-up")
+    print(
+        f"   whole call:  {big['wall_s']:8.1f} s  (plan, store, start-up, cases, shut-down)   "
+        f"{'met' if big['wall_s'] < TARGET_S else 'NOT met'} with start-up"
+    )
     print(f"   status:      {big['status_counts']}")
-    print(f"   client CPU:  {big['client_cpu_s']:8.1f} s  ({big['client_cpu_s'] / big['cases'] * 1e3:.2f} ms per case: "
-          "scheduler, results, store)")
-    print(f"   machine load average before / after: {big['load_average'][0]:.1f} / {big['load_average'][1]:.1f} "
-          f"(on {r['cores']} cores)\n")
+    print(
+        f"   client CPU:  {big['client_cpu_s']:8.1f} s  ({big['client_cpu_s'] / big['cases'] * 1e3:.2f} ms per case: "
+        "scheduler, results, store)"
+    )
+    print(
+        f"   machine load average before / after: {big['load_average'][0]:.1f} / {big['load_average'][1]:.1f} "
+        f"(on {r['cores']} cores)\n"
+    )
 
 
 def _print_ratio(r: dict) -> None:
@@ -125,21 +139,31 @@ def _print_ratio(r: dict) -> None:
     print(f"2. {one['cases']} cases on 1 worker and on 2 workers")
     print(f"   1 worker:    {one['elapsed_s']:8.2f} s  ({one['cases_per_s']:.0f} cases/s)")
     print(f"   2 workers:   {two['elapsed_s']:8.2f} s  ({two['cases_per_s']:.0f} cases/s)")
-    print(f"   load average during the two runs: {one['load_average'][0]:.1f}-{two['load_average'][1]:.1f} "
-          f"(other processes take cores from the workers: the ratio needs {r['cores']} idle cores)")
-    print(f"   speed-up:    {r['speedup']:8.2f} x   target >= {TARGET_RATIO}: "
-          f"{'met' if r['speedup'] >= TARGET_RATIO else 'NOT met'}")
+    print(
+        f"   load average during the two runs: {one['load_average'][0]:.1f}-{two['load_average'][1]:.1f} "
+        f"(other processes take cores from the workers: the ratio needs {r['cores']} idle cores)"
+    )
+    print(
+        f"   speed-up:    {r['speedup']:8.2f} x   target >= {TARGET_RATIO}: "
+        f"{'met' if r['speedup'] >= TARGET_RATIO else 'NOT met'}"
+    )
     c1, c2 = one["mean_case_cpu_s"], two["mean_case_cpu_s"]
     w1, w2 = one["elapsed_s"] / one["computed"], two["elapsed_s"] / two["computed"]
-    print(f"   CPU per case on the workers: {c1 * 1e3:.2f} ms (1 worker), {c2 * 1e3:.2f} ms (2 workers); "
-          f"CPU share each worker got: {c1 / w1:.0%} (1 worker), {c2 / (2 * w2):.0%} (2 workers)")
-    print(f"   projection, not a measurement: two idle cores would give {2 * c1 / c2:.2f} x (twice the cases per "
-          "CPU-second of one worker; the client's CPU is apart, see part 1)")
+    print(
+        f"   CPU per case on the workers: {c1 * 1e3:.2f} ms (1 worker), {c2 * 1e3:.2f} ms (2 workers); "
+        f"CPU share each worker got: {c1 / w1:.0%} (1 worker), {c2 / (2 * w2):.0%} (2 workers)"
+    )
+    print(
+        f"   projection, not a measurement: two idle cores would give {2 * c1 / c2:.2f} x (twice the cases per "
+        "CPU-second of one worker; the client's CPU is apart, see part 1)"
+    )
     if "one_worker_two_threads" not in r:
         return
     th = r["one_worker_two_threads"]
-    print(f"   1 worker, 2 threads: {th['elapsed_s']:8.2f} s  ({one['elapsed_s'] / th['elapsed_s']:.2f} x one thread: "
-          "the kernels release the GIL, the Python around them does not)\n")
+    print(
+        f"   1 worker, 2 threads: {th['elapsed_s']:8.2f} s  ({one['elapsed_s'] / th['elapsed_s']:.2f} x one thread: "
+        "the kernels release the GIL, the Python around them does not)\n"
+    )
 
 
 def _print_costs(r: dict) -> None:
@@ -148,14 +172,18 @@ def _print_costs(r: dict) -> None:
     print("3. per case (means over the cases of part 1, measured on the workers)")
     print(f"   kernel (march):                       {ms(big['mean_kernel_time_s'])}")
     print(f"   whole case (build, run, summary):     {ms(big['mean_case_time_s'])}")
-    print(f"   overhead outside the kernel:          {ms(big['overhead_per_case_s'])}  "
-          f"({big['overhead_per_case_s'] / big['mean_case_time_s'] * 100:.0f} % of the case)")
+    print(
+        f"   overhead outside the kernel:          {ms(big['overhead_per_case_s'])}  "
+        f"({big['overhead_per_case_s'] / big['mean_case_time_s'] * 100:.0f} % of the case)"
+    )
     per_case_serial = serial["elapsed_s"] / max(serial["computed"], 1)
     per_case_one = one["elapsed_s"] / max(one["computed"], 1)
     print(f"   serial executor, wall per case:       {ms(per_case_serial)}  ({serial['computed']} cases, this process)")
-    print(f"   1 dask worker, wall per case:         {ms(per_case_one)}  "
-          f"(the case itself {ms(one['mean_case_time_s'])}: dask, transfer and store "
-          f"{ms(per_case_one - one['mean_case_time_s'])} per case, {one['batch_size']} cases per task)")
+    print(
+        f"   1 dask worker, wall per case:         {ms(per_case_one)}  "
+        f"(the case itself {ms(one['mean_case_time_s'])}: dask, transfer and store "
+        f"{ms(per_case_one - one['mean_case_time_s'])} per case, {one['batch_size']} cases per task)"
+    )
     if not math.isfinite(r["speedup"]):
         print("   (no speed-up measured)")
 

@@ -48,6 +48,7 @@ from slipstep import ContactElement, Excitation, Harmonic, Signal, Structure, Sy
 
 try:
     import openseespy.opensees as ops
+
     OPS_ERROR = None
 except Exception as exc:  # ImportError, or RuntimeError when libblas3/liblapack3 are missing
     ops = None
@@ -82,15 +83,28 @@ class Oscillator:
 
 
 def one_dof() -> Oscillator:
-    return Oscillator("1-DOF Jenkins oscillator", np.array([[1.0]]), np.array([[1.0e4]]), 4.0,
-                      [(np.array([1.0]), 2.0e4, 10.0)], np.array([30.0]), 10.0)
+    return Oscillator(
+        "1-DOF Jenkins oscillator",
+        np.array([[1.0]]),
+        np.array([[1.0e4]]),
+        4.0,
+        [(np.array([1.0]), 2.0e4, 10.0)],
+        np.array([30.0]),
+        10.0,
+    )
 
 
 def two_dof() -> Oscillator:
     k1, k2 = 1.0e4, 5.0e3
-    return Oscillator("2-DOF Jenkins oscillator", np.diag([1.0, 0.5]), np.array([[k1 + k2, -k2], [-k2, k2]]), 4.0,
-                      [(np.array([1.0, 0.0]), 2.0e4, 10.0), (np.array([-1.0, 1.0]), 1.0e4, 5.0)],
-                      np.array([0.0, 20.0]), 10.0)
+    return Oscillator(
+        "2-DOF Jenkins oscillator",
+        np.diag([1.0, 0.5]),
+        np.array([[k1 + k2, -k2], [-k2, k2]]),
+        4.0,
+        [(np.array([1.0, 0.0]), 2.0e4, 10.0), (np.array([-1.0, 1.0]), 1.0e4, 5.0)],
+        np.array([0.0, 20.0]),
+        10.0,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -101,8 +115,16 @@ def slipstep_system(osc: Oscillator) -> System:
     contacts = []
     for j, (row, kt, fs) in enumerate(osc.jenkins):
         A = np.vstack([row, np.zeros(osc.n)])  # tangential row; normal row on nothing
-        contacts.append(ContactElement(f"J{j + 1}", A, tangential_stiffness=kt, normal_stiffness=KN,
-                                       friction_coefficient=1.0, normal_offset=fs / KN))  # N = KN g = F_s
+        contacts.append(
+            ContactElement(
+                f"J{j + 1}",
+                A,
+                tangential_stiffness=kt,
+                normal_stiffness=KN,
+                friction_coefficient=1.0,
+                normal_offset=fs / KN,
+            )
+        )  # N = KN g = F_s
     force = Signal(names, (Harmonic(osc.frequency, osc.force),))
     return System(structure, tuple(contacts), Excitation(force=force), name=osc.name)
 
@@ -141,8 +163,12 @@ def slipstep_runner(system: System, method: str, dt: float, periods: int, **opti
         slipstep.run(system, method, periods=periods, step_ratio=ratio, **options)
         return time.perf_counter() - t
 
-    result = {"x": ds.displacement.values, "t": ds.time.values, "steps": int(ds.attrs["steps"]),
-              "solves": int(ds.attrs["solves"])}
+    result = {
+        "x": ds.displacement.values,
+        "t": ds.time.values,
+        "steps": int(ds.attrs["steps"]),
+        "solves": int(ds.attrs["solves"]),
+    }
     return march, whole_run, result
 
 
@@ -162,7 +188,7 @@ def opensees_build(osc: Oscillator, record_to: str | None = None, tol: float = 1
     tag = 0
     # linear springs: K of a chain = sum over springs k (e_i - e_j)(e_i - e_j)^T; recover them
     springs = _springs_of(osc.K)
-    for (i, j, k) in springs:
+    for i, j, k in springs:
         tag += 1
         ops.uniaxialMaterial("Elastic", tag, float(k))
         ops.element("zeroLength", tag, 1000 if i < 0 else i + 1, j + 1, "-mat", tag, "-dir", 1)
@@ -184,8 +210,9 @@ def opensees_build(osc: Oscillator, record_to: str | None = None, tol: float = 1
         if osc.force[i] != 0.0:
             ops.load(i + 1, float(osc.force[i]))
     if record_to is not None:
-        ops.recorder("Node", "-file", record_to, "-time", "-precision", 17, "-node", *range(1, osc.n + 1),
-                     "-dof", 1, "disp")
+        ops.recorder(
+            "Node", "-file", record_to, "-time", "-precision", 17, "-node", *range(1, osc.n + 1), "-dof", 1, "disp"
+        )
     ops.constraints("Plain")
     ops.numberer("Plain")
     ops.system("FullGeneral")
@@ -307,8 +334,10 @@ def run_case(osc: Oscillator, periods: int, n_per: int, repeats: int) -> dict:
     dt = osc.period / n_per
     nsteps = periods * n_per
     system = slipstep_system(osc)
-    print(f"\n{osc.name}: {osc.n} DOF(s), {len(osc.jenkins)} Jenkins element(s), f = {osc.frequency:g} Hz, "
-          f"dt = T/{n_per} = {dt * 1e3:.4g} ms, {periods} periods = {nsteps} steps")
+    print(
+        f"\n{osc.name}: {osc.n} DOF(s), {len(osc.jenkins)} Jenkins element(s), f = {osc.frequency:g} Hz, "
+        f"dt = T/{n_per} = {dt * 1e3:.4g} ms, {periods} periods = {nsteps} steps"
+    )
     res = {"case": osc.name, "dt_s": dt, "steps": nsteps}
     m3_march, m3_run, s3 = slipstep_runner(system, "piecewise-linear", dt, periods)
     m1_march, _, s1 = slipstep_runner(system, "newmark", dt, periods, tolerance=1e-12)
@@ -347,8 +376,10 @@ def run_case(osc: Oscillator, periods: int, n_per: int, repeats: int) -> dict:
     if osr is not None:
         k_ratio = med["ops"] / med["m3"]
         r_ratio = med["ops_run"] / med["m3_run"]
-        print(f"   slipstep / OpenSees steps/s: kernel vs analyze() {k_ratio:.1f}x; whole run() vs build+analyze+read "
-              f"{r_ratio:.1f}x   (goal >= 10x: {'met' if k_ratio >= 10 else 'NOT met'} on the kernel)")
+        print(
+            f"   slipstep / OpenSees steps/s: kernel vs analyze() {k_ratio:.1f}x; whole run() vs build+analyze+read "
+            f"{r_ratio:.1f}x   (goal >= 10x: {'met' if k_ratio >= 10 else 'NOT met'} on the kernel)"
+        )
         res["ratio_kernel_vs_opensees"], res["ratio_run_vs_opensees"] = k_ratio, r_ratio
     print(f"   slipstep / NumPy loop steps/s: kernel {med['numpy'] / med['m3']:.0f}x")
     # histories
@@ -356,12 +387,17 @@ def run_case(osc: Oscillator, periods: int, n_per: int, repeats: int) -> dict:
     if x3.shape != xn.shape:
         raise RuntimeError(f"history shapes differ: slipstep {x3.shape}, NumPy {xn.shape}")
     t_ref = np.arange(nsteps + 1) * dt
-    diffs = {"slipstep M3 vs NumPy": rel_diff(x3, xn), "slipstep M1 vs NumPy": rel_diff(x1, xn),
-             "slipstep M3 vs slipstep M1": rel_diff(x3, x1)}
+    diffs = {
+        "slipstep M3 vs NumPy": rel_diff(x3, xn),
+        "slipstep M1 vs NumPy": rel_diff(x1, xn),
+        "slipstep M3 vs slipstep M1": rel_diff(x3, x1),
+    }
     if osr is not None:
         if osr["x"].shape != xn.shape or np.abs(osr["t"] - t_ref).max() > 1e-9 * t_ref[-1]:
-            print(f"   WARNING: OpenSees history has shape {osr['x'].shape} / times off by "
-                  f"{np.abs(osr['t'] - t_ref).max() if osr['x'].shape == xn.shape else 'n/a'}")
+            print(
+                f"   WARNING: OpenSees history has shape {osr['x'].shape} / times off by "
+                f"{np.abs(osr['t'] - t_ref).max() if osr['x'].shape == xn.shape else 'n/a'}"
+            )
         else:
             diffs["slipstep M3 vs OpenSees"] = rel_diff(x3, osr["x"])
             diffs["OpenSees vs NumPy"] = rel_diff(osr["x"], xn)
@@ -383,11 +419,15 @@ def main(argv=None) -> list[dict]:
     args = ap.parse_args(argv)
     periods = args.periods or (10 if args.quick else 50)
     repeats = args.repeats or (6 if args.quick else 20)
-    print(f"slipstep {slipstep.__version__} vs OpenSeesPy vs NumPy: Newmark average acceleration, fixed dt; "
-          f"{os.cpu_count()} CPUs (shared: noisy), {time.strftime('%Y-%m-%d %H:%M')}")
+    print(
+        f"slipstep {slipstep.__version__} vs OpenSeesPy vs NumPy: Newmark average acceleration, fixed dt; "
+        f"{os.cpu_count()} CPUs (shared: noisy), {time.strftime('%Y-%m-%d %H:%M')}"
+    )
     if ops is None:
-        print(f"OpenSeesPy is not available ({OPS_ERROR}): its column is SKIPPED. Install with "
-              "`pip install openseespy` (+ `apt-get install -y libblas3 liblapack3` on Debian/Ubuntu).")
+        print(
+            f"OpenSeesPy is not available ({OPS_ERROR}): its column is SKIPPED. Install with "
+            "`pip install openseespy` (+ `apt-get install -y libblas3 liblapack3` on Debian/Ubuntu)."
+        )
     results = [run_case(osc, periods, args.steps_per_period, repeats) for osc in (one_dof(), two_dof())]
     if args.json:
         print(json.dumps(results, indent=1))

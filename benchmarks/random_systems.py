@@ -27,8 +27,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=2026, help="seed of the system generator")
     parser.add_argument("--rtol", type=float, default=1e-6, help="agreement required, fraction of the range")
     parser.add_argument("--periods", type=float, default=2.0)
-    parser.add_argument("--adaptive", action="store_true",
-                        help="also Method 2 against a tight Method 2+3 on their adaptive grid")
+    parser.add_argument(
+        "--adaptive", action="store_true", help="also Method 2 against a tight Method 2+3 on their adaptive grid"
+    )
     args = parser.parse_args()
     start = time.perf_counter()
     checked = sensitive = skipped = 0
@@ -39,8 +40,12 @@ def main() -> None:
     failed_all = {m: 0 for m in methods}
     worst = []
     for i in range(args.n):
-        rows = check_system(random_system(np.random.default_rng([args.seed, i])), periods=args.periods, rtol=args.rtol,
-                            adaptive=args.adaptive)
+        rows = check_system(
+            random_system(np.random.default_rng([args.seed, i])),
+            periods=args.periods,
+            rtol=args.rtol,
+            adaptive=args.adaptive,
+        )
         if rows is None:
             skipped += 1
             continue
@@ -58,16 +63,22 @@ def main() -> None:
             failed[m] += 1
             worst.append((rows[m]["error"], i, m))
     elapsed = time.perf_counter() - start
-    print(f"{checked} systems checked ({skipped} skipped: no static equilibrium or reference failed; "
-          f"{sensitive} sensitive, counted apart), seed {args.seed}, {elapsed:.0f} s")
+    print(
+        f"{checked} systems checked ({skipped} skipped: no static equilibrium or reference failed; "
+        f"{sensitive} sensitive, counted apart), seed {args.seed}, {elapsed:.0f} s"
+    )
     print(f"failure = status OK but more than {args.rtol:g} of the range from the tight reference")
     good = max(checked - sensitive, 1)
     print(f"  {'':18s} {'well-conditioned':>18s} {'all systems':>18s}  non-OK statuses")
     for m in methods:
-        print(f"  {m:18s} {failed[m]:7d} ({100 * failed[m] / good:5.2f} %) {failed_all[m]:7d} "
-              f"({100 * failed_all[m] / max(checked, 1):5.2f} %)  {not_ok[m]}")
-    print(f"  {'any method':18s} {any_failed:7d} ({100 * any_failed / good:5.2f} %) {any_failed_all:7d} "
-          f"({100 * any_failed_all / max(checked, 1):5.2f} %)")
+        print(
+            f"  {m:18s} {failed[m]:7d} ({100 * failed[m] / good:5.2f} %) {failed_all[m]:7d} "
+            f"({100 * failed_all[m] / max(checked, 1):5.2f} %)  {not_ok[m]}"
+        )
+    print(
+        f"  {'any method':18s} {any_failed:7d} ({100 * any_failed / good:5.2f} %) {any_failed_all:7d} "
+        f"({100 * any_failed_all / max(checked, 1):5.2f} %)"
+    )
     for err, i, m in sorted(worst, reverse=True)[:10]:
         print(f"    worst: system {i} {m}: {err:.3g} of the range")
 

@@ -30,8 +30,14 @@ def compute(harmonics=15, points=13, check_frequencies=(330.0, 400.0), march=Tru
     system = ss.load_system("blades")
     freqs = np.linspace(300.0, 420.0, points)
     t = time.perf_counter()
-    hbm = frf(system, freqs, harmonics=harmonics, responses=[RESPONSE], check="peak",
-              check_frequencies=list(check_frequencies))
+    hbm = frf(
+        system,
+        freqs,
+        harmonics=harmonics,
+        responses=[RESPONSE],
+        check="peak",
+        check_frequencies=list(check_frequencies),
+    )
     timings = {"hbm_s": time.perf_counter() - t, "hbm_solve_s_per_point": hbm.attrs["time_per_point_s"]}
     marched = None
     if march:
@@ -57,13 +63,17 @@ def main(argv=None):
     path = args.output_dir / "blades_hbm_vs_march.png"
     plot_frf([hbm] + ([marched] if marched is not None else []), path, response=RESPONSE)
     print(f"figure: {path}")
-    print(f"HBM: {hbm.frequency.size} continuation points, {timings['hbm_solve_s_per_point'] * 1e3:.1f} ms per point; "
-          f"harmonic truncation estimate (max) {hbm.attrs['max_harmonic_truncation_estimate']:.2e}")
+    print(
+        f"HBM: {hbm.frequency.size} continuation points, {timings['hbm_solve_s_per_point'] * 1e3:.1f} ms per point; "
+        f"harmonic truncation estimate (max) {hbm.attrs['max_harmonic_truncation_estimate']:.2e}"
+    )
     if "march_s_per_point" in timings:
         print(f"march: {timings['march_s_per_point']:.2f} s per point")
     for row in json.loads(hbm.attrs["check_summary"]):
-        print(f"  {row['frequency_Hz']:.1f} Hz: HBM vs march amplitude {row['amplitude_rel_diff']:.2e}, "
-              f"energy {row['energy_rel_diff']:.2e} ({row['march_status']}, {row['march_periods']} periods)")
+        print(
+            f"  {row['frequency_Hz']:.1f} Hz: HBM vs march amplitude {row['amplitude_rel_diff']:.2e}, "
+            f"energy {row['energy_rel_diff']:.2e} ({row['march_status']}, {row['march_periods']} periods)"
+        )
 
 
 if __name__ == "__main__":

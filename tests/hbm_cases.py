@@ -14,8 +14,9 @@ KN = 1.0e6
 
 def jenkins(row, kt, fs, name, mu=1.0):
     A = np.vstack([np.asarray(row, float), np.zeros(len(row))])
-    return ss.ContactElement(name, A, tangential_stiffness=kt, normal_stiffness=KN, friction_coefficient=mu,
-                             normal_offset=fs / KN)
+    return ss.ContactElement(
+        name, A, tangential_stiffness=kt, normal_stiffness=KN, friction_coefficient=mu, normal_offset=fs / KN
+    )
 
 
 def jenkins_1dof(frequency=350.0, force=100.0, mu=1.0, alpha=40.0):
@@ -42,8 +43,9 @@ def gap_oscillator(frequency=10.0, force=2.0):
     """1 DOF (15.9 Hz) hitting a unilateral spring 2x as stiff after a 1 mm gap: a stiffening
     response whose FRF folds over (two turning points)."""
     A = np.array([[0.0], [1.0]])
-    c = ss.ContactElement("gap", A, tangential_stiffness=1e4, normal_stiffness=2e4, friction_coefficient=0.0,
-                          normal_offset=-1e-3)
+    c = ss.ContactElement(
+        "gap", A, tangential_stiffness=1e4, normal_stiffness=2e4, friction_coefficient=0.0, normal_offset=-1e-3
+    )
     st = ss.Structure(np.array([[1.0]]), np.array([[4.0]]), np.array([[1e4]]), dof_names=("x",))
     return ss.System(st, (c,), ss.Excitation(force=ss.Signal(("x",), (ss.Harmonic(frequency, [force]),))), name="gap")
 
@@ -59,6 +61,8 @@ def wedge(frequency=200.0):
     c1 = ss.ContactElement("C1", A1, tangential_stiffness=3e6, normal_stiffness=4e6, friction_coefficient=0.3)
     c2 = ss.ContactElement("C2", A2, tangential_stiffness=(2e6, 1e6), normal_stiffness=2e6, friction_coefficient=0.5)
     st = ss.Structure(M, 20.0 * M, K, dof_names=("x", "y", "z"))
-    exc = ss.Excitation(constant_force=np.array([0.0, -60.0, 0.0]),
-                        force=ss.Signal(("x", "y", "z"), (ss.Harmonic(frequency, [40.0, 90.0, 30.0], [0.0, 0.7, 1.3]),)))
+    exc = ss.Excitation(
+        constant_force=np.array([0.0, -60.0, 0.0]),
+        force=ss.Signal(("x", "y", "z"), (ss.Harmonic(frequency, [40.0, 90.0, 30.0], [0.0, 0.7, 1.3]),)),
+    )
     return ss.System(st, (c1, c2), exc, name="wedge")

@@ -26,6 +26,7 @@ def _period_map(params, x0, v0, w0, mode, record=False):
     xs, energy = [x0], 0.0
     while t < T * (1 - 1e-13):
         if mode == STICK:
+
             def rhs(tt, y, w=w):
                 return [y[1], (force * np.sin(omega * tt) - c * y[1] - k * y[0] - kt * (y[0] - w)) / m]
 
@@ -54,8 +55,9 @@ def _period_map(params, x0, v0, w0, mode, record=False):
         def extreme(tt, y):
             return y[1]
 
-        sol = solve_ivp(rhs, (t, T), [x, v], method="DOP853", rtol=1e-12, atol=1e-18, events=events + [extreme],
-                        dense_output=record)
+        sol = solve_ivp(
+            rhs, (t, T), [x, v], method="DOP853", rtol=1e-12, atol=1e-18, events=events + [extreme], dense_output=record
+        )
         if record:
             xs += list(sol.sol(np.linspace(t, sol.t[-1], 4000))[0]) + [float(ye[0]) for ye in sol.y_events[-1]]
         x_start = x

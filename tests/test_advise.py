@@ -49,7 +49,7 @@ def test_paper_case_steps_and_frequencies(paper_advice):
     assert np.allclose(stick.frequencies_Hz, [8.41e3, 10.48e3, 11.86e3], rtol=2e-3)
     # slip states have longer T_min: the adaptive step needs fewer steps per period
     assert 120 < a.adaptive_steps_per_period_estimate < 187
-    assert a.states_enumerated and len(a.states) == 4 ** 3
+    assert a.states_enumerated and len(a.states) == 4**3
 
 
 def test_paper_case_free_of_flutter_in_visited_states(paper_advice):

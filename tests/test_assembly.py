@@ -37,11 +37,13 @@ from slipstep.model.substructure import (
 )
 
 E, RHO, L, B, H = 2.0e11, 7800.0, 0.12, 0.02, 0.0045
-AREA, SECOND = B * H, B * H ** 3 / 12
+AREA, SECOND = B * H, B * H**3 / 12
 MM = 1e-3
-PAPER_CONTACTS = (DamperContact("P1", "left", (-3.914 * MM, -0.414 * MM), 13e6, 13e6, 0.4),
-                  DamperContact("P2", "left", (-1.086 * MM, 2.414 * MM), 13e6, 13e6, 0.4),
-                  DamperContact("P3", "right", (2.5 * MM, 1.0 * MM), 26e6, 26e6, 0.25))
+PAPER_CONTACTS = (
+    DamperContact("P1", "left", (-3.914 * MM, -0.414 * MM), 13e6, 13e6, 0.4),
+    DamperContact("P2", "left", (-1.086 * MM, 2.414 * MM), 13e6, 13e6, 0.4),
+    DamperContact("P3", "right", (2.5 * MM, 1.0 * MM), 26e6, 26e6, 0.25),
+)
 
 
 def blade(n=8, **kw):
@@ -113,8 +115,9 @@ def test_craig_bampton_matches_full_model_lowest_frequencies():
 
 def test_craig_bampton_of_sparse_input_stays_sparse_and_agrees():
     full = blade(12, platform_node=3)
-    sparse = Substructure("s", sp.csr_matrix(full.mass), sp.csr_matrix(full.stiffness), full.dof_names, full.dof_units,
-                          points=full.points)
+    sparse = Substructure(
+        "s", sp.csr_matrix(full.mass), sp.csr_matrix(full.stiffness), full.dof_names, full.dof_units, points=full.points
+    )
     assert sparse.sparse and sp.issparse(sparse.mass)
     a = craig_bampton(full, ["3.x", "12.x"], 3)
     b = craig_bampton(sparse, ["3.x", "12.x"], 3)  # splu + eigsh (shift-invert)
@@ -127,7 +130,9 @@ def test_craig_bampton_of_sparse_input_stays_sparse_and_agrees():
 def test_npz_and_mtx_round_trip(tmp_path, sparse):
     b = blade(3, rayleigh=(1.0, 1e-6))
     conv = sp.csr_matrix if sparse else np.asarray
-    sub = Substructure("blade", conv(b.mass), conv(b.stiffness), b.dof_names, b.dof_units, damping=conv(b.damping_matrix()))
+    sub = Substructure(
+        "blade", conv(b.mass), conv(b.stiffness), b.dof_names, b.dof_units, damping=conv(b.damping_matrix())
+    )
     save_npz(sub, tmp_path / "blade.npz")
     back = load_npz(tmp_path / "blade.npz", "blade")
     paths = save_mtx(sub, tmp_path)
@@ -155,18 +160,35 @@ def pair(mu=(0.4, 0.4, 0.25)):
     b = craig_bampton(blade(8, platform_node=2, platform_mass=0.05), ["2.x", "8.x"], 1)
     b1 = Substructure("blade1", b.mass, b.stiffness, b.dof_names, b.dof_units, points=b.points)
     b2 = Substructure("blade2", b.mass, b.stiffness, b.dof_names, b.dof_units, points=b.points)
-    contacts = tuple(DamperContact(c.name, c.platform, c.position, c.normal_stiffness, c.tangential_stiffness, m)
-                     for c, m in zip(PAPER_CONTACTS, mu))
-    d = DamperLink("damper", 0.012, 1.2e-7, 200.0, (PlatformLink("left", math.radians(45), "blade1"),
-                                                     PlatformLink("right", math.radians(-45), "blade2")), contacts)
+    contacts = tuple(
+        DamperContact(c.name, c.platform, c.position, c.normal_stiffness, c.tangential_stiffness, m)
+        for c, m in zip(PAPER_CONTACTS, mu)
+    )
+    d = DamperLink(
+        "damper",
+        0.012,
+        1.2e-7,
+        200.0,
+        (PlatformLink("left", math.radians(45), "blade1"), PlatformLink("right", math.radians(-45), "blade2")),
+        contacts,
+    )
     return b, assemble([b1, b2], [d], forces=[HarmonicForce("blade1.8.x", 1.0, 300.0)], name="pair")
 
 
 def test_assembled_dof_names_are_prefixed_and_matrices_block_diagonal():
     b, system = pair()
     names = system.structure.dof_names
-    assert names == ("blade1.2.x", "blade1.8.x", "blade1.mode1", "blade2.2.x", "blade2.8.x", "blade2.mode1",
-                     "damper.x_G", "damper.y_G", "damper.phi")
+    assert names == (
+        "blade1.2.x",
+        "blade1.8.x",
+        "blade1.mode1",
+        "blade2.2.x",
+        "blade2.8.x",
+        "blade2.mode1",
+        "damper.x_G",
+        "damper.y_G",
+        "damper.phi",
+    )
     assert system.contact_names == ("damper.P1", "damper.P2", "damper.P3")
     M, K = system.structure.mass, system.structure.stiffness
     assert np.array_equal(M[:4, :4][:3, :3], b.mass) and np.array_equal(K[3:6, 3:6], b.stiffness)
@@ -207,8 +229,17 @@ def test_platform_rotation_offset_enters_the_gather():
     b1 = Substructure("blade1", full.mass, full.stiffness, full.dof_names, full.dof_units, points=full.points)
     b2 = Substructure("blade2", full.mass, full.stiffness, full.dof_names, full.dof_units, points=full.points)
     off = (0.01, -0.002)
-    d = DamperLink("d", 0.012, 1.2e-7, 200.0, (PlatformLink("left", math.radians(45), "blade1", offset=off),
-                                                 PlatformLink("right", math.radians(-45), "blade2")), PAPER_CONTACTS)
+    d = DamperLink(
+        "d",
+        0.012,
+        1.2e-7,
+        200.0,
+        (
+            PlatformLink("left", math.radians(45), "blade1", offset=off),
+            PlatformLink("right", math.radians(-45), "blade2"),
+        ),
+        PAPER_CONTACTS,
+    )
     s = assemble([b1, b2], [d])
     A = s.contacts[0].dof_gather  # P1 on blade1's platform (node 2: DOFs 3, 4, 5)
     t = np.array([math.cos(math.pi / 4), math.sin(math.pi / 4)])
@@ -254,13 +285,21 @@ def test_ring_cyclic_symmetry_travelling_wave_and_mode_pairs():
 def test_blade_chain_builder_matches_the_toml_case():
     system = ss.load_system("blades")
     b = craig_bampton(blade(8, platform_node=2, platform_mass=0.05, modal_damping_ratio=0.005), ["2.x", "8.x"], 1)
-    d = DamperLink("damper", 0.012, 1.2e-7, 200.0, (PlatformLink("left", math.radians(45), ""),
-                                                     PlatformLink("right", math.radians(-45), "")), PAPER_CONTACTS)
+    d = DamperLink(
+        "damper",
+        0.012,
+        1.2e-7,
+        200.0,
+        (PlatformLink("left", math.radians(45), ""), PlatformLink("right", math.radians(-45), "")),
+        PAPER_CONTACTS,
+    )
     chain = blade_chain(b, 2, d, force_dof="8.x", force_amplitude=3.0, frequency=300.0, engine_order=1)
     for attr in ("stiffness", "mass", "damping"):
         want = getattr(system.structure, attr)
         assert np.allclose(getattr(chain.structure, attr), want, rtol=1e-9, atol=1e-12 * abs(want).max())
-    assert np.allclose(np.vstack([c.dof_gather for c in chain.contacts]), np.vstack([c.dof_gather for c in system.contacts]))
+    assert np.allclose(
+        np.vstack([c.dof_gather for c in chain.contacts]), np.vstack([c.dof_gather for c in system.contacts])
+    )
     assert chain.structure.dof_names[:3] == ("blade1.2.x", "blade1.8.x", "blade1.mode1")
 
 
@@ -270,7 +309,9 @@ def test_blades_case_damper_is_the_paper_damper_and_modes_in_range():
     d = read_toml(CASES_DIR / "blades.toml")["dampers"][0]
     for key in ("mass_kg", "inertia_kg_m2", "centrifugal_force_N"):
         assert d[key] == paper[key]
-    assert [(p["name"], p["angle_deg"]) for p in d["platforms"]] == [(p["name"], p["angle_deg"]) for p in paper["platforms"]]
+    assert [(p["name"], p["angle_deg"]) for p in d["platforms"]] == [
+        (p["name"], p["angle_deg"]) for p in paper["platforms"]
+    ]
     assert d["contacts"] == paper["contacts"]
     system = ss.load_system("blades")
     cs, K = stuck_stiffness(system)
@@ -286,23 +327,35 @@ BLADES = (CASES_DIR / "blades.toml").read_text()
 RING = (CASES_DIR / "ring.toml").read_text()
 
 
-@pytest.mark.parametrize("text, old, new, field", [
-    (BLADES, "length_mm = 120.0", "lenght_mm = 120.0", "substructures[blade1].lenght_mm"),
-    (BLADES, "length_mm = 120.0\n", "", "substructures[blade1].length_mm"),
-    (BLADES, "length_mm = 120.0", "length_mm = -1.0", "substructures[blade1].length_mm"),
-    (BLADES, "elements = 8", 'elements = "8"', "substructures[blade1].elements"),
-    (BLADES, 'boundary_dofs = ["2.x", "8.x"]', 'boundary_dofs = ["2.x", "9.x"]', "substructures[blade1].reduction.boundary_dofs"),
-    (BLADES, 'copy_of = "blade1"', 'copy_of = "blade7"', "substructures[blade2].copy_of"),
-    (BLADES, "mass_kg = 0.012", "mass_kg = -0.012", "dampers[damper].mass_kg"),
-    (BLADES, 'substructure = "blade2"', 'substructure = "blade3"', "dampers[damper].platforms[right].substructure"),
-    (BLADES, 'point = "platform"', 'point = "root"', "dampers[damper].platforms[left].point"),
-    (BLADES, "normal_stiffness_N_per_um = 26.0", "normal_stiffness_N_per_um = 0.0",
-     "dampers[damper].contacts[P3].normal_stiffness_N_per_um"),
-    (BLADES, 'dof = "8.x"', 'dof = "9.x"', "engine_order_force[0].dof"),
-    (BLADES, "engine_order = 1", "engine_order = 1.5", "engine_order_force.0.engine_order"),
-    (RING, "blades = 6", "blades = 2", "chain.blades"),
-    (RING, 'blade = "blade"', 'blade = "vane"', "chain.blade"),
-])
+@pytest.mark.parametrize(
+    "text, old, new, field",
+    [
+        (BLADES, "length_mm = 120.0", "lenght_mm = 120.0", "substructures[blade1].lenght_mm"),
+        (BLADES, "length_mm = 120.0\n", "", "substructures[blade1].length_mm"),
+        (BLADES, "length_mm = 120.0", "length_mm = -1.0", "substructures[blade1].length_mm"),
+        (BLADES, "elements = 8", 'elements = "8"', "substructures[blade1].elements"),
+        (
+            BLADES,
+            'boundary_dofs = ["2.x", "8.x"]',
+            'boundary_dofs = ["2.x", "9.x"]',
+            "substructures[blade1].reduction.boundary_dofs",
+        ),
+        (BLADES, 'copy_of = "blade1"', 'copy_of = "blade7"', "substructures[blade2].copy_of"),
+        (BLADES, "mass_kg = 0.012", "mass_kg = -0.012", "dampers[damper].mass_kg"),
+        (BLADES, 'substructure = "blade2"', 'substructure = "blade3"', "dampers[damper].platforms[right].substructure"),
+        (BLADES, 'point = "platform"', 'point = "root"', "dampers[damper].platforms[left].point"),
+        (
+            BLADES,
+            "normal_stiffness_N_per_um = 26.0",
+            "normal_stiffness_N_per_um = 0.0",
+            "dampers[damper].contacts[P3].normal_stiffness_N_per_um",
+        ),
+        (BLADES, 'dof = "8.x"', 'dof = "9.x"', "engine_order_force[0].dof"),
+        (BLADES, "engine_order = 1", "engine_order = 1.5", "engine_order_force.0.engine_order"),
+        (RING, "blades = 6", "blades = 2", "chain.blades"),
+        (RING, 'blade = "blade"', 'blade = "vane"', "chain.blade"),
+    ],
+)
 def test_bad_toml_names_the_key(tmp_path, text, old, new, field):
     assert old in text
     path = tmp_path / "bad.toml"
@@ -310,18 +363,30 @@ def test_bad_toml_names_the_key(tmp_path, text, old, new, field):
     with pytest.raises(ss.InputError) as err:
         ss.load_system(path)
     assert err.value.field.startswith(field.split("[0]")[0].split(".0.")[0]), str(err.value)
-    assert field.replace("[0]", "").replace(".0.", ".") in str(err.value).replace("[0]", "").replace(".0.", "."), str(err.value)
+    assert field.replace("[0]", "").replace(".0.", ".") in str(err.value).replace("[0]", "").replace(".0.", "."), str(
+        err.value
+    )
 
 
 def test_matrices_substructure_from_files(tmp_path):
     b = craig_bampton(blade(8, platform_node=2, platform_mass=0.05), ["2.x", "8.x"], 1)
     save_npz(b, tmp_path / "blade.npz")
     text = BLADES.replace('kind = "frame_blade"', 'kind = "matrices"\nfile = "blade.npz"')
-    for key in ("length_mm = 120.0", "elements = 8", "youngs_modulus_GPa = 200.0", "density_kg_per_m3 = 7800.0",
-                "area_mm2 = 90.0", "second_moment_mm4 = 151.875", "platform_node = 2", "platform_mass_kg = 0.05"):
+    for key in (
+        "length_mm = 120.0",
+        "elements = 8",
+        "youngs_modulus_GPa = 200.0",
+        "density_kg_per_m3 = 7800.0",
+        "area_mm2 = 90.0",
+        "second_moment_mm4 = 151.875",
+        "platform_node = 2",
+        "platform_mass_kg = 0.05",
+    ):
         text = text.replace(key, "", 1)
-    text = text.replace("[substructures.reduction]\nboundary_dofs = [\"2.x\", \"8.x\"]   # platform X, tip X\nmodes = 1",
-                        "[[substructures.points]]\nname = \"platform\"\nx = \"2.x\"")
+    text = text.replace(
+        '[substructures.reduction]\nboundary_dofs = ["2.x", "8.x"]   # platform X, tip X\nmodes = 1',
+        '[[substructures.points]]\nname = "platform"\nx = "2.x"',
+    )
     (tmp_path / "case.toml").write_text(text)
     system = ss.load_system(tmp_path / "case.toml")  # relative file path: beside the case
     ref = ss.load_system("blades")
@@ -335,7 +400,9 @@ def test_toml_link_contact_between_tips_preload_is_analytic(tmp_path):
     """A contact on named DOFs between the two tips (normal along X, interference g) whose
     tangential row holds blade1's platform: the static preload gives N = k_n g / (1 + k_n (c1 +
     c2)), c_i the tips' static compliances (blade1's with the stuck tangential spring)."""
-    text = BLADES.split("[[dampers]]")[0] + """
+    text = (
+        BLADES.split("[[dampers]]")[0]
+        + """
 [[contacts]]
 name = "tips"
 dofs = ["blade1.8.x", "blade2.8.x", "blade1.2.x"]
@@ -350,6 +417,7 @@ component = "blade1.8.x"
 amplitude = 0.1
 frequency_Hz = 300.0
 """
+    )
     path = tmp_path / "tips.toml"
     path.write_text(text)
     system = ss.load_system(path)
@@ -379,7 +447,7 @@ def test_readme_assembly_example_builds_the_ring_case(monkeypatch):
     """The README's Python assembly example runs and builds exactly the built-in `ring`."""
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     start = text.index("```python", text.index("Blades and dampers (issue 11)")) + len("```python")
-    code = text[start:text.index("```", start)].replace('periods=50', 'periods=1')
+    code = text[start : text.index("```", start)].replace("periods=50", "periods=1")
     ns: dict = {}
     exec(compile(code, "README.md", "exec"), ns)  # noqa: S102 (the README example is our own text)
     ring = ss.load_system("ring")
@@ -388,7 +456,9 @@ def test_readme_assembly_example_builds_the_ring_case(monkeypatch):
     for attr in ("mass", "stiffness", "damping"):
         want = getattr(ring.structure, attr)
         assert np.allclose(getattr(got.structure, attr), want, rtol=1e-9, atol=1e-12 * abs(want).max())
-    assert np.allclose(np.vstack([c.dof_gather for c in got.contacts]), np.vstack([c.dof_gather for c in ring.contacts]))
+    assert np.allclose(
+        np.vstack([c.dof_gather for c in got.contacts]), np.vstack([c.dof_gather for c in ring.contacts])
+    )
     assert ns["ds"].attrs["status"] == "OK"
 
 
@@ -401,5 +471,9 @@ def test_large_frame_blade_is_sparse_and_its_craig_bampton_reduction_stays_accur
     assert np.allclose(f[:3], bend, rtol=5e-3) and f[0] == pytest.approx(bend[0], rel=1e-5)
     small = blade(8, platform_node=2)
     assert not small.sparse  # small blades stay dense
-    assert np.allclose(frame_blade("b", L, 8, E, RHO, AREA, SECOND, platform_node=2, sparse=True).mass.toarray(),
-                       small.mass, rtol=1e-14, atol=0)
+    assert np.allclose(
+        frame_blade("b", L, 8, E, RHO, AREA, SECOND, platform_node=2, sparse=True).mass.toarray(),
+        small.mass,
+        rtol=1e-14,
+        atol=0,
+    )

@@ -72,8 +72,13 @@ def test_random_path_invariants(circle, path):
 
 
 @settings(max_examples=25, deadline=None)
-@given(a=st.floats(0.2, 2.0), b=st.floats(0.2, 2.0), phase=st.floats(0, 6.3), v0=st.floats(0.1, 1.0),
-       dv=st.floats(0.0, 0.09))
+@given(
+    a=st.floats(0.2, 2.0),
+    b=st.floats(0.2, 2.0),
+    phase=st.floats(0, 6.3),
+    v0=st.floats(0.1, 1.0),
+    dv=st.floats(0.0, 0.09),
+)
 def test_closed_paths_dissipate(circle, a, b, phase, v0, dv):
     """Closed elliptical paths in the tangent plane with an oscillating normal approach (kept
     in contact): the friction dissipation of every step T_{n+1} . (w_{n+1} - w_n) is >= 0,
@@ -172,8 +177,11 @@ def test_low_rank_solve_with_coupled_slip_matches_direct():
 def test_toml_law_key(tmp_path):
     text = (ROOT / "examples" / "shroud_pair.toml").read_text()
     path = tmp_path / "c.toml"
-    path.write_text(text.replace("tangential_stiffness_N_per_m = [2e7, 1e7]",
-                                 'tangential_stiffness_N_per_m = 1.5e7\nlaw = "3d-circle"'))
+    path.write_text(
+        text.replace(
+            "tangential_stiffness_N_per_m = [2e7, 1e7]", 'tangential_stiffness_N_per_m = 1.5e7\nlaw = "3d-circle"'
+        )
+    )
     system, _ = ss.load_case(path)
     assert system.contacts[0].law == "3d-circle"
     ds = ss.run(system, "3", periods=1)

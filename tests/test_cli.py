@@ -22,10 +22,31 @@ from slipstep.results import SCHEMA, load
 
 from test_bad_input import STRUCTURE
 
-REQUIRED_RUN = ("method", "status", "steps", "iterations", "state_changes", "kernel_time_s", "t_min_s", "dt_s",
-                "output", "solves", "mean_solves_per_step")
-REQUIRED_COMPARE = ("method", "steps", "solves", "mean_solves_per_step", "single_solve_share", "state_changes",
-                    "kernel_time_s", "time_ratio", "max_disp_diff_um", "max_force_diff_pct_cf")
+REQUIRED_RUN = (
+    "method",
+    "status",
+    "steps",
+    "iterations",
+    "state_changes",
+    "kernel_time_s",
+    "t_min_s",
+    "dt_s",
+    "output",
+    "solves",
+    "mean_solves_per_step",
+)
+REQUIRED_COMPARE = (
+    "method",
+    "steps",
+    "solves",
+    "mean_solves_per_step",
+    "single_solve_share",
+    "state_changes",
+    "kernel_time_s",
+    "time_ratio",
+    "max_disp_diff_um",
+    "max_force_diff_pct_cf",
+)
 
 runner = CliRunner()
 
@@ -124,9 +145,12 @@ def test_compare_counts_follow_the_paper(compared):
     assert m3["single_solve_share"] >= 1 - (m3["state_changes"] + 5) / m3["steps"]
 
 
-@pytest.mark.xfail(strict=True, reason="paper claim (> 90 % single-solve steps for Method 3) not reached on the "
-                                       "paper case: the damper's ringing causes ~32 raw state changes per period, "
-                                       "each costing one extra solve (share ~0.83); reported to the lead")
+@pytest.mark.xfail(
+    strict=True,
+    reason="paper claim (> 90 % single-solve steps for Method 3) not reached on the "
+    "paper case: the damper's ringing causes ~32 raw state changes per period, "
+    "each costing one extra solve (share ~0.83); reported to the lead",
+)
 def test_compare_piecewise_linear_single_solve_share_above_90_percent(compared):
     rows, _ = compared
     assert rows["piecewise-linear"]["single_solve_share"] > 0.9
@@ -157,15 +181,27 @@ def test_compare_writes_table_and_figures(compared):
 
 
 def test_compare_subset_always_includes_reference(tmp_path):
-    result = invoke("compare", "paper", "--periods", "1", "--repeats", "1", "--methods", "4",
-                    "--output-dir", str(tmp_path), "--json")
+    result = invoke(
+        "compare",
+        "paper",
+        "--periods",
+        "1",
+        "--repeats",
+        "1",
+        "--methods",
+        "4",
+        "--output-dir",
+        str(tmp_path),
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     assert [r["method"] for r in json.loads(result.stdout)] == ["newmark", "quasi-static"]
 
 
 def test_compare_table_output(tmp_path):
-    result = invoke("compare", "paper", "--periods", "1", "--repeats", "1", "--methods", "3",
-                    "--output-dir", str(tmp_path))
+    result = invoke(
+        "compare", "paper", "--periods", "1", "--repeats", "1", "--methods", "3", "--output-dir", str(tmp_path)
+    )
     assert result.exit_code == 0, result.output
     for text in ("Method 1", "Method 3", "time ratio", "% CF", "comparison.csv", "fig8_time_ratios.png"):
         assert text in result.stdout
@@ -199,8 +235,22 @@ def test_compare_rows_are_json_numbers(compared):
 
 
 def test_compare_schemes_lists_every_variant(tmp_path):
-    result = CliRunner().invoke(app, ["compare", "paper", "--schemes", "newmark,central-difference", "--periods", "1",
-                                      "--repeats", "1", "--json", "--output-dir", str(tmp_path)])
+    result = CliRunner().invoke(
+        app,
+        [
+            "compare",
+            "paper",
+            "--schemes",
+            "newmark,central-difference",
+            "--periods",
+            "1",
+            "--repeats",
+            "1",
+            "--json",
+            "--output-dir",
+            str(tmp_path),
+        ],
+    )
     assert result.exit_code == 0, result.output
     rows = json.loads(result.stdout)
     by = {(r["scheme"], r["variant"]): r for r in rows}

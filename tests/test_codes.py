@@ -16,8 +16,9 @@ from slipstep.kernels import codes
 from slipstep.model.contact import CONTACT_LAWS
 from slipstep.post import timeline
 
-advise = importlib.import_module("slipstep.advise")
 from slipstep.results import SCHEMA
+
+advise = importlib.import_module("slipstep.advise")
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 
@@ -48,5 +49,9 @@ def test_result_flags_and_law_coordinate():
 
 def test_every_law_has_a_kernel_code_and_a_readme_row():
     assert {law.code for law in CONTACT_LAWS.values()} == {codes.LAW_UNCOUPLED, codes.LAW_CIRCLE}
-    rows = dict(re.findall(r"^\| `([\w-]+)` \| [^|]* \| ([^|]+) \|", README.split("### Contact laws")[1].split("\n##")[0], flags=re.M))
+    rows = dict(
+        re.findall(
+            r"^\| `([\w-]+)` \| [^|]* \| ([^|]+) \|", README.split("### Contact laws")[1].split("\n##")[0], flags=re.M
+        )
+    )
     assert {name: law.bounds for name, law in CONTACT_LAWS.items()} == {k: v.strip() for k, v in rows.items()}

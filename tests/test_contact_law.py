@@ -12,8 +12,16 @@ from hypothesis import strategies as st
 
 import slipstep as ss
 from slipstep.kernels.contact import (
-    LIFT, SLIP_NEG, SLIP_POS, STICK, add_contact_stiffness, contact_law, generalised_force,
-    is_compatible, linear_law, local_displacement,
+    LIFT,
+    SLIP_NEG,
+    SLIP_POS,
+    STICK,
+    add_contact_stiffness,
+    contact_law,
+    generalised_force,
+    is_compatible,
+    linear_law,
+    local_displacement,
 )
 
 # exactly representable parameters: limit = mu k_n v is exact in binary
@@ -60,18 +68,18 @@ def lin(cs, state, q, w_old):
 
 # (u, v) -> expected (T, N, w after, state); k_t = 8, k_n = 64, mu = 0.5, w starts at 0
 JENKINS_PATH = [
-    ((0.5, 0.25), (4.0, 16.0, 0.0, STICK)),        # load: T* = 8 * 0.5 = 4 <= 0.5 * 16 = 8
-    ((1.0, 0.25), (8.0, 16.0, 0.0, STICK)),        # exactly on the slip boundary: stick
-    ((1.5, 0.25), (8.0, 16.0, 0.5, SLIP_POS)),     # T* = 12 > 8: slip, w = 1.5 - 8/8
-    ((1.25, 0.25), (6.0, 16.0, 0.5, STICK)),       # unload: T* = 8 * 0.75 = 6
-    ((0.0, 0.25), (-4.0, 16.0, 0.5, STICK)),       # reverse through zero
-    ((-1.0, 0.25), (-8.0, 16.0, 0.0, SLIP_NEG)),   # T* = -12 < -8: slip-, w = -1 + 1
-    ((-1.0, -0.125), (0.0, 0.0, -1.0, LIFT)),      # lift-off: T = N = 0, slider follows u
-    ((-0.75, 0.25), (2.0, 16.0, -1.0, STICK)),     # re-contact: T starts from zero at w = -1
-    ((-0.75, 0.125), (2.0, 8.0, -1.0, STICK)),     # normal load drops: limit 4
-    ((-0.75, 0.0625), (2.0, 4.0, -1.0, STICK)),    # limit 2 = T*: on the boundary
+    ((0.5, 0.25), (4.0, 16.0, 0.0, STICK)),  # load: T* = 8 * 0.5 = 4 <= 0.5 * 16 = 8
+    ((1.0, 0.25), (8.0, 16.0, 0.0, STICK)),  # exactly on the slip boundary: stick
+    ((1.5, 0.25), (8.0, 16.0, 0.5, SLIP_POS)),  # T* = 12 > 8: slip, w = 1.5 - 8/8
+    ((1.25, 0.25), (6.0, 16.0, 0.5, STICK)),  # unload: T* = 8 * 0.75 = 6
+    ((0.0, 0.25), (-4.0, 16.0, 0.5, STICK)),  # reverse through zero
+    ((-1.0, 0.25), (-8.0, 16.0, 0.0, SLIP_NEG)),  # T* = -12 < -8: slip-, w = -1 + 1
+    ((-1.0, -0.125), (0.0, 0.0, -1.0, LIFT)),  # lift-off: T = N = 0, slider follows u
+    ((-0.75, 0.25), (2.0, 16.0, -1.0, STICK)),  # re-contact: T starts from zero at w = -1
+    ((-0.75, 0.125), (2.0, 8.0, -1.0, STICK)),  # normal load drops: limit 4
+    ((-0.75, 0.0625), (2.0, 4.0, -1.0, STICK)),  # limit 2 = T*: on the boundary
     ((-0.75, 0.03125), (1.0, 2.0, -0.875, SLIP_POS)),  # limit 1 < T* = 2: slip by unloading
-    ((-0.75, 0.0), (0.0, 0.0, -0.75, LIFT)),       # v = 0 exactly is lift-off (v <= 0)
+    ((-0.75, 0.0), (0.0, 0.0, -0.75, LIFT)),  # v = 0 exactly is lift-off (v <= 0)
 ]
 
 
@@ -164,8 +172,11 @@ def test_closed_slip_cycle_dissipates_four_mu_n_times_slip(single):
     # start with the loop already established: go to +2 first, then measure one cycle
     w = np.zeros(1)
     f, w, _ = law(single, [2.0, 0.25], w)
-    cycle = [[2.0, 0.25]] + [[u, 0.25] for u in np.linspace(2.0, -2.0, 161)[1:]] + \
-            [[u, 0.25] for u in np.linspace(-2.0, 2.0, 161)[1:]]
+    cycle = (
+        [[2.0, 0.25]]
+        + [[u, 0.25] for u in np.linspace(2.0, -2.0, 161)[1:]]
+        + [[u, 0.25] for u in np.linspace(-2.0, 2.0, 161)[1:]]
+    )
     dissipation = 0.0
     for q0, q1 in zip(cycle[:-1], cycle[1:]):
         f1, w1, _ = law(single, q1, w)
@@ -176,6 +187,7 @@ def test_closed_slip_cycle_dissipates_four_mu_n_times_slip(single):
 
 
 # --- piecewise-linear form ---------------------------------------------------------------
+
 
 def random_point(cs, rng):
     n = cs.A.shape[1]
@@ -261,6 +273,7 @@ def test_contact_stiffness_by_state_table(single):
 
 # --- compatibility on the boundaries -------------------------------------------------------
 
+
 def test_boundary_points_are_compatible_with_both_neighbours(single):
     w = np.zeros(1)
     # stick / slip+ boundary: k_t (u - w) = mu k_n v = 8 exactly
@@ -306,13 +319,16 @@ def test_boundary_tolerance_accepts_rounding_and_rejects_real_violations():
 
 # --- quasi-3D: two uncoupled directions --------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def quasi3d():
     """One quasi-3D contact (k_t1 = 8, k_t2 = 2) and, for comparison, two 2D contacts that
     share the same normal coordinate: q = (u1, u2, v)."""
     c3 = ss.ContactElement("q3", np.eye(3), (KT, 2.0), KN, MU)
-    two = [ss.ContactElement("d1", np.array([[1.0, 0, 0], [0, 0, 1.0]]), KT, KN, MU),
-           ss.ContactElement("d2", np.array([[0, 1.0, 0], [0, 0, 1.0]]), 2.0, KN, MU)]
+    two = [
+        ss.ContactElement("d1", np.array([[1.0, 0, 0], [0, 0, 1.0]]), KT, KN, MU),
+        ss.ContactElement("d2", np.array([[0, 1.0, 0], [0, 0, 1.0]]), 2.0, KN, MU),
+    ]
     return make_system([c3], 3), make_system(two, 3)
 
 

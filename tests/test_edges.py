@@ -76,13 +76,19 @@ def one_line(stderr: str) -> str:
 
 # -- subprocess: signals during a long run and during its save ---------------------------------
 
+
 def test_ctrl_c_during_long_run_keeps_partial_result_and_shows_progress(tmp_path, good_result):
     """SIGINT while the kernel marches (seen through the progress bar on a pseudo-terminal):
     the march stops at once, the partial result replaces the previous file, exit code 1."""
     target, _ = previous(good_result, tmp_path / "out")
     master, slave = pty.openpty()
-    proc = subprocess.Popen(CLI + ["run", "paper", "--periods", "20000", "--output-dir", str(tmp_path / "out")],
-                            stdout=subprocess.PIPE, stderr=slave, env=env(), text=True)
+    proc = subprocess.Popen(
+        CLI + ["run", "paper", "--periods", "20000", "--output-dir", str(tmp_path / "out")],
+        stdout=subprocess.PIPE,
+        stderr=slave,
+        env=env(),
+        text=True,
+    )
     os.close(slave)
     seen = b""
     deadline = time.monotonic() + 120
@@ -127,8 +133,9 @@ def _start_and_wait_for_save(args, directory: Path):
 
 def test_sigkill_during_save_keeps_previous_file_and_next_write_cleans_up(tmp_path, good_result):
     target, before = previous(good_result, tmp_path / "out")
-    proc = _start_and_wait_for_save(["run", "paper", "--periods", "1000", "--output-dir", str(target.parent),
-                                     "--json"], target.parent)
+    proc = _start_and_wait_for_save(
+        ["run", "paper", "--periods", "1000", "--output-dir", str(target.parent), "--json"], target.parent
+    )
     proc.kill()
     proc.communicate(timeout=60)
     assert digest(target) == before and ss.load_result(target).attrs["steps"] == 187
@@ -142,8 +149,9 @@ def test_two_ctrl_c_during_save_abort_it_and_keep_previous_file(tmp_path, good_r
     """The first Ctrl-C during the save is noted (the save goes on), the second aborts it: exit
     130, one line, the previous file intact, the temporary file removed."""
     target, before = previous(good_result, tmp_path / "out")
-    proc = _start_and_wait_for_save(["run", "paper", "--periods", "1000", "--output-dir", str(target.parent),
-                                     "--json"], target.parent)
+    proc = _start_and_wait_for_save(
+        ["run", "paper", "--periods", "1000", "--output-dir", str(target.parent), "--json"], target.parent
+    )
     proc.send_signal(signal.SIGINT)
     time.sleep(0.05)
     proc.send_signal(signal.SIGINT)
@@ -163,11 +171,20 @@ def test_two_processes_writing_the_same_file_leave_it_whole_for_readers(tmp_path
     """Two processes save results to the same path 3 times each while this one reads it: every
     read sees a whole result (one writer's or the other's), none a partial file."""
     target, _ = previous(good_result, tmp_path / "out")
-    code = ("import sys, slipstep as ss; ds = ss.load_result(sys.argv[1]).assign_attrs(writer=sys.argv[3])\n"
-            "for _ in range(3): ss.save_result(ds, sys.argv[2])")
-    procs = [subprocess.Popen([sys.executable, "-c", code, str(good_result), str(target), name],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env(), text=True)
-             for name in ("A", "B")]
+    code = (
+        "import sys, slipstep as ss; ds = ss.load_result(sys.argv[1]).assign_attrs(writer=sys.argv[3])\n"
+        "for _ in range(3): ss.save_result(ds, sys.argv[2])"
+    )
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", code, str(good_result), str(target), name],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=env(),
+            text=True,
+        )
+        for name in ("A", "B")
+    ]
     writers = set()
     while any(p.poll() is None for p in procs):
         writers.add(ss.load_result(target).attrs.get("writer", "previous"))
@@ -197,12 +214,16 @@ def test_concurrent_writers_of_one_file_never_interleave(tmp_path):
 
 # -- full disk, file size limit, read-only directory -------------------------------------------
 
+
 @contextlib.contextmanager
 def tmpfs(path: Path, size: str, readonly: bool = False):
     path.mkdir(parents=True, exist_ok=True)
     options = f"size={size}" + (",ro" if readonly else "")
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)],
-                                           capture_output=True).returncode != 0:
+    if (
+        os.geteuid() != 0
+        or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)], capture_output=True).returncode
+        != 0
+    ):
         pytest.skip("mounting a tmpfs needs root")
     try:
         yield path
@@ -238,8 +259,14 @@ def test_full_disk_keeps_previous_file_one_line_exit_3(tmp_path, good_result, mo
 def test_file_size_limit_fails_the_write_not_the_process(tmp_path, good_result):
     target, before = previous(good_result, tmp_path / "out")
     limit = lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, resource.RLIM_INFINITY))  # noqa: E731
-    proc = subprocess.run(CLI + ["run", "paper", "--periods", "10", "--output-dir", str(target.parent)],
-                          capture_output=True, text=True, env=env(), timeout=180, preexec_fn=limit)
+    proc = subprocess.run(
+        CLI + ["run", "paper", "--periods", "10", "--output-dir", str(target.parent)],
+        capture_output=True,
+        text=True,
+        env=env(),
+        timeout=180,
+        preexec_fn=limit,
+    )
     assert proc.returncode == 3, proc.stderr
     assert "file size limit" in one_line(proc.stderr)
     assert digest(target) == before and not temporaries(target.parent)
@@ -254,19 +281,25 @@ def test_read_only_directory_exit_3_before_the_run(tmp_path, good_result):
         directory.chmod(0o555)
         context = contextlib.nullcontext(directory)
     with context:
-        for args in (["run", "paper", "--periods", "1", "--output-dir", str(directory)],
-                     ["compare", "paper", "--periods", "1", "--output-dir", str(directory)],
-                     ["report", "paper", "-o", str(directory / "r.html")]):
+        for args in (
+            ["run", "paper", "--periods", "1", "--output-dir", str(directory)],
+            ["compare", "paper", "--periods", "1", "--output-dir", str(directory)],
+            ["report", "paper", "-o", str(directory / "r.html")],
+        ):
             start = time.monotonic()
             result = CliRunner().invoke(app, args)
             assert result.exit_code == 3, result.output
             line = one_line(result.output)
-            assert line.startswith(f"output error: {directory}") and "cannot be written" in line and (
-                "read-only" in line or "permission" in line), line
+            assert (
+                line.startswith(f"output error: {directory}")
+                and "cannot be written" in line
+                and ("read-only" in line or "permission" in line)
+            ), line
             assert time.monotonic() - start < 5  # refused before the run, not after it
 
 
 # -- crafted result files ----------------------------------------------------------------------
+
 
 def _crafted(good_result: Path, tmp_path: Path, how: str) -> Path:
     """A copy of a real result whose `displacement` reads outside the file."""
@@ -280,8 +313,9 @@ def _crafted(good_result: Path, tmp_path: Path, how: str) -> Path:
         shape, dtype, attrs = f["displacement"].shape, f["displacement"].dtype, dict(f["displacement"].attrs)
         del f["displacement"]
         if how == "external-storage":
-            f.create_dataset("displacement", shape=shape, dtype=dtype,
-                             external=[(str(secret), 0, secret.stat().st_size)])
+            f.create_dataset(
+                "displacement", shape=shape, dtype=dtype, external=[(str(secret), 0, secret.stat().st_size)]
+            )
         elif how == "external-link":
             with h5py.File(tmp_path / "other.h5", "w") as g:
                 g["data"] = np.zeros(shape)
@@ -324,6 +358,7 @@ def test_result_schema_check(tmp_path, good_result):
 
 
 # -- in-process: interrupts, exit codes, terminal safety, memory, imports ----------------------
+
 
 def _stop_soon(sim, done: threading.Event):
     from slipstep.kernels.codes import C_PROGRESS, C_STOP
@@ -428,33 +463,41 @@ def test_memory_estimate_is_the_allocation_and_the_limit_is_checked_first():
     from slipstep.methods.simulation import _allocate_workspace, _workspace_bytes
 
     def allocated(obj):
-        return sum(a.nbytes if isinstance(a, np.ndarray) else allocated(a) for a in obj
-                   if isinstance(a, (np.ndarray, tuple)))
+        return sum(
+            a.nbytes if isinstance(a, np.ndarray) else allocated(a) for a in obj if isinstance(a, (np.ndarray, tuple))
+        )
 
     k = 2e6 * np.eye(60) - 1e6 * (np.eye(60, k=1) + np.eye(60, k=-1))
     gather = np.zeros((2, 60))
     gather[0, -1] = gather[1, 0] = 1.0
-    chain = ss.System(ss.Structure(np.eye(60), stiffness=k), (ss.ContactElement("C", gather, 1e6, 1e6, 0.3,
-                                                                                normal_offset=1e-6),),
-                      ss.Excitation(period=0.01)).compile()
+    chain = ss.System(
+        ss.Structure(np.eye(60), stiffness=k),
+        (ss.ContactElement("C", gather, 1e6, 1e6, 0.3, normal_offset=1e-6),),
+        ss.Excitation(period=0.01),
+    ).compile()
     for compiled, low_rank in ((cs, False), (chain, False), (chain, True)):
         assert _workspace_bytes(compiled, 20, low_rank) == pytest.approx(
-            allocated(_allocate_workspace(compiled, 20, low_rank)), rel=0.2)
+            allocated(_allocate_workspace(compiled, 20, low_rank)), rel=0.2
+        )
     with pytest.raises(ss.InputError) as info:
         ss.Simulation(ss.load_system("paper"), "newmark", periods=1e6)  # 187 M points: refused, nothing allocated
     assert "available" in str(info.value) and "--max-memory" in str(info.value)
-    assert memory.parse_size("m", "1.5GB") == 1.5 * 2 ** 30 and memory.parse_size("m", "500 MB") == 500 * 2 ** 20
+    assert memory.parse_size("m", "1.5GB") == 1.5 * 2**30 and memory.parse_size("m", "500 MB") == 500 * 2**20
 
 
 def test_light_imports_and_version():
-    code = ("import sys, slipstep, slipstep.cli; heavy = {'numpy', 'numba', 'xarray', 'pydantic', 'scipy', "
-            "'matplotlib'}; print(sorted(heavy & {m.split('.')[0] for m in sys.modules}))")
+    code = (
+        "import sys, slipstep, slipstep.cli; heavy = {'numpy', 'numba', 'xarray', 'pydantic', 'scipy', "
+        "'matplotlib'}; print(sorted(heavy & {m.split('.')[0] for m in sys.modules}))"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=60)
     assert proc.stdout.strip() == "[]", proc.stdout + proc.stderr  # --help, cases, methods need none of them
     for command in ("--help", "cases", "methods"):
-        code = ("import atexit, sys; from slipstep.cli import app; sys.argv = ['slipstep', %r]; heavy = {'numpy', "
-                "'numba', 'xarray', 'pydantic', 'scipy', 'matplotlib'}; atexit.register(lambda: print(sorted(heavy & "
-                "{m.split('.')[0] for m in sys.modules}), file=sys.stderr)); app()" % command)
+        code = (
+            "import atexit, sys; from slipstep.cli import app; sys.argv = ['slipstep', %r]; heavy = {'numpy', "
+            "'numba', 'xarray', 'pydantic', 'scipy', 'matplotlib'}; atexit.register(lambda: print(sorted(heavy & "
+            "{m.split('.')[0] for m in sys.modules}), file=sys.stderr)); app()" % command
+        )
         proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=60)
         assert proc.returncode == 0 and proc.stderr.strip() == "[]", (command, proc.stderr)
     from importlib.metadata import version
@@ -469,8 +512,9 @@ def test_plugins_are_discovered_and_a_broken_one_is_skipped(tmp_path, monkeypatc
 
     from slipstep import cli
 
-    (tmp_path / "cli_zz_fake.py").write_text("import typer\n\ndef register(app):\n"
-                                             "    app.command(name='fake')(lambda: print('fake ran'))\n")
+    (tmp_path / "cli_zz_fake.py").write_text(
+        "import typer\n\ndef register(app):\n    app.command(name='fake')(lambda: print('fake ran'))\n"
+    )
     (tmp_path / "cli_zz_broken.py").write_text("raise ImportError('missing dependency')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(ss, "__path__", list(ss.__path__) + [str(tmp_path)])
@@ -526,7 +570,9 @@ def test_figures_draw_names_as_text_not_mathtext(tmp_path):
 
 def test_lazy_public_names_survive_submodule_imports():
     """`slipstep.advise` is a function even when the module of the same name is imported first."""
-    code = ("import importlib, slipstep; importlib.import_module('slipstep.advise'); import slipstep.report; "
-            "print(callable(slipstep.advise), type(slipstep.post).__name__, slipstep.run.__module__)")
+    code = (
+        "import importlib, slipstep; importlib.import_module('slipstep.advise'); import slipstep.report; "
+        "print(callable(slipstep.advise), type(slipstep.post).__name__, slipstep.run.__module__)"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=120)
     assert proc.stdout.split() == ["True", "module", "slipstep.methods.simulation"], proc.stdout + proc.stderr

@@ -59,8 +59,10 @@ def test_exact_transitions_against_a_fine_method4_grid(paper):
 def test_energies_converge_with_the_output_grid(paper):
     """The outputs are exact samples: the energy per period (trapezoid on the samples)
     converges at second order, to 1e-6 between 3600 and 36000 samples per period."""
-    e = [friction_energy_per_period(ss.run(paper, "quasi-static-events", periods=3, steps_per_period=spp)).values
-         for spp in (3600, 36000)]
+    e = [
+        friction_energy_per_period(ss.run(paper, "quasi-static-events", periods=3, steps_per_period=spp)).values
+        for spp in (3600, 36000)
+    ]
     assert np.allclose(e[0], e[1], rtol=1e-6)
 
 
@@ -88,8 +90,12 @@ def test_unsupported_cases_are_input_errors(paper):
     with pytest.raises(InputError) as err:
         ss.Simulation(dataclasses.replace(system, contacts=(contact,)), "quasi-static-events")
     assert err.value.field == "method"
-    ramped = dataclasses.replace(paper, excitation=dataclasses.replace(
-        paper.excitation, motion=dataclasses.replace(paper.excitation.motion, ramp_time=1e-3)))
+    ramped = dataclasses.replace(
+        paper,
+        excitation=dataclasses.replace(
+            paper.excitation, motion=dataclasses.replace(paper.excitation.motion, ramp_time=1e-3)
+        ),
+    )
     with pytest.raises(InputError) as err:
         ss.Simulation(ramped, "quasi-static-events")
     assert err.value.field == "ramp_time"

@@ -30,8 +30,11 @@ def test_amplitude_sweep_design_curve(tmp_path):
     assert abs(energy.sel(amplitude=2.0)).max() < 1e-9
     assert float(k_eq.sel(amplitude=2.0, interface="right")) == pytest.approx(26.0, rel=1e-6)
     # 10 um: the right face slips, the left still sticks
-    assert abs(float(energy.sel(amplitude=10.0, interface="left"))) < 1e-9 < float(energy.sel(amplitude=10.0,
-                                                                                              interface="right"))
+    assert (
+        abs(float(energy.sel(amplitude=10.0, interface="left")))
+        < 1e-9
+        < float(energy.sel(amplitude=10.0, interface="right"))
+    )
     # 25 um is the paper's case: 2.52 and 2.70 mJ
     assert float(energy.sel(amplitude=25.0, interface="left")) == pytest.approx(2.52, rel=0.01)
     assert float(energy.sel(amplitude=25.0, interface="right")) == pytest.approx(2.70, rel=0.01)
@@ -47,7 +50,8 @@ def test_amplitude_sweep_design_curve(tmp_path):
     s = slipstep.post.loop_summary(dyn, system)
     for name in ("left", "right"):
         assert float(s.interface_energy_J.sel(interface=name)) * 1e3 == pytest.approx(
-            float(energy.sel(amplitude=25.0, interface=name)), rel=0.05), name
+            float(energy.sel(amplitude=25.0, interface=name)), rel=0.05
+        ), name
     paths = write_figures(open_sweep(tmp_path / "amp.zarr"), tmp_path, "interface_energy_per_cycle_J[right]")
     assert [p.name for p in paths] == ["design_map.png", "design_curves.png"]
 
@@ -55,7 +59,9 @@ def test_amplitude_sweep_design_curve(tmp_path):
 @pytest.fixture(scope="module")
 def shroud():
     system, _ = slipstep.load_case(EXAMPLES / "shroud_pair.toml")
-    runs = {m: slipstep.run(system, m, periods=10) for m in ("newmark", "piecewise-linear", "piecewise-linear-adaptive")}
+    runs = {
+        m: slipstep.run(system, m, periods=10) for m in ("newmark", "piecewise-linear", "piecewise-linear-adaptive")
+    }
     return system, runs
 
 
@@ -94,8 +100,22 @@ def test_compare_without_constant_load(tmp_path):
 
     from slipstep.cli import app
 
-    result = CliRunner().invoke(app, ["compare", str(EXAMPLES / "shroud_pair.toml"), "--methods", "1,3", "--periods",
-                                      "4", "--repeats", "1", "--json", "--output-dir", str(tmp_path)])
+    result = CliRunner().invoke(
+        app,
+        [
+            "compare",
+            str(EXAMPLES / "shroud_pair.toml"),
+            "--methods",
+            "1,3",
+            "--periods",
+            "4",
+            "--repeats",
+            "1",
+            "--json",
+            "--output-dir",
+            str(tmp_path),
+        ],
+    )
     assert result.exit_code == 0, result.output
     rows = {r["method"]: r for r in json.loads(result.stdout)}
     assert rows["piecewise-linear"]["force_scale_N"] > 0

@@ -25,9 +25,11 @@ JENKINS = ROOT / "examples" / "jenkins.toml"
 
 
 def _record(t, x, period):
-    return xr.Dataset({"displacement": (("time", "dof"), x)},
-                      coords={"time": t, "dof": ["a", "b"], "dof_unit": ("dof", ["m", "rad"])},
-                      attrs={"period_s": period})
+    return xr.Dataset(
+        {"displacement": (("time", "dof"), x)},
+        coords={"time": t, "dof": ["a", "b"], "dof_unit": ("dof", ["m", "rad"])},
+        attrs={"period_s": period},
+    )
 
 
 @pytest.mark.parametrize("grid", ["uniform", "non-uniform"])
@@ -63,15 +65,20 @@ def test_harmonics_bad_input():
 def test_retune_moves_the_fundamental_and_keeps_multiples():
     base = ss.load_system(JENKINS)
     comps = base.excitation.force.components
-    two = ss.Signal(comps, (ss.Harmonic(350.0, np.array([100.0])), ss.Harmonic(1050.0, np.array([5.0]), np.array([0.4]))))
+    two = ss.Signal(
+        comps, (ss.Harmonic(350.0, np.array([100.0])), ss.Harmonic(1050.0, np.array([5.0]), np.array([0.4])))
+    )
     system = ss.System(base.structure, base.contacts, ss.Excitation(force=two), name="two")
     moved = retune(system, 200.0)
     freqs = [h.frequency for h in moved.excitation.force.harmonics]
     assert freqs == [200.0, pytest.approx(600.0)]
     assert moved.excitation.force.harmonics[1].phase[0] == 0.4 and moved.period == pytest.approx(1 / 200)
     assert [h.frequency for h in system.excitation.force.harmonics] == [350.0, 1050.0]  # the original is kept
-    table = ss.System(base.structure, base.contacts, ss.Excitation(
-        force=ss.Signal(comps, (), (ss.Tabulated([0.0, 1.0], [[0.0], [1.0]]),)), period=0.01))
+    table = ss.System(
+        base.structure,
+        base.contacts,
+        ss.Excitation(force=ss.Signal(comps, (), (ss.Tabulated([0.0, 1.0], [[0.0], [1.0]]),)), period=0.01),
+    )
     with pytest.raises(InputError, match="excitation.force"):
         retune(table, 100.0)
     with pytest.raises(InputError, match="frequency"):
@@ -82,8 +89,11 @@ def test_retune_moves_the_fundamental_and_keeps_multiples():
 def jenkins_frf():
     system = ss.load_system(JENKINS)
     f = np.linspace(260.0, 440.0, 10)
-    return system, frf(system, f, solver="shoot", direction="both", tolerance=1e-9, min_steps_per_period=400), \
-        frf(system, f, solver="march", tolerance=1e-9, max_periods=2000, min_steps_per_period=400)
+    return (
+        system,
+        frf(system, f, solver="shoot", direction="both", tolerance=1e-9, min_steps_per_period=400),
+        frf(system, f, solver="march", tolerance=1e-9, max_periods=2000, min_steps_per_period=400),
+    )
 
 
 def test_frf_layout_and_netcdf(jenkins_frf, tmp_path):
@@ -118,7 +128,8 @@ def test_frf_between_linear_limits_and_solvers_agree(jenkins_frf):
     shot = both["amplitude"].sel(sweep="up", response="x").values
     assert shot == pytest.approx(amp, rel=1e-4)
     assert both["energy_per_cycle"].sel(sweep="up").values.ravel() == pytest.approx(
-        up["energy_per_cycle"].values.ravel(), rel=1e-4)
+        up["energy_per_cycle"].values.ravel(), rel=1e-4
+    )
     assert np.abs(up["energy_balance_residual"].values).max() < 1e-6
     assert (both["periods_to_steady"].values < up["periods_to_steady"].values.max()).all()
     assert (both["floquet_multiplier_max"].values < 1).all() and np.isnan(up["floquet_multiplier_max"]).all()
@@ -133,7 +144,8 @@ def test_sine_sweep_tends_to_the_stepped_frf(jenkins_frf):
     assert np.isnan(amp[0]) and np.isfinite(amp[1:]).all()  # the start transient is not reported
     away = ((f < 300) | (f > 360)) & (f > f[0])  # away from the peak the envelope follows the steady state
     assert sweep["amplitude"].sel(response="x").values[away] == pytest.approx(
-        up["amplitude"].sel(response="x").values[away], rel=0.03)
+        up["amplitude"].sel(response="x").values[away], rel=0.03
+    )
     assert np.array_equal(sweep["linear_free_amplitude"].values, up["linear_free_amplitude"].values)
 
 
@@ -162,8 +174,20 @@ def _cli(*args, cwd):
 
 
 def test_cli_frf_writes_netcdf_and_plot(tmp_path):
-    r = _cli("frf", str(JENKINS), "--frequencies", "300:340:3", "--solver", "shoot", "--direction", "both",
-             "-o", str(tmp_path), "--json", cwd=tmp_path)
+    r = _cli(
+        "frf",
+        str(JENKINS),
+        "--frequencies",
+        "300:340:3",
+        "--solver",
+        "shoot",
+        "--direction",
+        "both",
+        "-o",
+        str(tmp_path),
+        "--json",
+        cwd=tmp_path,
+    )
     assert r.exit_code == 0, r.output
     summary = json.loads(r.stdout)
     assert summary["points"] == 6 and summary["points_not_ok"] == 0 and summary["peak_frequency_Hz"] == 320.0
@@ -191,8 +215,9 @@ def test_readme_frf_example_runs():
 
     readme = (ROOT / "README.md").read_text()
     block = readme.split("## Forced response")[1].split("```python\n")[1].split("```")[0]
-    block = block.replace('"examples/jenkins.toml"', repr(str(JENKINS))).replace("np.linspace(250, 450, 61)",
-                                                                                  "np.linspace(300, 340, 5)")
+    block = block.replace('"examples/jenkins.toml"', repr(str(JENKINS))).replace(
+        "np.linspace(250, 450, 61)", "np.linspace(300, 340, 5)"
+    )
     exec(compile(block, "README", "exec"), {})
 
 

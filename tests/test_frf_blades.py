@@ -18,8 +18,9 @@ TIP = "blade1.8.x"
 def blades(cf_factor=1.0):
     system = ss.load_system("blades")
     exc = system.excitation
-    return dataclasses.replace(system, excitation=dataclasses.replace(
-        exc, constant_force=np.asarray(exc.constant_force) * cf_factor))
+    return dataclasses.replace(
+        system, excitation=dataclasses.replace(exc, constant_force=np.asarray(exc.constant_force) * cf_factor)
+    )
 
 
 def peak(system, freqs):
@@ -80,8 +81,11 @@ def test_blades_quasi_static_damper_shooting():
     z = _unknowns(end, False)
     march_one_period(sim)
     phi = period_jacobian(sim)
-    scale = np.r_[np.full(n, np.abs(z[:n]).max()), np.full(n, np.abs(z[n:2 * n]).max()),
-                  np.full(z.size - 2 * n, np.abs(z[:n]).max())]
+    scale = np.r_[
+        np.full(n, np.abs(z[:n]).max()),
+        np.full(n, np.abs(z[n : 2 * n]).max()),
+        np.full(z.size - 2 * n, np.abs(z[:n]).max()),
+    ]
     fd = np.zeros_like(phi)
     for j in range(z.size):
         h = 1e-6 * scale[j]

@@ -27,14 +27,16 @@ from slipstep.hbm.adequacy import HarmonicAdequacyWarning
 
 def _linear(M, C, K, F, f):
     w = 2 * np.pi * f
-    return np.abs(np.linalg.solve(K - w ** 2 * M + 1j * w * C, F))
+    return np.abs(np.linalg.solve(K - w**2 * M + 1j * w * C, F))
 
 
 def test_no_contact_equals_the_frequency_domain_solution():
     M, K = np.diag([1.0, 0.5]), np.array([[1.5e4, -5e3], [-5e3, 5e3]])
     C = 4 * M
     st = ss.Structure(M, C, K, dof_names=("a", "b"))
-    system = ss.System(st, (), ss.Excitation(force=ss.Signal(("a", "b"), (ss.Harmonic(10.0, [3.0, 20.0], [0.4, 0.0]),))))
+    system = ss.System(
+        st, (), ss.Excitation(force=ss.Signal(("a", "b"), (ss.Harmonic(10.0, [3.0, 20.0], [0.4, 0.0]),)))
+    )
     f = np.array([5.0, 10.0, 17.0, 30.0])
     ds = frf(system, f, harmonics=3, continuation=False, check="none")
     F = np.array([3.0, 20.0]) * np.exp(1j * np.array([0.4, 0.0]))
@@ -54,21 +56,25 @@ def test_open_gap_and_multi_harmonic_forcing_equal_the_linear_solution():
     ds = frf(system, f, harmonics=3, continuation=False, check="none")
     st = system.structure
     for j, (m, a, ph) in enumerate(((1, 0.5, 0.0), (3, 0.2, 0.3))):
-        exact = np.array([_linear(st.mass, st.damping, st.stiffness, np.array([a * np.exp(1j * ph)]), m * fi)[0]
-                          for fi in f])
+        exact = np.array(
+            [_linear(st.mass, st.damping, st.stiffness, np.array([a * np.exp(1j * ph)]), m * fi)[0] for fi in f]
+        )
         assert np.allclose(ds.harmonic_amplitude.values[:, m, 0], exact, rtol=1e-10)
     assert np.all(ds.harmonic_amplitude.values[:, 2, 0] < 1e-12 * ds.amplitude.values[:, 0])
     assert np.allclose(ds.amplitude.values, ds.linear_free_amplitude.values, rtol=1e-9)
     assert np.all(ds.amplitude.values[:, 0] < 1e-3)  # below the gap: the contact never closed
 
 
-@pytest.mark.parametrize("make, f", [(jenkins_1dof, [300.0, 350.0, 450.0, 600.0]), (jenkins_2dof, [200.0, 300.0, 500.0])])
+@pytest.mark.parametrize(
+    "make, f", [(jenkins_1dof, [300.0, 350.0, 450.0, 600.0]), (jenkins_2dof, [200.0, 300.0, 500.0])]
+)
 def test_stuck_contacts_equal_the_frequency_domain_solution(make, f):
     system = make(mu=1.0e6)
     ds = frf(system, f, harmonics=5, continuation=False, check="none")
     st = system.structure
-    Kst = st.stiffness + sum(np.outer(c.dof_gather[0], c.dof_gather[0]) * c.tangential_stiffness[0]
-                             for c in system.contacts)
+    Kst = st.stiffness + sum(
+        np.outer(c.dof_gather[0], c.dof_gather[0]) * c.tangential_stiffness[0] for c in system.contacts
+    )
     F = system.excitation.force.harmonics[0].amplitude
     exact = np.array([_linear(st.mass, st.damping, Kst, F, fi) for fi in f])
     assert np.allclose(ds.amplitude.values, exact, rtol=1e-9, atol=0)
@@ -81,8 +87,14 @@ def test_hbm_agrees_with_the_marched_steady_state(make, f, H, samples):
     """The issue's check: with H large enough, amplitude and loop energy agree with marching to
     1e-4 (the marched reference: Method 3 with 2000 steps per period, itself converged to about 1e-5)."""
     system = make()
-    ds = frf(system, [f], harmonics=H, samples=samples, check="peak",
-             check_options={"tolerance": 1e-5, "max_periods": 400, "steps_per_period": 2000})
+    ds = frf(
+        system,
+        [f],
+        harmonics=H,
+        samples=samples,
+        check="peak",
+        check_options={"tolerance": 1e-5, "max_periods": 400, "steps_per_period": 2000},
+    )
     assert ds.status.values[0] == "OK"
     assert ds.check_amplitude_rel_diff.values[0] <= 1e-4
     assert ds.check_energy_rel_diff.values[0] <= 1e-4
@@ -127,7 +139,11 @@ def test_continuation_passes_the_resonance_peak():
     ds = frf(system, grid, harmonics=7, check="none", adequacy=False)
     f, amp = ds.frequency.values, ds.amplitude.values[:, 0]
     assert ds.attrs["continuation_status"] == "OK"
-    assert f[0] == pytest.approx(150.0, rel=1e-14) and f[-1] == pytest.approx(600.0, rel=1e-14) and np.all(ds.status.values == "OK")
+    assert (
+        f[0] == pytest.approx(150.0, rel=1e-14)
+        and f[-1] == pytest.approx(600.0, rel=1e-14)
+        and np.all(ds.status.values == "OK")
+    )
     assert np.all(np.diff(f) > 0)  # a single-valued curve here
     assert np.max(np.diff(f)) <= 1.5 * (grid[1] - grid[0])  # steps of about the grid spacing at most
     i = int(np.argmax(amp))
@@ -178,13 +194,16 @@ def test_dataset_layout_is_the_frf_schema():
     assert np.all(ds.amplitude.values <= np.nansum(h[:, 1:], axis=1) * (1 + 1e-12))
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    ({"frequencies": [-1.0]}, "frequencies"),
-    ({"frequencies": [300.0], "responses": ["nope"]}, "responses"),
-    ({"frequencies": [300.0], "harmonics": 0}, "harmonics"),
-    ({"frequencies": [300.0], "harmonics": 15, "samples": 16}, "samples"),
-    ({"frequencies": [300.0], "check": "sometimes"}, "check"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"frequencies": [-1.0]}, "frequencies"),
+        ({"frequencies": [300.0], "responses": ["nope"]}, "responses"),
+        ({"frequencies": [300.0], "harmonics": 0}, "harmonics"),
+        ({"frequencies": [300.0], "harmonics": 15, "samples": 16}, "samples"),
+        ({"frequencies": [300.0], "check": "sometimes"}, "check"),
+    ],
+)
 def test_bad_input_names_the_field(kwargs, field):
     with pytest.raises(ss.InputError) as err:
         frf(jenkins_1dof(), **kwargs)

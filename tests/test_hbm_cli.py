@@ -35,8 +35,14 @@ def test_parse_harmonics_and_frequencies():
 
 def test_run_command_writes_the_result_figure_and_summary(tmp_path):
     with open(tmp_path / "out.txt", "w") as fh:
-        ds, s = run_command(jenkins_1dof(), parse_frequencies("250:400:7"), harmonics="1,3,5,7",
-                            output=tmp_path / "h.nc", plot_path=tmp_path / "h.png", console=Console(file=fh, width=120))
+        ds, s = run_command(
+            jenkins_1dof(),
+            parse_frequencies("250:400:7"),
+            harmonics="1,3,5,7",
+            output=tmp_path / "h.nc",
+            plot_path=tmp_path / "h.png",
+            console=Console(file=fh, width=120),
+        )
     back = xr.open_dataset(tmp_path / "h.nc", engine="h5netcdf")
     assert np.allclose(back.amplitude.values, ds.amplitude.values) and back.attrs["solver"] == "hbm"
     assert (tmp_path / "h.png").stat().st_size > 10_000
@@ -60,8 +66,21 @@ JENKINS_TOML = str(Path(__file__).resolve().parents[1] / "examples" / "jenkins.t
 
 
 def test_cli_frf_solver_hbm(tmp_path):
-    result = _cli("frf", JENKINS_TOML, "--frequencies", "250:400:7", "--solver", "hbm", "--harmonics", "1,3,5,7",
-                  "--check-frequencies", "380", "-o", str(tmp_path), "--json")
+    result = _cli(
+        "frf",
+        JENKINS_TOML,
+        "--frequencies",
+        "250:400:7",
+        "--solver",
+        "hbm",
+        "--harmonics",
+        "1,3,5,7",
+        "--check-frequencies",
+        "380",
+        "-o",
+        str(tmp_path),
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     s = json.loads(result.output.strip().splitlines()[-1])
     assert s["solver"] == "hbm" and s["harmonics"] == [0, 1, 3, 5, 7] and s["points_not_ok"] == 0
@@ -72,10 +91,13 @@ def test_cli_frf_solver_hbm(tmp_path):
     assert Path(s["figure"]).stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("args, field", [
-    (("--solver", "hbm", "--harmonics", "1,x"), "--harmonics"),
-    (("--solver", "march", "--harmonics", "1,3,5"), "--harmonics"),
-])
+@pytest.mark.parametrize(
+    "args, field",
+    [
+        (("--solver", "hbm", "--harmonics", "1,x"), "--harmonics"),
+        (("--solver", "march", "--harmonics", "1,3,5"), "--harmonics"),
+    ],
+)
 def test_cli_frf_bad_harmonics(tmp_path, args, field):
     result = _cli("frf", JENKINS_TOML, "--frequencies", "250:400:3", *args, "-o", str(tmp_path))
     assert result.exit_code == 2

@@ -34,11 +34,11 @@ def exact_mdof(t):
     n, W = 3, 2 * math.pi * F_HZ
     A = np.zeros((2 * n + 3, 2 * n + 3))
     Minv = np.linalg.inv(M3)
-    A[:n, n:2 * n] = np.eye(n)
-    A[n:2 * n, :n] = -Minv @ K3
-    A[n:2 * n, n:2 * n] = -Minv @ C3
-    A[n:2 * n, 2 * n] = Minv @ F_AMP
-    A[n:2 * n, 2 * n + 2] = Minv @ F_CONST
+    A[:n, n : 2 * n] = np.eye(n)
+    A[n : 2 * n, :n] = -Minv @ K3
+    A[n : 2 * n, n : 2 * n] = -Minv @ C3
+    A[n : 2 * n, 2 * n] = Minv @ F_AMP
+    A[n : 2 * n, 2 * n + 2] = Minv @ F_CONST
     A[2 * n, 2 * n + 1] = W
     A[2 * n + 1, 2 * n] = -W
     z0 = np.concatenate([np.linalg.solve(K3, F_CONST), np.zeros(n), [0.0, 1.0, 1.0]])
@@ -95,14 +95,14 @@ def sdof_free(n_cycles=40):
     f0 = 10.0
     force = Signal(("x",), tables=(Tabulated([0.0, 1e3], [[-f0], [-f0]]),))
     exc = Excitation(constant_force=np.array([f0]), force=force, period=2 * math.pi / OMEGA)
-    return System(Structure(np.eye(1), None, np.array([[OMEGA ** 2]])), (), exc, name="sdof")
+    return System(Structure(np.eye(1), None, np.array([[OMEGA**2]])), (), exc, name="sdof")
 
 
 def amplification(beta, gamma, am, af, wdt):
     """Textbook generalised-alpha amplification matrix of x'' + w^2 x = 0, state (x, v dt, a dt^2):
-        (1-am) a1 + am a0 + w^2 ((1-af) x1 + af x0) = 0
-        x1 = x0 + dt v0 + dt^2 ((1/2 - beta) a0 + beta a1),  v1 = v0 + dt ((1-gamma) a0 + gamma a1)."""
-    W2 = wdt ** 2
+    (1-am) a1 + am a0 + w^2 ((1-af) x1 + af x0) = 0
+    x1 = x0 + dt v0 + dt^2 ((1/2 - beta) a0 + beta a1),  v1 = v0 + dt ((1-gamma) a0 + gamma a1)."""
+    W2 = wdt**2
     L = np.array([[(1 - af) * W2, 0.0, 1 - am], [1.0, 0.0, -beta], [0.0, 1.0, -gamma]])
     R = np.array([[-af * W2, 0.0, -am], [1.0, 1.0, 0.5 - beta], [0.0, 1.0, 1 - gamma]])
     return np.linalg.solve(L, R)
@@ -113,8 +113,15 @@ def principal(lam):
     return lam[np.argmax(lam.imag)]
 
 
-@pytest.mark.parametrize("scheme,rho_inf", [("hht(0.1)", 0.9 / 1.1), ("hht(0.3)", 0.7 / 1.3),
-                                            ("generalized-alpha(0.8)", 0.8), ("generalized-alpha(0.5)", 0.5)])
+@pytest.mark.parametrize(
+    "scheme,rho_inf",
+    [
+        ("hht(0.1)", 0.9 / 1.1),
+        ("hht(0.3)", 0.7 / 1.3),
+        ("generalized-alpha(0.8)", 0.8),
+        ("generalized-alpha(0.5)", 0.5),
+    ],
+)
 @pytest.mark.parametrize("ratio", [0.3, 0.6, 1.0])
 def test_dissipation_and_period_elongation(scheme, rho_inf, ratio):
     integ = get_integrator(scheme)
@@ -126,8 +133,9 @@ def test_dissipation_and_period_elongation(scheme, rho_inf, ratio):
     wdt = OMEGA * dt
     lam = np.linalg.eigvals(amplification(sc.beta, sc.gamma, sc.alpha_m, sc.alpha_f, wdt))
     # the textbook high-frequency limit of the same matrix: the scheme's rho_inf
-    assert np.abs(np.linalg.eigvals(amplification(sc.beta, sc.gamma, sc.alpha_m, sc.alpha_f, 1e5))).max() == \
-        pytest.approx(rho_inf, rel=1e-3)
+    assert np.abs(
+        np.linalg.eigvals(amplification(sc.beta, sc.gamma, sc.alpha_m, sc.alpha_f, 1e5))
+    ).max() == pytest.approx(rho_inf, rel=1e-3)
     z = principal(lam)
     assert z.imag > 0
     spurious = np.abs(lam[np.abs(lam.imag) < 1e-12 * abs(z)]).max(initial=0.0)
@@ -156,8 +164,12 @@ PERIODS = 2
 BOUND_UM, BOUND_PCT = 0.45, 5.0  # physics.md section 6
 SCHEMES = ("newmark", "linear-acceleration", "hht(0.1)", "generalized-alpha(0.8)", "central-difference", "rk4")
 # raw (unfiltered) agreement holds for these; the others ring more and are compared after filtering
-RAW_OK = {"newmark": ("fixed", "piecewise-linear"), "hht(0.1)": ("fixed", "adaptive", "piecewise-linear", "both"),
-          "generalized-alpha(0.8)": ("fixed", "adaptive", "piecewise-linear", "both"), "rk4": ("fixed", "adaptive")}
+RAW_OK = {
+    "newmark": ("fixed", "piecewise-linear"),
+    "hht(0.1)": ("fixed", "adaptive", "piecewise-linear", "both"),
+    "generalized-alpha(0.8)": ("fixed", "adaptive", "piecewise-linear", "both"),
+    "rk4": ("fixed", "adaptive"),
+}
 
 
 @pytest.fixture(scope="module")
@@ -249,7 +261,8 @@ def test_bad_input(mdof):
 def test_compare_schemes_rows(mdof):
     rows = compare_schemes(mdof, schemes=["newmark", "rk4"], periods=1, repeats=1)
     assert [(r["scheme"], r["variant"]) for r in rows] == [
-        (s, v) for s in ("newmark", "rk4") for v in ("fixed", "adaptive", "piecewise-linear", "both")]
+        (s, v) for s in ("newmark", "rk4") for v in ("fixed", "adaptive", "piecewise-linear", "both")
+    ]
     na = [r for r in rows if r["status"] == "n/a"]
     assert [(r["scheme"], r["variant"]) for r in na] == [("rk4", "piecewise-linear"), ("rk4", "both")]
     ok = [r for r in rows if r["status"] == "OK"]

@@ -35,8 +35,9 @@ CASES = {"chain": chain, "shroud": lambda: slipstep.load_system(EXAMPLES / "shro
 
 
 @pytest.mark.parametrize("case", list(CASES))
-@pytest.mark.parametrize("method", ["newmark", "piecewise-linear", "piecewise-linear-adaptive", "full-newton",
-                                    "quasi-static"])
+@pytest.mark.parametrize(
+    "method", ["newmark", "piecewise-linear", "piecewise-linear-adaptive", "full-newton", "quasi-static"]
+)
 def test_low_rank_equals_direct(case, method):
     system = CASES[case]()
     direct = slipstep.run(system, method, periods=3, linear_solver="direct")
@@ -52,4 +53,6 @@ def test_low_rank_equals_direct(case, method):
 
 def test_auto_choice():
     assert slipstep.run(chain(), "piecewise-linear", periods=0.5).attrs["linear_solver"] == "low-rank"
-    assert slipstep.run(slipstep.load_system("paper"), "piecewise-linear", periods=0.5).attrs["linear_solver"] == "direct"
+    assert (
+        slipstep.run(slipstep.load_system("paper"), "piecewise-linear", periods=0.5).attrs["linear_solver"] == "direct"
+    )

@@ -29,11 +29,14 @@ def with_oscillator(paper):
     K = scipy.linalg.block_diag(s.stiffness, [[2.0e6]])
     C = scipy.linalg.block_diag(s.damping, [[20.0]])
     structure = ss.Structure(M, C, K, s.dof_names + ("osc",), s.dof_units + ("m",))
-    contacts = tuple(dataclasses.replace(c, dof_gather=np.hstack([c.dof_gather, np.zeros((c.dof_gather.shape[0], 1))]))
-                     for c in paper.contacts)
+    contacts = tuple(
+        dataclasses.replace(c, dof_gather=np.hstack([c.dof_gather, np.zeros((c.dof_gather.shape[0], 1))]))
+        for c in paper.contacts
+    )
     force = Signal(structure.dof_names, (Harmonic(200.0, np.r_[np.zeros(n), 5.0]),))
-    exc = ss.Excitation(constant_force=np.r_[paper.excitation.constant_force, 0.0], force=force,
-                        motion=paper.excitation.motion)
+    exc = ss.Excitation(
+        constant_force=np.r_[paper.excitation.constant_force, 0.0], force=force, motion=paper.excitation.motion
+    )
     return ss.System(structure, contacts, exc, motion_names=paper.motion_names, name="paper+osc")
 
 
@@ -153,8 +156,9 @@ def test_advisor_says_when_the_quasi_static_damper_applies():
     assert a.recommendation.startswith("quasi-static-dofs")
     assert "Remark 3" in a.text() and a.massless["step_gain"] > 2.5
     # Eq. 9: a large inertia ratio (tiny rotor speed) keeps the damper's inertia
-    slow = ss.advise(ss.load_system("blades"), rotor_speed_rpm=10.0, radius_m=0.5, displacement_amplitude_m=1e-5,
-                     run_cases=False)
+    slow = ss.advise(
+        ss.load_system("blades"), rotor_speed_rpm=10.0, radius_m=0.5, displacement_amplitude_m=1e-5, run_cases=False
+    )
     assert not slow.massless["applies"] and "Eq. 9" in slow.massless["why"]
     # a damper whose internal frequency is close to the excitation (Remark 3): not applicable
     near = retuned(ss.load_system("blades"), 4000.0)

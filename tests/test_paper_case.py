@@ -50,6 +50,7 @@ def state_change_indices(states):
 
 # --- linear numbers: stick frequencies, T_min, step count ---------------------------------
 
+
 def test_stick_frequencies_and_t_min(system):
     cs = system.compile()
     t_min, ev = ss.state_t_min(cs, np.full(3, STICK, np.int8))
@@ -71,6 +72,7 @@ def test_newmark_step_is_t_min_over_pi_with_187_steps_per_period(system):
 
 # --- static preload ---------------------------------------------------------------------
 
+
 def test_preload(quasi_static):
     x0 = quasi_static.displacement.isel(time=0).values
     assert [sig3(x0[0] / UM), sig3(x0[1] / UM), sig3(x0[2] * 1e3)] == [-1.29, 5.88, 0.563]
@@ -91,6 +93,7 @@ def test_preload(quasi_static):
 
 
 # --- quasi-static march (Method 4) -------------------------------------------------------
+
 
 def test_quasi_static_six_state_changes_at_the_paper_phases(quasi_static):
     last = last_period(quasi_static)
@@ -131,6 +134,7 @@ def test_quasi_static_tangential_force_ranges(quasi_static):
 
 # --- Newmark (Method 1) against quasi-static ---------------------------------------------
 
+
 def test_newmark_vs_quasi_static_last_period(quasi_static, newmark):
     """physics.md 6: damper displacement within 0.45 um, contact forces within 5 % of CF.
     The quasi-static result (300 steps/period) is interpolated linearly onto Newmark's
@@ -153,6 +157,7 @@ def test_newmark_raw_state_changes_are_chatter(newmark):
 
 
 # --- iteration and step statistics (physics.md 7) -----------------------------------------
+
 
 def test_method1_iterations_per_step_at_200_hz(newmark):
     """physics.md 7: about 11 iterations per step. Issue 8 made the stop stricter (increment
@@ -184,10 +189,14 @@ def test_method3_extra_solves_only_at_state_changes(piecewise_linear):
     assert changed.sum() == ds.attrs["state_changes"]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "physics.md 7 claims one solve in > 90 % of Method-3 steps, but physics.md 6 also states 30-50 raw "
-    "(chatter) state changes per 187-step period; each costs one extra solve, so the share is "
-    "1 - changes/steps = 0.81 here (109 changes in 561 steps). Reported to the lead; not loosened."))
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "physics.md 7 claims one solve in > 90 % of Method-3 steps, but physics.md 6 also states 30-50 raw "
+        "(chatter) state changes per 187-step period; each costs one extra solve, so the share is "
+        "1 - changes/steps = 0.81 here (109 changes in 561 steps). Reported to the lead; not loosened."
+    ),
+)
 def test_method3_single_solve_share_paper_claim(piecewise_linear):
     solves = piecewise_linear.solves.values[1:]
     assert (solves == 1).mean() > 0.9

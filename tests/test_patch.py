@@ -9,8 +9,7 @@ import pytest
 
 import slipstep as ss
 from slipstep.errors import InputError
-from slipstep.model.contact import ContactElement
-from slipstep.model.damper import DamperContact, Platform, rigid_damper
+from slipstep.model.damper import Platform, rigid_damper
 from slipstep.model.excitation import Excitation, Signal, Tabulated
 from slipstep.model.patch import contact_patch, damper_face_contacts, face_points, rigid_face_gather
 from slipstep.model.structure import Structure
@@ -23,11 +22,15 @@ def _block(n, P, M_z, force=None, crown_radius=None):
     """A rigid block (x, y, phi) pressed by P [N] and the moment M_z [N m] onto a flat face
     (tangent X, normal +Y) cut into n points."""
     pts = face_points(L, n, width=WIDTH, crown_radius=crown_radius)
-    contacts = contact_patch("face", pts, rigid_face_gather(0.0, (0.0, 0.0), (0, 1, 2), 3),
-                             normal_stiffness_per_area=KN2, tangential_stiffness_per_area=KT2,
-                             friction_coefficient=MU)
-    structure = Structure(mass=np.diag([0.01, 0.01, 1e-7]), dof_names=("x", "y", "phi"),
-                          dof_units=("m", "m", "rad"))
+    contacts = contact_patch(
+        "face",
+        pts,
+        rigid_face_gather(0.0, (0.0, 0.0), (0, 1, 2), 3),
+        normal_stiffness_per_area=KN2,
+        tangential_stiffness_per_area=KT2,
+        friction_coefficient=MU,
+    )
+    structure = Structure(mass=np.diag([0.01, 0.01, 1e-7]), dof_names=("x", "y", "phi"), dof_units=("m", "m", "rad"))
     exc = Excitation(constant_force=np.array([0.0, P, M_z]), force=force)
     return System(structure, contacts, exc, name="block"), pts
 
@@ -39,7 +42,7 @@ def test_face_points_midpoint_rule_and_crown():
     assert np.allclose(pts.offset, 0.0)
     crowned = face_points(L, 9, crown_radius=0.05, crown_offset=1e-6)
     assert crowned.offset.max() == pytest.approx(1e-6) and crowned.offset[4] == pytest.approx(1e-6)
-    assert np.allclose(crowned.offset, 1e-6 - crowned.s ** 2 / 0.1)
+    assert np.allclose(crowned.offset, 1e-6 - crowned.s**2 / 0.1)
 
 
 @pytest.mark.parametrize("n", [4, 21])
@@ -49,7 +52,7 @@ def test_preload_pressure_of_a_rigid_block_is_linear(n):
     system, pts = _block(n, P, Mz, force=None)
     ds = ss.run(system, "quasi-static", duration=1e-3, steps_per_period=2)
     N = ds.normal_force.isel(time=0).values
-    expected = P / n + Mz * pts.s / np.sum(pts.s ** 2)
+    expected = P / n + Mz * pts.s / np.sum(pts.s**2)
     assert np.all(expected > 0)
     np.testing.assert_allclose(N, expected, rtol=1e-9)
     assert N.sum() == pytest.approx(P, rel=1e-12)
@@ -84,16 +87,26 @@ def test_vanishing_damper_faces_reproduce_the_point_contacts():
     """Each of the paper's three point contacts replaced by a 1 um face of 5 points of the
     same total stiffness: the preload forces per original point agree to 1e-4 of CF."""
     paper = ss.load_system("paper")
-    spec = {"P1": ("left", 45.0, (-3.914e-3, -0.414e-3), 13e6, 0.40),
-            "P2": ("left", 45.0, (-1.086e-3, 2.414e-3), 13e6, 0.40),
-            "P3": ("right", -45.0, (2.5e-3, 1.0e-3), 26e6, 0.25)}
+    spec = {
+        "P1": ("left", 45.0, (-3.914e-3, -0.414e-3), 13e6, 0.40),
+        "P2": ("left", 45.0, (-1.086e-3, 2.414e-3), 13e6, 0.40),
+        "P3": ("right", -45.0, (2.5e-3, 1.0e-3), 26e6, 0.25),
+    }
     length, width = 1e-6, 1e-3
     contacts = []
     for name, (platform, angle, centre, k, mu) in spec.items():
-        contacts += damper_face_contacts(name, platform, math.radians(angle), centre, length, 5,
-                                         normal_stiffness_per_area=k / (length * width),
-                                         tangential_stiffness_per_area=k / (length * width),
-                                         friction_coefficient=mu, width=width)
+        contacts += damper_face_contacts(
+            name,
+            platform,
+            math.radians(angle),
+            centre,
+            length,
+            5,
+            normal_stiffness_per_area=k / (length * width),
+            tangential_stiffness_per_area=k / (length * width),
+            friction_coefficient=mu,
+            width=width,
+        )
     platforms = [Platform("left", math.radians(45.0)), Platform("right", math.radians(-45.0))]
     system = rigid_damper(0.012, 1.2e-7, platforms, contacts, 200.0)
     ref = ss.run(paper, "quasi-static", periods=1, steps_per_period=1)
@@ -112,9 +125,14 @@ def test_bad_patch_input_names_the_field():
     with pytest.raises(InputError, match="crown_radius"):
         face_points(L, 3, crown_radius=L / 4, field="face")
     with pytest.raises(InputError, match="face.normal_stiffness_per_area"):
-        contact_patch("face", face_points(L, 3), rigid_face_gather(0.0, (0, 0), (0, 1, 2), 3),
-                      normal_stiffness_per_area=float("nan"), tangential_stiffness_per_area=1.0,
-                      friction_coefficient=0.3)
+        contact_patch(
+            "face",
+            face_points(L, 3),
+            rigid_face_gather(0.0, (0, 0), (0, 1, 2), 3),
+            normal_stiffness_per_area=float("nan"),
+            tangential_stiffness_per_area=1.0,
+            friction_coefficient=0.3,
+        )
 
 
 def test_definiteness_checks_without_eigen_decomposition():

@@ -12,9 +12,12 @@ from slipstep.post import filter_dataset
 @pytest.fixture(scope="module")
 def runs():
     system = slipstep.load_system("paper")
-    return (system, slipstep.run(system, "quasi-static", periods=2),
-            slipstep.run(system, "piecewise-linear", periods=2),
-            slipstep.run(system, "piecewise-linear-adaptive", periods=2))
+    return (
+        system,
+        slipstep.run(system, "quasi-static", periods=2),
+        slipstep.run(system, "piecewise-linear", periods=2),
+        slipstep.run(system, "piecewise-linear-adaptive", periods=2),
+    )
 
 
 def _check_png(path, min_px=(400, 250)):
@@ -33,10 +36,13 @@ def test_every_figure_renders(runs, tmp_path):
         "loops": plots.plot_loops(dyn, filter_dataset(dyn, system)),
         "step_size": plots.plot_step_size(ad),
         "iterations": plots.plot_iterations([qs, dyn, ad]),
-        "methods": plots.plot_method_comparison([
-            {"method": "newmark", "paper_method": "Method 1", "time_ratio": 1.0},
-            {"method": "piecewise-linear", "paper_method": "Method 3", "time_ratio": 0.5},
-            {"method": "quasi-static", "time_ratio": 0.07}]),
+        "methods": plots.plot_method_comparison(
+            [
+                {"method": "newmark", "paper_method": "Method 1", "time_ratio": 1.0},
+                {"method": "piecewise-linear", "paper_method": "Method 3", "time_ratio": 0.5},
+                {"method": "quasi-static", "time_ratio": 0.07},
+            ]
+        ),
         "states": plots.plot_state_timeline(ad),
     }
     for name, fig in figs.items():
@@ -59,8 +65,9 @@ def test_write_figures_and_plot_cli(runs, tmp_path):
     from slipstep.cli import app
 
     system, qs, dyn, _ = runs
-    paths = plots.write_figures(dyn, tmp_path / "api", reference=qs, system=system,
-                                comparison=[{"method": "newmark", "time_ratio": 1.0}])
+    paths = plots.write_figures(
+        dyn, tmp_path / "api", reference=qs, system=system, comparison=[{"method": "newmark", "time_ratio": 1.0}]
+    )
     assert len(paths) == 7  # incl. interface loops and the method bars
     for p in paths:
         _check_png(p)

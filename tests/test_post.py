@@ -9,9 +9,22 @@ import pytest
 import slipstep
 from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.post import (
-    FilterWarning, choose_cutoff, count_state_changes, filter_dataset, friction_energy_per_period, full_slip_share,
-    interfaces_from_system, is_uniform, last_period, loop_properties, loop_summary, lowpass, periodicity,
-    resample_uniform, change_times, debounce,
+    FilterWarning,
+    choose_cutoff,
+    count_state_changes,
+    filter_dataset,
+    friction_energy_per_period,
+    full_slip_share,
+    interfaces_from_system,
+    is_uniform,
+    last_period,
+    loop_properties,
+    loop_summary,
+    lowpass,
+    periodicity,
+    resample_uniform,
+    change_times,
+    debounce,
 )
 
 # ---------------------------------------------------------------- Jenkins oscillator (closed forms)
@@ -34,8 +47,14 @@ def jenkins_system():
         times += [t0 + T_PERIOD / 4, t0 + 3 * T_PERIOD / 4, t0 + T_PERIOD]
         values += [XA, -XA, 0.0]
     motion = slipstep.Signal(("slide",), tables=(slipstep.Tabulated(np.array(times), np.array(values)),))
-    contact = slipstep.ContactElement("J", dof_gather=np.array([[0.0], [1.0]]), motion_gather=np.array([[-1.0], [0.0]]),
-                                      tangential_stiffness=KT, normal_stiffness=KN, friction_coefficient=MU)
+    contact = slipstep.ContactElement(
+        "J",
+        dof_gather=np.array([[0.0], [1.0]]),
+        motion_gather=np.array([[-1.0], [0.0]]),
+        tangential_stiffness=KT,
+        normal_stiffness=KN,
+        friction_coefficient=MU,
+    )
     structure = slipstep.Structure(mass=np.array([[1e-3]]), dof_names=("y",), dof_units=("m",))
     exc = slipstep.Excitation(constant_force=np.array([F_N]), motion=motion, period=T_PERIOD)
     return slipstep.System(structure, (contact,), exc, motion_names=("slide",), name="jenkins")
@@ -59,7 +78,7 @@ def test_jenkins_loop_energy_stiffness_damping_closed_forms(jenkins):
     slip = MU * F_N
     energy = 4 * slip * (XA - slip / KT)
     k_eq = slip / XA
-    zeta = energy / (4 * math.pi * 0.5 * k_eq * XA ** 2)
+    zeta = energy / (4 * math.pi * 0.5 * k_eq * XA**2)
     assert props["energy_J"] == pytest.approx(energy, rel=1e-6)
     assert props["k_eq_N_per_m"] == pytest.approx(k_eq, rel=1e-6)
     assert props["zeta_eq"] == pytest.approx(zeta, rel=1e-6)
@@ -143,7 +162,9 @@ def test_last_period_on_non_uniform_grid(paper):
     t = ad["time"].values
     t0 = t[-1] - T
     for d in range(3):
-        assert lp["tangential_force"].values[0, d] == pytest.approx(np.interp(t0, t, ad["tangential_force"].values[:, d]))
+        assert lp["tangential_force"].values[0, d] == pytest.approx(
+            np.interp(t0, t, ad["tangential_force"].values[:, d])
+        )
     e = loop_summary(filter_dataset(ad, system), system)["interface_energy_J"].values
     assert e[0] == pytest.approx(2.52e-3, rel=0.05) and e[1] == pytest.approx(2.70e-3, rel=0.05)
 
@@ -155,7 +176,9 @@ def test_resample_uniform_linear_exact_and_state_held(paper):
     assert is_uniform(u["time"].values) and u.sizes["time"] == 1001
     t = ad["time"].values
     tu = u["time"].values
-    assert np.allclose(u["displacement"].values[:, 0], np.interp(tu, t, ad["displacement"].values[:, 0]), rtol=0, atol=1e-18)
+    assert np.allclose(
+        u["displacement"].values[:, 0], np.interp(tu, t, ad["displacement"].values[:, 0]), rtol=0, atol=1e-18
+    )
     # a uniform time lying inside stored step (t_{i-1}, t_i] carries the state of that step
     i = np.searchsorted(t, tu[500])
     assert np.array_equal(u["contact_state"].values[500], ad["contact_state"].values[i])

@@ -13,8 +13,14 @@ from slipstep.report import write_report
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     path = tmp_path_factory.mktemp("report") / "paper.html"
-    write_report(slipstep.load_system("paper"), path, periods=2, rotor_speed_rpm=3600, radius_m=0.5,
-                 displacement_amplitude_m=1e-7)
+    write_report(
+        slipstep.load_system("paper"),
+        path,
+        periods=2,
+        rotor_speed_rpm=3600,
+        radius_m=0.5,
+        displacement_amplitude_m=1e-7,
+    )
     return path
 
 
@@ -51,13 +57,28 @@ def test_report_in_headless_chromium(report, tmp_path):
     if browser is None:
         pytest.skip("Debian's chromium is not installed (apt-get install -y chromium): browser check skipped")
     # a copy of the report with a probe that counts the images the browser actually decoded
-    probe = ("<script>window.addEventListener('load', () => { document.body.setAttribute('data-decoded', "
-             "[...document.images].filter(i => i.complete && i.naturalWidth > 0).length); });</script>")
+    probe = (
+        "<script>window.addEventListener('load', () => { document.body.setAttribute('data-decoded', "
+        "[...document.images].filter(i => i.complete && i.naturalWidth > 0).length); });</script>"
+    )
     page = tmp_path / "probe.html"
     page.write_text(report.read_text(encoding="utf-8").replace("</body>", probe + "</body>"), encoding="utf-8")
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-           "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
-           "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom", page.resolve().as_uri()]
+    cmd = [
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--enable-logging=stderr",
+        "--v=0",
+        "--virtual-time-budget=5000",
+        "--dump-dom",
+        page.resolve().as_uri(),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     dom = proc.stdout

@@ -17,11 +17,18 @@ import pytest
 import slipstep as ss
 from slipstep.post.energy import energy_balance, friction_energy_per_period
 
-ALL_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static",
-               "full-newton")
+ALL_METHODS = (
+    "newmark",
+    "newmark-adaptive",
+    "piecewise-linear",
+    "piecewise-linear-adaptive",
+    "quasi-static",
+    "full-newton",
+)
 
 
 # --- linear single-DOF oscillator ----------------------------------------------------------
+
 
 def sdof(m=2.0, k=8.0e4, c=0.0, force=None, f0=0.0, table=None):
     """One DOF, no contacts. ``f0``: constant load (ramped in the preload); ``table``: a
@@ -29,8 +36,9 @@ def sdof(m=2.0, k=8.0e4, c=0.0, force=None, f0=0.0, table=None):
     st = ss.Structure(np.array([[m]]), np.array([[c]]), np.array([[k]]))
     sig = None
     if table is not None or force is not None:
-        sig = ss.Signal(("x0",), tuple([force] if force is not None else []),
-                        tuple([table] if table is not None else []))
+        sig = ss.Signal(
+            ("x0",), tuple([force] if force is not None else []), tuple([table] if table is not None else [])
+        )
     return ss.System(st, (), ss.Excitation(constant_force=np.array([f0]), force=sig))
 
 
@@ -72,7 +80,7 @@ def numpy_newmark(m, c, k, force, dt, n_steps):
     x, v = 0.0, 0.0
     a = (force(0.0) - c * v - k * x) / m
     xs = [x]
-    a0, a1 = 4 / dt ** 2, 2 / dt
+    a0, a1 = 4 / dt**2, 2 / dt
     keff = a0 * m + a1 * c + k
     for i in range(1, n_steps + 1):
         t = i * dt
@@ -154,6 +162,7 @@ def test_jenkins_dynamic_converges_to_the_closed_form_with_the_mass_ratio():
 
 # --- energy balance on the paper case ----------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def paper():
     return ss.load_system("paper")
@@ -161,8 +170,9 @@ def paper():
 
 @pytest.fixture(scope="module")
 def paper_runs(paper):
-    return {m: ss.run(paper, m, periods=3, raise_on_failure=True)
-            for m in ("newmark", "piecewise-linear", "quasi-static")}
+    return {
+        m: ss.run(paper, m, periods=3, raise_on_failure=True) for m in ("newmark", "piecewise-linear", "quasi-static")
+    }
 
 
 @pytest.mark.parametrize("method, bound", [("newmark", 1e-6), ("piecewise-linear", 1e-10), ("quasi-static", 1e-10)])
@@ -202,6 +212,7 @@ def test_paper_method3_equals_method1_at_the_same_dt(paper, paper_runs):
 
 # --- a 10-DOF chain with 3 contacts (one quasi-3D) ----------------------------------------------
 
+
 def chain(frequency=20.0):
     """10 masses 0.1-1 kg in series (springs 2e5 N/m, first mass to the ground, last free),
     Rayleigh damping C = 1e-4 K + 2 M, a harmonic force of 30 N on the last mass, and
@@ -225,17 +236,26 @@ def chain(frequency=20.0):
     C = 1e-4 * K + 2.0 * M
     e = np.eye(n)
     contacts = (
-        ss.ContactElement("c2", np.vstack([e[2], 0.2 * e[3]]), 1e5, 2e5, 0.3,
-                          motion_gather=np.array([[1.0], [0.0]]), normal_offset=5e-5),
+        ss.ContactElement(
+            "c2",
+            np.vstack([e[2], 0.2 * e[3]]),
+            1e5,
+            2e5,
+            0.3,
+            motion_gather=np.array([[1.0], [0.0]]),
+            normal_offset=5e-5,
+        ),
         ss.ContactElement("c5", np.vstack([e[5], e[6], 0.2 * e[4]]), (1e5, 5e4), 2e5, 0.25, normal_offset=4e-5),
         ss.ContactElement("c8", np.vstack([e[8], -0.2 * e[7]]), 1.5e5, 3e5, 0.35, normal_offset=8e-5),
     )
     names = tuple(f"x{i}" for i in range(n))
     load = np.zeros(n)
     load[-1] = 1.0
-    exc = ss.Excitation(constant_force=load,
-                        force=ss.Signal(names, (ss.Harmonic(frequency, np.r_[np.zeros(n - 1), 30.0]),)),
-                        motion=ss.Signal(("base",), (ss.Harmonic(frequency, [2e-4]),)))
+    exc = ss.Excitation(
+        constant_force=load,
+        force=ss.Signal(names, (ss.Harmonic(frequency, np.r_[np.zeros(n - 1), 30.0]),)),
+        motion=ss.Signal(("base",), (ss.Harmonic(frequency, [2e-4]),)),
+    )
     return ss.System(ss.Structure(M, C, K, dof_names=names), contacts, exc, name="chain")
 
 
@@ -264,9 +284,17 @@ def test_chain_runs_and_exercises_the_law(chain_runs):
     assert np.abs(cs.K @ x0 + cs.A.T @ f - cs.constant_force).max() < 1e-9 * np.abs(cs.K @ x0).max()
 
 
-@pytest.mark.parametrize("method, bound", [
-    ("newmark", 1e-6), ("newmark-adaptive", 1e-6), ("piecewise-linear", 1e-10),
-    ("piecewise-linear-adaptive", 1e-10), ("quasi-static", 1e-10), ("full-newton", 1e-10)])
+@pytest.mark.parametrize(
+    "method, bound",
+    [
+        ("newmark", 1e-6),
+        ("newmark-adaptive", 1e-6),
+        ("piecewise-linear", 1e-10),
+        ("piecewise-linear-adaptive", 1e-10),
+        ("quasi-static", 1e-10),
+        ("full-newton", 1e-10),
+    ],
+)
 def test_chain_energy_balance(chain_system, chain_runs, method, bound):
     """W_ext + W_mot = dE_kin + dE_el + dE_c + D_damp + D_fric with damping, structural
     stiffness and lift-off. The trapezoid balance is exact on every step that does not
@@ -331,12 +359,17 @@ def test_chain_quasi_static_agrees_with_method1_far_below_resonance():
 
 # --- known limitation of the preload ------------------------------------------------------------
 
+
 def test_preload_from_normal_offsets_alone_is_an_equilibrium():
     """physics.md 4: every run starts from the static preload. A system whose contacts are
     preloaded only by normal_offset (no constant force) must also start in equilibrium."""
     system = chain()
-    system = ss.System(system.structure, system.contacts,
-                       ss.Excitation(force=system.excitation.force, motion=system.excitation.motion), name="chain")
+    system = ss.System(
+        system.structure,
+        system.contacts,
+        ss.Excitation(force=system.excitation.force, motion=system.excitation.motion),
+        name="chain",
+    )
     ds = ss.run(system, "quasi-static", periods=1, raise_on_failure=True)
     cs = system.compile()
     x0 = ds.displacement.values[0]

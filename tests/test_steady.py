@@ -25,8 +25,9 @@ def jenkins(mu=1.0, contacts=True):
     if not contacts:
         return ss.System(system.structure, (), system.excitation, name="free")
     c = system.contacts[0]
-    contact = ss.ContactElement(c.name, c.dof_gather, c.tangential_stiffness, c.normal_stiffness, mu,
-                                normal_offset=c.normal_offset)
+    contact = ss.ContactElement(
+        c.name, c.dof_gather, c.tangential_stiffness, c.normal_stiffness, mu, normal_offset=c.normal_offset
+    )
     return ss.System(system.structure, (contact,), system.excitation, name="jenkins")
 
 
@@ -66,8 +67,11 @@ def test_jenkins_march_shoot_and_independent_reference():
 
 @pytest.mark.parametrize("case", ["stuck", "free", "chain-stuck"])
 def test_linear_limits_equal_frequency_domain_solution(case):
-    system = {"stuck": lambda: jenkins(mu=1e6), "free": lambda: jenkins(contacts=False),
-              "chain-stuck": lambda: _stuck_chain()}[case]()
+    system = {
+        "stuck": lambda: jenkins(mu=1e6),
+        "free": lambda: jenkins(contacts=False),
+        "chain-stuck": lambda: _stuck_chain(),
+    }[case]()
     previous = None
     for f in (200.0, 275.0, 350.0, 425.0, 500.0):
         s = retune(system, f)
@@ -89,8 +93,12 @@ def test_linear_limits_equal_frequency_domain_solution(case):
 
 def _stuck_chain():
     s = chain()
-    contacts = tuple(ss.ContactElement(c.name, c.dof_gather, c.tangential_stiffness, c.normal_stiffness, 1e6,
-                                       normal_offset=c.normal_offset) for c in s.contacts)
+    contacts = tuple(
+        ss.ContactElement(
+            c.name, c.dof_gather, c.tangential_stiffness, c.normal_stiffness, 1e6, normal_offset=c.normal_offset
+        )
+        for c in s.contacts
+    )
     return ss.System(s.structure, contacts, s.excitation, name="chain-stuck")
 
 
@@ -111,8 +119,14 @@ def test_energy_balance_over_steady_period(make):
                 assert float(np.ptp(n.sel(contact="foot").values)) > 1.0  # the normal load varies
 
 
-@pytest.mark.parametrize("case,method,f", [("chain", "piecewise-linear", 280.0), ("paper", "quasi-static", 200.0),
-                                            ("paper", "piecewise-linear-adaptive", 200.0)])
+@pytest.mark.parametrize(
+    "case,method,f",
+    [
+        ("chain", "piecewise-linear", 280.0),
+        ("paper", "quasi-static", 200.0),
+        ("paper", "piecewise-linear-adaptive", 200.0),
+    ],
+)
 def test_period_jacobian_matches_finite_differences(case, method, f):
     system = retune(ss.load_system(EXAMPLES / "contact_chain.toml") if case == "chain" else ss.load_system("paper"), f)
     sim = period_simulation(system, method, None, {})
@@ -129,7 +143,7 @@ def test_period_jacobian_matches_finite_differences(case, method, f):
     fd = np.zeros_like(phi)
     xs = np.abs(z[:n]).max()
     for j in range(z.size):
-        h = 1e-6 * (np.abs(z[n:2 * n]).max() if (not quasi and n <= j < 2 * n) else xs)
+        h = 1e-6 * (np.abs(z[n : 2 * n]).max() if (not quasi and n <= j < 2 * n) else xs)
         ends = []
         for sign in (1, -1):
             zp = z.copy()

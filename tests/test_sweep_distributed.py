@@ -48,9 +48,15 @@ def cluster():
 
 
 def _spec(cf, amp, **kw):
-    return SweepSpec(base="paper", run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
-                     parameters=(Parameter("damper.centrifugal_force_N", values=tuple(cf)),
-                                 Parameter("motion.1.amplitude", values=tuple(amp))), **kw)
+    return SweepSpec(
+        base="paper",
+        run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
+        parameters=(
+            Parameter("damper.centrifugal_force_N", values=tuple(cf)),
+            Parameter("motion.1.amplitude", values=tuple(amp)),
+        ),
+        **kw,
+    )
 
 
 def _assert_same(a, b):
@@ -87,8 +93,9 @@ def test_a_killed_worker_does_not_stop_the_sweep(cluster, tmp_path):
             os.kill(victim, signal.SIGKILL)
             killed.append(state["computed"])
 
-    report = run_sweep(spec, tmp_path / "k.zarr", executor=DaskExecutor(scheduler=cluster.scheduler_address),
-                       progress=kill_one)
+    report = run_sweep(
+        spec, tmp_path / "k.zarr", executor=DaskExecutor(scheduler=cluster.scheduler_address), progress=kill_one
+    )
     assert killed and killed[0] < 30
     assert report["missing"] == 0 and report["status_counts"] == {"OK": 30}
     ds = open_sweep(tmp_path / "k.zarr")
@@ -122,13 +129,27 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
         '[run]\nmethod = "quasi-static"\nperiods = 1\nsteps_per_period = 40\n'
         '[[parameter]]\nkey = "damper.centrifugal_force_N"\nstart = 100.0\nstop = 300.0\nnum = 10\n'
         '[[parameter]]\nkey = "motion.1.amplitude"\nstart = 2.0\nstop = 60.0\nnum = 20\nscale = "log"\n'
-        '[[parameter]]\nkey = "damper.contacts.*.friction_coefficient"\nstart = 0.1\nstop = 0.5\nnum = 10\n')
+        '[[parameter]]\nkey = "damper.contacts.*.friction_coefficient"\nstart = 0.1\nstop = 0.5\nnum = 10\n'
+    )
     store = tmp_path / "big.zarr"
     env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-c", "from slipstep.cli import app; app()", "sweep", str(spec_file),
-                             "-o", str(store),
-                             "--scheduler", cluster.scheduler_address, "--json"], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from slipstep.cli import app; app()",
+            "sweep",
+            str(spec_file),
+            "-o",
+            str(store),
+            "--scheduler",
+            cluster.scheduler_address,
+            "--json",
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     try:
         deadline = time.monotonic() + 180
         while _count_done(store) < 100 and time.monotonic() < deadline and proc.poll() is None:
@@ -146,13 +167,13 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
     report = run_sweep(spec_file, store, executor=DaskExecutor(scheduler=cluster.scheduler_address))
     assert report["skipped"] == done.sum() and report["computed"] == 2000 - done.sum() and report["missing"] == 0
     after = open_sweep(store)
-    assert after.sizes["case"] == 2000 and len(set(after.case_hash.values)) == 2000   # each case once
-    assert np.array_equal(after.run_index.values, np.where(done, 0, 1))              # none computed twice
+    assert after.sizes["case"] == 2000 and len(set(after.case_hash.values)) == 2000  # each case once
+    assert np.array_equal(after.run_index.values, np.where(done, 0, 1))  # none computed twice
     assert (after.status.values == "OK").all()
     for name in after.data_vars:
         if name not in VARYING and done.any():
             x, y = before[name].values[done], after[name].values[done]
-            assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), name     # the flushed rows untouched
+            assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), name  # the flushed rows untouched
     # values equal to an uninterrupted run, on cases computed before and after the kill
     plan = make_plan(load_spec(spec_file))
     payload = payload_of(plan)

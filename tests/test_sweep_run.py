@@ -56,10 +56,14 @@ N = (2.0, 8.0, 30.0)  # mu N / k_t up to 15 um > XA: the last ones stick
 def jenkins_store(tmp_path_factory):
     root = tmp_path_factory.mktemp("jenkins")
     (root / "jenkins.toml").write_text(JENKINS)
-    spec = SweepSpec(base=str(root / "jenkins.toml"), parameters=(
-        Parameter("contacts.J.friction_coefficient", values=MU, name="mu"),
-        Parameter("structure.constant_force_N.1", values=N, name="N")),
-        outputs=slipstep.sweep.Outputs(histories=("tangential_force", "contact_state"), history_points=33))
+    spec = SweepSpec(
+        base=str(root / "jenkins.toml"),
+        parameters=(
+            Parameter("contacts.J.friction_coefficient", values=MU, name="mu"),
+            Parameter("structure.constant_force_N.1", values=N, name="N"),
+        ),
+        outputs=slipstep.sweep.Outputs(histories=("tangential_force", "contact_state"), history_points=33),
+    )
     report = run_sweep(spec, root / "j.zarr", executor=SerialExecutor())
     return spec, report, root / "j.zarr"
 
@@ -132,8 +136,9 @@ def test_summary_of_the_paper_case_reproduces_the_paper(paper):
     s = summarise(ds, system)
     assert s["interface_energy_per_cycle_J[left]"] == pytest.approx(2.52e-3, rel=0.01)
     assert s["interface_energy_per_cycle_J[right]"] == pytest.approx(2.70e-3, rel=0.01)
-    assert s["energy_per_cycle_J"] == pytest.approx(s["interface_energy_per_cycle_J[left]"]
-                                                    + s["interface_energy_per_cycle_J[right]"], rel=1e-12)
+    assert s["energy_per_cycle_J"] == pytest.approx(
+        s["interface_energy_per_cycle_J[left]"] + s["interface_energy_per_cycle_J[right]"], rel=1e-12
+    )
     assert s["full_slip_share"] == pytest.approx(0.547, abs=0.002)
     assert s["status_code"] == 0 and s["steps"] == 900 and s["solves"] == ds.attrs["solves"]
     assert s["steady_error"] < 1e-9  # quasi-static: periodic from the second period on
@@ -157,9 +162,14 @@ def test_summary_of_a_run_that_stopped_early_has_the_same_keys(paper):
 # ---------------------------------------------------------------- failures, resume, other sweeps
 
 
-@pytest.mark.parametrize("run, field", [({"method": "newmark-fast"}, "method"),
-                                        ({"step_ratio": -1.0}, "step_ratio"),
-                                        ({"linear_solver": "sparse"}, "linear_solver")])
+@pytest.mark.parametrize(
+    "run, field",
+    [
+        ({"method": "newmark-fast"}, "method"),
+        ({"step_ratio": -1.0}, "step_ratio"),
+        ({"linear_solver": "sparse"}, "linear_solver"),
+    ],
+)
 def test_bad_run_options_are_spec_errors(tmp_path, run, field):
     spec = SweepSpec(base="paper", run=run, parameters=(Parameter("damper.centrifugal_force_N", values=(100.0,)),))
     with pytest.raises(InputError) as exc:
@@ -169,9 +179,14 @@ def test_bad_run_options_are_spec_errors(tmp_path, run, field):
 
 
 def test_failed_cases_are_recorded_and_do_not_stop_the_sweep(tmp_path):
-    spec = SweepSpec(base="paper", run={"method": "quasi-static", "periods": 2, "steps_per_period": 100},
-                     parameters=(Parameter("damper.centrifugal_angle_deg", values=(90.0, -90.0)),
-                                 Parameter("damper.contacts.P3.friction_coefficient", values=(0.25, -0.1))))
+    spec = SweepSpec(
+        base="paper",
+        run={"method": "quasi-static", "periods": 2, "steps_per_period": 100},
+        parameters=(
+            Parameter("damper.centrifugal_angle_deg", values=(90.0, -90.0)),
+            Parameter("damper.contacts.P3.friction_coefficient", values=(0.25, -0.1)),
+        ),
+    )
     report = run_sweep(spec, tmp_path / "f.zarr", executor=SerialExecutor())
     assert report["status_counts"] == {"OK": 1, "INPUT_ERROR": 2, "PRELOAD_FAILED": 1} and report["failed"] == 3
     ds = open_sweep(tmp_path / "f.zarr")
@@ -183,9 +198,15 @@ def test_failed_cases_are_recorded_and_do_not_stop_the_sweep(tmp_path):
 
 
 def _small_spec(**kw):
-    return SweepSpec(base="paper", run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
-                     parameters=(Parameter("damper.centrifugal_force_N", values=(100.0, 200.0, 300.0)),
-                                 Parameter("motion.1.amplitude", values=(5.0, 10.0, 20.0, 40.0))), **kw)
+    return SweepSpec(
+        base="paper",
+        run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
+        parameters=(
+            Parameter("damper.centrifugal_force_N", values=(100.0, 200.0, 300.0)),
+            Parameter("motion.1.amplitude", values=(5.0, 10.0, 20.0, 40.0)),
+        ),
+        **kw,
+    )
 
 
 def _same_values(a, b):
@@ -226,8 +247,11 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_cases(tmp_path):
 
 def test_a_store_of_another_sweep_is_refused(tmp_path):
     run_sweep(_small_spec(), tmp_path / "s.zarr", executor=SerialExecutor())
-    other = SweepSpec(base="paper", run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
-                      parameters=(Parameter("damper.centrifugal_force_N", values=(100.0, 250.0)),))
+    other = SweepSpec(
+        base="paper",
+        run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
+        parameters=(Parameter("damper.centrifugal_force_N", values=(100.0, 250.0)),),
+    )
     with pytest.raises(InputError, match="holds another sweep") as exc:
         run_sweep(other, tmp_path / "s.zarr", executor=SerialExecutor())
     assert exc.value.field == "output"
@@ -248,10 +272,12 @@ def test_a_store_of_another_sweep_is_refused(tmp_path):
 
 def test_cli_sweep_and_sweep_plot(tmp_path):
     spec = tmp_path / "s.toml"
-    spec.write_text('[sweep]\nname = "cli"\nbase = "paper"\n[run]\nmethod = "quasi-static"\nperiods = 2\n'
-                    'steps_per_period = 60\n[[parameter]]\nkey = "damper.centrifugal_force_N"\n'
-                    'values = [100.0, 200.0, 300.0]\n[[parameter]]\nkey = "motion.1.amplitude"\n'
-                    'values = [5.0, 20.0, 40.0]\n')
+    spec.write_text(
+        '[sweep]\nname = "cli"\nbase = "paper"\n[run]\nmethod = "quasi-static"\nperiods = 2\n'
+        'steps_per_period = 60\n[[parameter]]\nkey = "damper.centrifugal_force_N"\n'
+        'values = [100.0, 200.0, 300.0]\n[[parameter]]\nkey = "motion.1.amplitude"\n'
+        "values = [5.0, 20.0, 40.0]\n"
+    )
     runner = CliRunner()
     result = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "s.zarr"), "--serial", "--json"])
     assert result.exit_code == 0, result.output
@@ -263,8 +289,9 @@ def test_cli_sweep_and_sweep_plot(tmp_path):
     assert result.exit_code == 0, result.output
     best = int(np.nanargmax(open_sweep(tmp_path / "t.zarr").energy_per_cycle_J.values))
     assert "computed now" in result.output and f"(case {best})" in result.output
-    result = runner.invoke(app, ["sweep-plot", str(tmp_path / "s.zarr"), "-q", "interface_zeta_eq[right]",
-                                 "-o", str(tmp_path / "fig")])
+    result = runner.invoke(
+        app, ["sweep-plot", str(tmp_path / "s.zarr"), "-q", "interface_zeta_eq[right]", "-o", str(tmp_path / "fig")]
+    )
     assert result.exit_code == 0, result.output
     for name in ("design_map.png", "design_curves.png"):
         assert (tmp_path / "fig" / name).stat().st_size > 10_000
@@ -274,8 +301,7 @@ def test_cli_sweep_and_sweep_plot(tmp_path):
         (["sweep-plot", str(tmp_path / "s.zarr"), "-q", "energy", *fig], "is not in the store"),
         (["sweep-plot", str(tmp_path / "s.zarr"), "--at", "mass=3", *fig], "not a parameter"),
         (["sweep-plot", str(tmp_path / "s.zarr"), "--at", "mass", *fig], "not NAME=VALUE"),
-        (["sweep-plot", str(tmp_path / "s.zarr"), "--at", "centrifugal_force_N=150", *fig],
-         "not a value of the sweep"),
+        (["sweep-plot", str(tmp_path / "s.zarr"), "--at", "centrifugal_force_N=150", *fig], "not a value of the sweep"),
         (["sweep-plot", str(tmp_path), *fig], "not a slipstep sweep store"),
         (["sweep", str(tmp_path / "none.toml"), "-o", str(tmp_path / "x.zarr"), "--serial"], "not found"),
         (["sweep", str(spec), "-o", str(tmp_path / "x.zarr"), "--serial", "--workers", "2"], "choose one executor"),
@@ -290,10 +316,15 @@ def test_design_maps_of_a_three_parameter_grid_and_a_sampled_sweep(tmp_path):
     from slipstep.sweep.plots import design_curves, design_map, optimum, quantity
 
     run = {"method": "quasi-static", "periods": 2, "steps_per_period": 60}
-    grid = SweepSpec(base="paper", run=run, parameters=(
-        Parameter("damper.centrifugal_force_N", values=(100.0, 300.0)),
-        Parameter("motion.1.amplitude", values=(5.0, 20.0, 40.0)),
-        Parameter("damper.contacts.*.friction_coefficient", values=(0.2, 0.4), name="mu")))
+    grid = SweepSpec(
+        base="paper",
+        run=run,
+        parameters=(
+            Parameter("damper.centrifugal_force_N", values=(100.0, 300.0)),
+            Parameter("motion.1.amplitude", values=(5.0, 20.0, 40.0)),
+            Parameter("damper.contacts.*.friction_coefficient", values=(0.2, 0.4), name="mu"),
+        ),
+    )
     run_sweep(grid, tmp_path / "g.zarr", executor=SerialExecutor())
     ds = open_sweep(tmp_path / "g.zarr")
     values, unit, label = quantity(ds, "interface_energy_per_cycle_J[right]")
@@ -308,14 +339,22 @@ def test_design_maps_of_a_three_parameter_grid_and_a_sampled_sweep(tmp_path):
     assert fig.axes[1].get_ylabel().endswith("[mJ]")  # the colour bar
     star = [line for line in ax.lines if line.get_marker() == "*"]
     assert len(star) == 1 and star[0].get_xdata()[0] == ds.amplitude.values[best]
-    fig = design_curves(ds, "interface_energy_per_cycle_J[right]", x="amplitude", group="mu",
-                        at={"centrifugal_force_N": 100.0})
+    fig = design_curves(
+        ds, "interface_energy_per_cycle_J[right]", x="amplitude", group="mu", at={"centrifugal_force_N": 100.0}
+    )
     assert "centrifugal_force_N = 100 N" in fig.axes[0].get_title()
     assert len([line for line in fig.axes[0].lines if line.get_marker() == "o"]) == 2  # one curve per mu
 
-    sampled = SweepSpec(base="paper", run=run, sampling="latin-hypercube", samples=12, parameters=(
-        Parameter("damper.centrifugal_force_N", low=100.0, high=300.0),
-        Parameter("motion.1.amplitude", low=2.0, high=60.0, scale="log")))
+    sampled = SweepSpec(
+        base="paper",
+        run=run,
+        sampling="latin-hypercube",
+        samples=12,
+        parameters=(
+            Parameter("damper.centrifugal_force_N", low=100.0, high=300.0),
+            Parameter("motion.1.amplitude", low=2.0, high=60.0, scale="log"),
+        ),
+    )
     run_sweep(sampled, tmp_path / "s.zarr", executor=SerialExecutor())
     ds = open_sweep(tmp_path / "s.zarr")
     fig = design_map(ds, "energy_per_cycle_J")
@@ -327,9 +366,14 @@ def test_design_maps_of_a_three_parameter_grid_and_a_sampled_sweep(tmp_path):
 def test_an_assembly_case_sweeps_too(tmp_path):
     """The third kind of case file (substructures + dampers): the built-in blades case over the
     engine-order force frequency and the damper's centrifugal load."""
-    spec = SweepSpec(base="blades", run={"method": "piecewise-linear", "periods": 2}, parameters=(
-        Parameter("dampers.damper.centrifugal_force_N", values=(100.0, 300.0)),
-        Parameter("engine_order_force.1.frequency_Hz", values=(280.0, 320.0))))
+    spec = SweepSpec(
+        base="blades",
+        run={"method": "piecewise-linear", "periods": 2},
+        parameters=(
+            Parameter("dampers.damper.centrifugal_force_N", values=(100.0, 300.0)),
+            Parameter("engine_order_force.1.frequency_Hz", values=(280.0, 320.0)),
+        ),
+    )
     report = run_sweep(spec, tmp_path / "b.zarr", executor=SerialExecutor())
     assert report["status_counts"] == {"OK": 4}
     ds = open_sweep(tmp_path / "b.zarr", grid=True)
@@ -337,8 +381,10 @@ def test_an_assembly_case_sweeps_too(tmp_path):
     assert (ds.energy_per_cycle_J.values > 0).all()
     assert (ds.direction_peak_T_over_muN.values <= 1 + 1e-9).all()
     # a lighter damper load slips for more of the period at the same forcing (300 N sticks longer)
-    assert (ds.direction_slip_share.sel(centrifugal_force_N=100.0).values
-            >= ds.direction_slip_share.sel(centrifugal_force_N=300.0).values).all()
+    assert (
+        ds.direction_slip_share.sel(centrifugal_force_N=100.0).values
+        >= ds.direction_slip_share.sel(centrifugal_force_N=300.0).values
+    ).all()
 
 
 def test_a_frequency_response_per_case(tmp_path):
@@ -352,10 +398,14 @@ def test_a_frequency_response_per_case(tmp_path):
     from slipstep.sweep.cases import build_case
 
     examples = Path(__file__).resolve().parents[1] / "examples"
-    spec = slipstep.sweep.spec_from_dict({
-        "sweep": {"base": str(examples / "shroud_pair.toml")}, "run": {"method": "piecewise-linear"},
-        "parameter": [{"key": "force.1.amplitude", "values": [0.5, 1.0]}],
-        "outputs": {"frf": {"frequencies_Hz": [55.0, 45.0, 50.0], "harmonics": 2, "responses": ["y1", "y2"]}}})
+    spec = slipstep.sweep.spec_from_dict(
+        {
+            "sweep": {"base": str(examples / "shroud_pair.toml")},
+            "run": {"method": "piecewise-linear"},
+            "parameter": [{"key": "force.1.amplitude", "values": [0.5, 1.0]}],
+            "outputs": {"frf": {"frequencies_Hz": [55.0, 45.0, 50.0], "harmonics": 2, "responses": ["y1", "y2"]}},
+        }
+    )
     assert run_sweep(spec, tmp_path / "f.zarr", executor=SerialExecutor())["status_counts"] == {"OK": 2}
     ds = open_sweep(tmp_path / "f.zarr")
     assert ds.frf_amplitude.dims == ("case", "frequency", "response") and ds.frf_amplitude.attrs["units"]

@@ -23,20 +23,26 @@ def _spec(*params, **kw):
 
 def test_key_paths_by_index_name_component_and_wildcard():
     assert resolve(PAPER, "damper.centrifugal_force_N") == [("damper", "centrifugal_force_N")]
-    assert resolve(PAPER, "motion.1.amplitude") == [("motion", 0, "amplitude")]          # 1-based
-    assert resolve(PAPER, "motion.right.x.amplitude") == [("motion", 0, "amplitude")]    # component with a dot
-    assert resolve(PAPER, "damper.contacts.P3.friction_coefficient") == [("damper", "contacts", 2,
-                                                                          "friction_coefficient")]
+    assert resolve(PAPER, "motion.1.amplitude") == [("motion", 0, "amplitude")]  # 1-based
+    assert resolve(PAPER, "motion.right.x.amplitude") == [("motion", 0, "amplitude")]  # component with a dot
+    assert resolve(PAPER, "damper.contacts.P3.friction_coefficient") == [
+        ("damper", "contacts", 2, "friction_coefficient")
+    ]
     assert resolve(PAPER, "damper.contacts.*.friction_coefficient") == [
-        ("damper", "contacts", j, "friction_coefficient") for j in range(3)]
+        ("damper", "contacts", j, "friction_coefficient") for j in range(3)
+    ]
     assert resolve(PAPER, "damper.contacts.P3.position_mm.2") == [("damper", "contacts", 2, "position_mm", 1)]
     # a key the base case leaves at its default is addressable (the case validation checks its name)
     assert resolve(PAPER, "damper.centrifugal_angle_deg") == [("damper", "centrifugal_angle_deg")]
 
 
 def test_apply_values_writes_every_location_and_leaves_the_base_alone():
-    plan = make_plan(_spec(Parameter("damper.contacts.*.friction_coefficient", values=(0.1, 0.2)),
-                           Parameter("motion.1.amplitude", values=(5.0,))))
+    plan = make_plan(
+        _spec(
+            Parameter("damper.contacts.*.friction_coefficient", values=(0.1, 0.2)),
+            Parameter("motion.1.amplitude", values=(5.0,)),
+        )
+    )
     case = plan.case_dict(1)
     assert [c["friction_coefficient"] for c in case["damper"]["contacts"]] == [0.2, 0.2, 0.2]
     assert case["motion"][0]["amplitude"] == 5.0
@@ -44,16 +50,19 @@ def test_apply_values_writes_every_location_and_leaves_the_base_alone():
     assert plan.base["damper"]["contacts"][0]["friction_coefficient"] == 0.4
 
 
-@pytest.mark.parametrize("key, problem", [
-    ("damper.centrifugal_forc_N.x", "damper has no key 'centrifugal_forc_N'"),
-    ("motion.2.amplitude", "index 2 is out of range: motion has 1 entry"),
-    ("motion.0.amplitude", "index 0 is out of range"),
-    ("damper.contacts.P9.friction_coefficient", "damper.contacts has no entry 'P9'"),
-    ("damper.contacts.P1.position_mm", "is a list, not a number"),
-    ("damper.contacts", "is a list, not a number"),
-    ("damper.mass_kg.x", "damper.mass_kg is a value, not a table"),
-    ("damper..mass_kg", "has an empty segment"),
-])
+@pytest.mark.parametrize(
+    "key, problem",
+    [
+        ("damper.centrifugal_forc_N.x", "damper has no key 'centrifugal_forc_N'"),
+        ("motion.2.amplitude", "index 2 is out of range: motion has 1 entry"),
+        ("motion.0.amplitude", "index 0 is out of range"),
+        ("damper.contacts.P9.friction_coefficient", "damper.contacts has no entry 'P9'"),
+        ("damper.contacts.P1.position_mm", "is a list, not a number"),
+        ("damper.contacts", "is a list, not a number"),
+        ("damper.mass_kg.x", "damper.mass_kg is a value, not a table"),
+        ("damper..mass_kg", "has an empty segment"),
+    ],
+)
 def test_bad_key_paths_name_the_key(key, problem):
     with pytest.raises(InputError) as exc:
         make_plan(_spec(Parameter(key, values=(1.0,))))
@@ -85,29 +94,44 @@ def test_units_from_key_names():
 
 
 def test_grid_order_first_parameter_slowest():
-    plan = make_plan(_spec(Parameter("damper.centrifugal_force_N", values=(100.0, 200.0)),
-                           Parameter("motion.1.amplitude", start=1.0, stop=100.0, num=3, scale="log")))
+    plan = make_plan(
+        _spec(
+            Parameter("damper.centrifugal_force_N", values=(100.0, 200.0)),
+            Parameter("motion.1.amplitude", start=1.0, stop=100.0, num=3, scale="log"),
+        )
+    )
     assert plan.grid_shape == (2, 3)
     np.testing.assert_allclose(plan.values, [[100, 1], [100, 10], [100, 100], [200, 1], [200, 10], [200, 100]])
     assert [p.name for p in plan.parameters] == ["centrifugal_force_N", "amplitude"]
-    names = make_plan(_spec(Parameter("damper.contacts.P3.position_mm.2", values=(1.0,)),
-                            Parameter("damper.contacts.P1.friction_coefficient", values=(0.3,)),
-                            Parameter("damper.contacts.P3.friction_coefficient", values=(0.3,)))).parameters
+    names = make_plan(
+        _spec(
+            Parameter("damper.contacts.P3.position_mm.2", values=(1.0,)),
+            Parameter("damper.contacts.P1.friction_coefficient", values=(0.3,)),
+            Parameter("damper.contacts.P3.friction_coefficient", values=(0.3,)),
+        )
+    ).parameters
     assert [p.name for p in names] == ["position_mm_2", "P1_friction_coefficient", "P3_friction_coefficient"]
     assert [p.unit for p in plan.parameters] == ["N", "um"]
 
 
 def test_zip_pairs_the_lists():
-    plan = make_plan(_spec(Parameter("damper.centrifugal_force_N", values=(100.0, 200.0, 300.0)),
-                           Parameter("motion.1.amplitude", start=10.0, stop=30.0, num=3), sampling="zip"))
+    plan = make_plan(
+        _spec(
+            Parameter("damper.centrifugal_force_N", values=(100.0, 200.0, 300.0)),
+            Parameter("motion.1.amplitude", start=10.0, stop=30.0, num=3),
+            sampling="zip",
+        )
+    )
     assert plan.grid_shape is None
     np.testing.assert_allclose(plan.values, [[100, 10], [200, 20], [300, 30]])
 
 
 @pytest.mark.parametrize("sampling", ["latin-hypercube", "sobol"])
 def test_sampled_sweeps_fill_the_box_reproducibly(sampling):
-    params = (Parameter("damper.centrifugal_force_N", low=50.0, high=400.0),
-              Parameter("damper.contacts.*.friction_coefficient", low=0.05, high=0.8, scale="log"))
+    params = (
+        Parameter("damper.centrifugal_force_N", low=50.0, high=400.0),
+        Parameter("damper.contacts.*.friction_coefficient", low=0.05, high=0.8, scale="log"),
+    )
     a = make_plan(_spec(*params, sampling=sampling, samples=64, seed=3))
     b = make_plan(_spec(*params, sampling=sampling, samples=64, seed=3))
     c = make_plan(_spec(*params, sampling=sampling, samples=64, seed=4))
@@ -140,8 +164,8 @@ def test_case_hashes_identify_the_resolved_case():
     a = make_plan(_spec(p, run={"method": "quasi-static"}))
     b = make_plan(_spec(p, run={"method": "quasi-static"}, name="renamed"))
     c = make_plan(_spec(p, run={"method": "quasi-static", "steps_per_period": 200}))
-    assert a.hashes == b.hashes and len(set(a.hashes)) == 2   # the sweep's name is not an input of a case
-    assert not set(a.hashes) & set(c.hashes)                 # a run option is
+    assert a.hashes == b.hashes and len(set(a.hashes)) == 2  # the sweep's name is not an input of a case
+    assert not set(a.hashes) & set(c.hashes)  # a run option is
     # the same case reached by another key path has the same hash
     d = make_plan(_spec(Parameter("damper.centrifugal_force_N", values=(200.0, 100.0)), run={"method": "quasi-static"}))
     assert d.hashes == a.hashes[::-1]
@@ -157,8 +181,9 @@ def test_the_example_spec_reads(tmp_path):
     # a relative base path is relative to the spec file
     (tmp_path / "cases").mkdir()
     (tmp_path / "cases" / "mine.toml").write_text((CASES_DIR / "paper.toml").read_text())
-    (tmp_path / "s.toml").write_text('[sweep]\nbase = "cases/mine.toml"\n[[parameter]]\n'
-                                     'key = "damper.mass_kg"\nvalues = [0.01, 0.02]\n')
+    (tmp_path / "s.toml").write_text(
+        '[sweep]\nbase = "cases/mine.toml"\n[[parameter]]\nkey = "damper.mass_kg"\nvalues = [0.01, 0.02]\n'
+    )
     assert make_plan(load_spec(tmp_path / "s.toml")).base["damper"]["mass_kg"] == 0.012
 
 
@@ -177,24 +202,61 @@ BAD_SPECS = [
     ({"parameter": [{"key": "damper.mass_kg", "values": [1.0, 1.0]}]}, "[[parameter]] 1: values", "repeats"),
     ({"parameter": [{"key": "damper.mass_kg", "values": []}]}, "[[parameter]] 1: values", "empty"),
     ({"parameter": [{"key": "damper.mass_kg", "start": 1.0, "stop": 2.0}]}, "[[parameter]] 1", "['start', 'stop']"),
-    ({"parameter": [{"key": "damper.mass_kg", "start": 0.0, "stop": 2.0, "num": 3, "scale": "log"}]},
-     "[[parameter]] 1: start", "log range"),
-    ({"parameter": [{"key": "damper.mass_kg", "start": 1.0, "stop": 2.0, "num": 3, "scale": "exp"}]},
-     "[[parameter]] 1: scale", "'exp'"),
+    (
+        {"parameter": [{"key": "damper.mass_kg", "start": 0.0, "stop": 2.0, "num": 3, "scale": "log"}]},
+        "[[parameter]] 1: start",
+        "log range",
+    ),
+    (
+        {"parameter": [{"key": "damper.mass_kg", "start": 1.0, "stop": 2.0, "num": 3, "scale": "exp"}]},
+        "[[parameter]] 1: scale",
+        "'exp'",
+    ),
     ({"parameter": [{"key": "damper.mass_kg", "low": 1.0, "high": 2.0}]}, "[[parameter]] 1: low", "latin-hypercube"),
-    ({"sweep": {"base": "paper", "sampling": "latin-hypercube", "samples": 8},
-      "parameter": [{"key": "damper.mass_kg", "low": 2.0, "high": 1.0}]}, "[[parameter]] 1: high", "not above low"),
-    ({"sweep": {"base": "paper", "sampling": "zip"},
-      "parameter": [{"key": "damper.mass_kg", "values": [1.0, 2.0]},
-                    {"key": "damper.inertia_kg_m2", "values": [1.0]}]}, "[[parameter]]", "lengths [1, 2]"),
-    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0]}, {"key": "damper.mass_kg", "values": [2.0]}]},
-     "[[parameter]] name", "both named 'mass_kg'"),
-    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "m"},
-                    {"key": "damper.mass_kg", "values": [2.0], "name": "n"}]}, "[[parameter]] 2: key", "parameter 1"),
-    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "status"}]}, "[[parameter]] 1: name",
-     "a variable of the sweep store"),
-    ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "energy_per_cycle_J"}]}, "[[parameter]] 1: name",
-     "a variable of the sweep store"),
+    (
+        {
+            "sweep": {"base": "paper", "sampling": "latin-hypercube", "samples": 8},
+            "parameter": [{"key": "damper.mass_kg", "low": 2.0, "high": 1.0}],
+        },
+        "[[parameter]] 1: high",
+        "not above low",
+    ),
+    (
+        {
+            "sweep": {"base": "paper", "sampling": "zip"},
+            "parameter": [
+                {"key": "damper.mass_kg", "values": [1.0, 2.0]},
+                {"key": "damper.inertia_kg_m2", "values": [1.0]},
+            ],
+        },
+        "[[parameter]]",
+        "lengths [1, 2]",
+    ),
+    (
+        {"parameter": [{"key": "damper.mass_kg", "values": [1.0]}, {"key": "damper.mass_kg", "values": [2.0]}]},
+        "[[parameter]] name",
+        "both named 'mass_kg'",
+    ),
+    (
+        {
+            "parameter": [
+                {"key": "damper.mass_kg", "values": [1.0], "name": "m"},
+                {"key": "damper.mass_kg", "values": [2.0], "name": "n"},
+            ]
+        },
+        "[[parameter]] 2: key",
+        "parameter 1",
+    ),
+    (
+        {"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "status"}]},
+        "[[parameter]] 1: name",
+        "a variable of the sweep store",
+    ),
+    (
+        {"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "energy_per_cycle_J"}]},
+        "[[parameter]] 1: name",
+        "a variable of the sweep store",
+    ),
     ({"parameter": [{"key": "damper.mass_kg", "values": [1.0], "name": "m/s"}]}, "[[parameter]] 1: name", "'m/s'"),
     ({"run": {"tolerence": 1e-6}}, "[run] tolerence", "not a known run option"),
     ({"outputs": {"histories": ["tangential_forces"]}}, "[outputs] histories[0]", "not a time history"),
@@ -229,8 +291,12 @@ def test_bad_spec_files(tmp_path):
 
 def test_one_parameter_sets_several_keys():
     keys = ["damper.contacts.P1.normal_stiffness_N_per_um", "damper.contacts.P1.tangential_stiffness_N_per_um"]
-    spec = spec_from_dict({"sweep": {"base": "paper"},
-                           "parameter": [{"key": keys, "values": [10.0, 20.0], "name": "k_P1", "unit": "N/um"}]})
+    spec = spec_from_dict(
+        {
+            "sweep": {"base": "paper"},
+            "parameter": [{"key": keys, "values": [10.0, 20.0], "name": "k_P1", "unit": "N/um"}],
+        }
+    )
     plan = make_plan(spec)
     contact = plan.case_dict(1)["damper"]["contacts"][0]
     assert contact["normal_stiffness_N_per_um"] == contact["tangential_stiffness_N_per_um"] == 20.0

@@ -17,14 +17,18 @@ def _residual(ds, system, k=0):
     f[cs.normal_row] = ds.normal_force.values[k]
     x = ds.displacement.values[k]
     from slipstep.post.energy import external_force
-    fe = external_force(system, ds.time.values[k: k + 1])[0]
+
+    fe = external_force(system, ds.time.values[k : k + 1])[0]
     return np.abs(cs.K @ x + cs.A.T @ f - fe).max()
 
 
 @pytest.mark.parametrize("phase", [90.0, 200.0])
 def test_quasi_static_first_point_is_equilibrium_at_p0(tmp_path, phase):
-    text = (CASES_DIR / "paper.toml").read_text().replace("frequency_Hz = 200.0",
-                                                          f"frequency_Hz = 200.0\nphase_deg = {phase}")
+    text = (
+        (CASES_DIR / "paper.toml")
+        .read_text()
+        .replace("frequency_Hz = 200.0", f"frequency_Hz = 200.0\nphase_deg = {phase}")
+    )
     path = tmp_path / "shifted.toml"
     path.write_text(text)
     system = ss.load_system(str(path))

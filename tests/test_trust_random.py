@@ -18,8 +18,13 @@ def test_random_systems_agree_with_tight_reference():
             continue
         checked += 1
         sensitive += rows["sensitive"]
-        kinds.add((system.n_dofs > 1, any(c.n_tangential == 2 for c in system.contacts),
-                   bool(np.any(system.structure.stiffness))))
+        kinds.add(
+            (
+                system.n_dofs > 1,
+                any(c.n_tangential == 2 for c in system.contacts),
+                bool(np.any(system.structure.stiffness)),
+            )
+        )
         bad += [(i, m, rows[m]["error"]) for m in failures(rows, 1e-6)]
         for m in CHECK_METHODS:  # the methods do report OK here (a test of agreement, not of refusals)
             assert rows[m]["status"] in ("OK", "NOT_CONVERGED", "STATE_CYCLING", "SINGULAR"), (i, m, rows[m])

@@ -29,7 +29,7 @@ def test_amplification_at_the_limit():
         sch = newmark(beta, 0.5)
         for Om, stable in ((sch.omega_crit * 0.999, True), (sch.omega_crit * 1.01, False)):
             # x'' + w^2 x = 0 with dt = 1, w = Om: one Newmark step on (x, v, a)
-            w2 = Om ** 2
+            w2 = Om**2
             D = 1 + beta * w2
             # a1 = -w2 (x + v + (1/2 - beta) a) / D; build the map column by column
             Mmap = np.zeros((3, 3))
@@ -75,8 +75,11 @@ def test_energy_criterion():
     from slipstep.kernels.march import Outputs
     from slipstep.model.contact import ContactElement
     from slipstep.model.structure import Structure
-    system = System(Structure(np.eye(1), stiffness=np.eye(1) * 1e4),
-                    (ContactElement("C", np.array([[1.0], [0.0]]), 1e4, 1e4, 0.3, normal_offset=1e-3),))
+
+    system = System(
+        Structure(np.eye(1), stiffness=np.eye(1) * 1e4),
+        (ContactElement("C", np.array([[1.0], [0.0]]), 1e4, 1e4, 0.3, normal_offset=1e-3),),
+    )
     cs = system.compile()
     t = np.linspace(0, 0.1, 2001)
     w = 100.0
@@ -88,8 +91,19 @@ def test_energy_criterion():
         f = np.zeros((k, 2))
         f[:, 1] = 10.0
         f[:, 0] = 0.0
-        return Outputs(t, np.gradient(t), x[:, None], v[:, None], np.zeros((k, 1)), np.zeros((k, 2)), f,
-                       np.zeros((k, 1)), np.ones((k, 1), np.int8), np.zeros(k, np.int64), np.zeros(9, np.int64))
+        return Outputs(
+            t,
+            np.gradient(t),
+            x[:, None],
+            v[:, None],
+            np.zeros((k, 1)),
+            np.zeros((k, 2)),
+            f,
+            np.zeros((k, 1)),
+            np.ones((k, 1), np.int8),
+            np.zeros(k, np.int64),
+            np.zeros(9, np.int64),
+        )
 
     zero = np.zeros((t.size, 1))
     assert energy_diverged(outputs(0.0), t.size - 1, cs, zero, np.zeros((t.size, 0))) == 0

@@ -96,7 +96,9 @@ def test_method3_is_method1s_discrete_solution(runs):
     T, N = np.abs(a.tangential_force.values), a.normal_force.values
     mu = a.friction_coefficient.values
     contact_of = [list(a.contact.values).index(c) for c in a.direction_contact.values]
-    on_boundary = (np.abs(T - mu[contact_of] * N[:, contact_of]) <= 1e-6 * N.max()) | (N[:, contact_of] <= 1e-6 * N.max())
+    on_boundary = (np.abs(T - mu[contact_of] * N[:, contact_of]) <= 1e-6 * N.max()) | (
+        N[:, contact_of] <= 1e-6 * N.max()
+    )
     differ = a.contact_state.values != b.contact_state.values
     assert np.mean(differ & ~on_boundary) < 0.01
 

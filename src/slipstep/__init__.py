@@ -98,8 +98,12 @@ class _Package(types.ModuleType):
 
     def __setattr__(self, name, value):
         target = _EXPORTS.get(name)
-        if (target is not None and target[1] is not None and isinstance(value, types.ModuleType)
-                and value.__name__ == target[0]):
+        if (
+            target is not None
+            and target[1] is not None
+            and isinstance(value, types.ModuleType)
+            and value.__name__ == target[0]
+        ):
             value = getattr(value, target[1], value)
         super().__setattr__(name, value)
 

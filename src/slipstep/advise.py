@@ -59,18 +59,25 @@ def rpm_to_rad_s(rpm: float) -> float:
     return 2 * math.pi * rpm / 60.0
 
 
-def inertia_ratio(frequency_Hz: float, displacement_amplitude_m: float, rotor_speed_rpm: float, radius_m: float) -> float:
+def inertia_ratio(
+    frequency_Hz: float, displacement_amplitude_m: float, rotor_speed_rpm: float, radius_m: float
+) -> float:
     """rho = omega^2 x_d / (Omega^2 R) (paper Eq. 9), dimensionless."""
     w = 2 * math.pi * frequency_Hz
     W = rpm_to_rad_s(rotor_speed_rpm)
     return w * w * displacement_amplitude_m / (W * W * radius_m)
 
 
-def inertia_limit_frequency(displacement_amplitude_m: float, rotor_speed_rpm: float, radius_m: float,
-                            rho_limit: float = 0.05) -> float:
+def inertia_limit_frequency(
+    displacement_amplitude_m: float, rotor_speed_rpm: float, radius_m: float, rho_limit: float = 0.05
+) -> float:
     """f [Hz] at which rho reaches rho_limit: sqrt(rho_limit Omega^2 R / x_d) / (2 pi)."""
-    for name, v in (("displacement_amplitude_m", displacement_amplitude_m), ("rotor_speed_rpm", rotor_speed_rpm),
-                    ("radius_m", radius_m), ("rho_limit", rho_limit)):
+    for name, v in (
+        ("displacement_amplitude_m", displacement_amplitude_m),
+        ("rotor_speed_rpm", rotor_speed_rpm),
+        ("radius_m", radius_m),
+        ("rho_limit", rho_limit),
+    ):
         if not (v > 0 and math.isfinite(v)):
             raise InputError(name, f"is {v}", "give a positive finite value")
     W = rpm_to_rad_s(rotor_speed_rpm)
@@ -140,8 +147,11 @@ def _visited(system, periods: float, notes: list[str]) -> tuple[set, dict]:
             continue
         S = ds["contact_state"].values
         visited |= {tuple(int(v) for v in row) for row in np.unique(S, axis=0)}
-        facts[key] = {"status": ds.attrs.get("status"), "steps": int(ds.attrs.get("steps", 0)),
-                      "states_visited": int(np.unique(S, axis=0).shape[0])}
+        facts[key] = {
+            "status": ds.attrs.get("status"),
+            "steps": int(ds.attrs.get("steps", 0)),
+            "states_visited": int(np.unique(S, axis=0).shape[0]),
+        }
         if ds.attrs.get("status") != "OK":
             notes.append(f"the short {method} run stopped early: {ds.attrs.get('status_message')}")
     return visited, facts
@@ -194,63 +204,94 @@ class Advice:
         """The report in plain words, with units."""
         L = [f"Method advice for case '{self.case}'"]
         if self.excitation_Hz:
-            L.append(f"Excitation: {', '.join(f'{f:g} Hz' for f in self.excitation_Hz)}"
-                     + (f" (period {self.period_s * 1e3:.4g} ms)" if self.period_s else ""))
+            L.append(
+                f"Excitation: {', '.join(f'{f:g} Hz' for f in self.excitation_Hz)}"
+                + (f" (period {self.period_s * 1e3:.4g} ms)" if self.period_s else "")
+            )
         if self.inertia_limit_Hz is not None:
             rho = "n/a" if self.inertia_ratio is None else f"{self.inertia_ratio:.3g}"
-            L.append(f"Inertia vs centrifugal load (paper Eq. 9): rho = omega^2 x_d / (Omega^2 R) = "
-                     f"{rho} at the excitation; rho reaches {self.rho_limit:.0%} only at "
-                     f"{self.inertia_limit_Hz / 1e3:.4g} kHz (Omega = {self.rotor_speed_rpm:g} rpm, "
-                     f"R = {self.radius_m:g} m, x_d = {self.displacement_amplitude_m * 1e6:g} um).")
+            L.append(
+                f"Inertia vs centrifugal load (paper Eq. 9): rho = omega^2 x_d / (Omega^2 R) = "
+                f"{rho} at the excitation; rho reaches {self.rho_limit:.0%} only at "
+                f"{self.inertia_limit_Hz / 1e3:.4g} kHz (Omega = {self.rotor_speed_rpm:g} rpm, "
+                f"R = {self.radius_m:g} m, x_d = {self.displacement_amplitude_m * 1e6:g} um)."
+            )
         else:
             L.append("Inertia vs centrifugal load (Eq. 9): not evaluated (give rotor speed, radius and displacement).")
         capped = self.fixed_dt_s < self.stick_t_min_s / math.pi * (1 - 1e-9)
-        L.append(f"Full stick: T_min = {self.stick_t_min_s * 1e6:.4g} us, T_min/pi = "
-                 f"{self.stick_t_min_s / math.pi * 1e6:.4g} us; fixed Newmark step "
-                 f"{self.fixed_dt_s * 1e6:.4g} us" + (" (accuracy cap: 50 steps per period)" if capped else "")
-                 + (f", {self.fixed_steps_per_period} steps per period" if self.fixed_steps_per_period else ""))
+        L.append(
+            f"Full stick: T_min = {self.stick_t_min_s * 1e6:.4g} us, T_min/pi = "
+            f"{self.stick_t_min_s / math.pi * 1e6:.4g} us; fixed Newmark step "
+            f"{self.fixed_dt_s * 1e6:.4g} us"
+            + (" (accuracy cap: 50 steps per period)" if capped else "")
+            + (f", {self.fixed_steps_per_period} steps per period" if self.fixed_steps_per_period else "")
+        )
         if self.adaptive_steps_per_period_estimate:
-            L.append(f"Adaptive step (Method 2) over the visited states: about "
-                     f"{self.adaptive_steps_per_period_estimate:.0f} steps per period")
-        L.append(f"Contact states analysed: {len(self.states)} "
-                 f"({'all combinations' if self.states_enumerated else 'visited states only'}); per visited state:")
+            L.append(
+                f"Adaptive step (Method 2) over the visited states: about "
+                f"{self.adaptive_steps_per_period_estimate:.0f} steps per period"
+            )
+        L.append(
+            f"Contact states analysed: {len(self.states)} "
+            f"({'all combinations' if self.states_enumerated else 'visited states only'}); per visited state:"
+        )
         for s in self.states:
             if s.visited:
                 f = ", ".join(f"{v / 1e3:.3g}" for v in s.frequencies_Hz)
                 tag = " SINGULAR (no quasi-static equilibrium)" if s.singular else ""
                 tag += " COMPLEX EIGENVALUES (flutter)" if s.complex_eigenvalues else ""
-                L.append(f"  {self._label(s.state)}: f = [{f}] kHz, T_min = {s.t_min_s * 1e6:.4g} us, "
-                         f"dt = {s.t_min_s / math.pi * 1e6:.4g} us{tag}")
+                L.append(
+                    f"  {self._label(s.state)}: f = [{f}] kHz, T_min = {s.t_min_s * 1e6:.4g} us, "
+                    f"dt = {s.t_min_s / math.pi * 1e6:.4g} us{tag}"
+                )
         if self.flutter_visited:
-            L.append("FLUTTER: the case visits state(s) whose M^-1 (K + K_D) has complex eigenvalues "
-                     "(friction-induced flutter; an undamped dynamic run grows an oscillation while they last): "
-                     + "; ".join(self._label(s) for s in self.flutter_visited))
+            L.append(
+                "FLUTTER: the case visits state(s) whose M^-1 (K + K_D) has complex eigenvalues "
+                "(friction-induced flutter; an undamped dynamic run grows an oscillation while they last): "
+                + "; ".join(self._label(s) for s in self.flutter_visited)
+            )
         else:
             L.append("Flutter: free of flutter in every state it visits (no complex eigenvalues).")
         if self.flutter_not_visited:
-            L.append(f"  ({len(self.flutter_not_visited)} other state combination(s) have complex eigenvalues but "
-                     "are not visited by this loading: " + "; ".join(self._label(s) for s in self.flutter_not_visited)
-                     + ")")
+            L.append(
+                f"  ({len(self.flutter_not_visited)} other state combination(s) have complex eigenvalues but "
+                "are not visited by this loading: " + "; ".join(self._label(s) for s in self.flutter_not_visited) + ")"
+            )
         if self.singular_states:
-            L.append(f"States without a quasi-static equilibrium (K + K_D singular): {len(self.singular_states)}"
-                     + (", of which visited: " + "; ".join(self._label(s) for s in self.singular_visited)
-                        if self.singular_visited else ", none visited"))
+            L.append(
+                f"States without a quasi-static equilibrium (K + K_D singular): {len(self.singular_states)}"
+                + (
+                    ", of which visited: " + "; ".join(self._label(s) for s in self.singular_visited)
+                    if self.singular_visited
+                    else ", none visited"
+                )
+            )
         if self.massless is not None:
             q = self.massless
-            L.append(f"Quasi-static DOFs (held by contacts only): {', '.join(q['dofs'])}; their internal frequencies "
-                     f"with the rest fixed: {', '.join(f'{v / 1e3:.3g}' for v in q['internal_Hz'])} kHz; T_min of "
-                     f"the dynamic part {q['t_min_s'] * 1e6:.4g} us against {self.stick_t_min_s * 1e6:.4g} us "
-                     f"(step x{q['step_gain']:.3g}); method quasi-static-dofs "
-                     + ("applies" if q["applies"] else "does not apply") + f": {q['why']}")
+            L.append(
+                f"Quasi-static DOFs (held by contacts only): {', '.join(q['dofs'])}; their internal frequencies "
+                f"with the rest fixed: {', '.join(f'{v / 1e3:.3g}' for v in q['internal_Hz'])} kHz; T_min of "
+                f"the dynamic part {q['t_min_s'] * 1e6:.4g} us against {self.stick_t_min_s * 1e6:.4g} us "
+                f"(step x{q['step_gain']:.3g}); method quasi-static-dofs "
+                + ("applies" if q["applies"] else "does not apply")
+                + f": {q['why']}"
+            )
         L.append(f"Recommendation: {self.recommendation}")
         L += [f"  - {r}" for r in self.reasons]
         L += [f"Note: {n}" for n in self.notes]
         return "\n".join(L)
 
 
-def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None = None,
-           displacement_amplitude_m: float | None = None, rho_limit: float = 0.05, max_states: int = 4096,
-           periods: float = 2.0, run_cases: bool = True) -> Advice:
+def advise(
+    system,
+    rotor_speed_rpm: float | None = None,
+    radius_m: float | None = None,
+    displacement_amplitude_m: float | None = None,
+    rho_limit: float = 0.05,
+    max_states: int = 4096,
+    periods: float = 2.0,
+    run_cases: bool = True,
+) -> Advice:
     """Analyse ``system`` and recommend a method (module docstring). ``run_cases``: make the
     short quasi-static and Method-3 runs that find the visited states (else: full stick
     and, when enumerated, every state are treated as candidates but none as visited)."""
@@ -275,8 +316,11 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
     rho = f5 = None
     given = [v is not None for v in (rotor_speed_rpm, radius_m, displacement_amplitude_m)]
     if any(given) and not all(given):
-        raise InputError("rotor_speed_rpm/radius_m/displacement_amplitude_m", "only some of the three are given",
-                         "give all three for the inertia check of paper Eq. 9, or none")
+        raise InputError(
+            "rotor_speed_rpm/radius_m/displacement_amplitude_m",
+            "only some of the three are given",
+            "give all three for the inertia check of paper Eq. 9, or none",
+        )
     if all(given):
         f5 = inertia_limit_frequency(displacement_amplitude_m, rotor_speed_rpm, radius_m, rho_limit)
         if fe:
@@ -319,43 +363,85 @@ def advise(system, rotor_speed_rpm: float | None = None, radius_m: float | None 
     if partial is not None and partial["applies"]:
         rec = "quasi-static-dofs (Method 3+4: the contact-held DOFs without inertia, the rest dynamic)"
         reasons.append(partial["why"])
-        reasons.append(f"the step is then set by the dynamic part: T_min {partial['t_min_s'] * 1e6:.4g} us instead of "
-                       f"{stick.t_min_s * 1e6:.4g} us, and there is no ringing to filter")
+        reasons.append(
+            f"the step is then set by the dynamic part: T_min {partial['t_min_s'] * 1e6:.4g} us instead of "
+            f"{stick.t_min_s * 1e6:.4g} us, and there is no ringing to filter"
+        )
     elif f5 is not None and fe and max(fe) < f5 / 2 and not singular_v and partial is None:
         rec = "quasi-static (Method 4)"
-        reasons.append(f"the excitation ({max(fe):g} Hz) is far below {f5 / 1e3:.3g} kHz, where inertia reaches "
-                       f"{rho_limit:.0%} of the centrifugal load (rho = {rho:.2g})")
+        reasons.append(
+            f"the excitation ({max(fe):g} Hz) is far below {f5 / 1e3:.3g} kHz, where inertia reaches "
+            f"{rho_limit:.0%} of the centrifugal load (rho = {rho:.2g})"
+        )
         reasons.append("no visited state lacks a quasi-static equilibrium")
         reasons.append("it needs about 300 steps per period whatever the contact stiffness, with no ringing to filter")
     else:
         rec = "dynamic: piecewise-linear Newmark (Method 3)"
         if f5 is None:
-            reasons.append("the inertia check (Eq. 9) was not possible: give rotor speed, radius and displacement "
-                           "amplitude to see whether the quasi-static method applies")
+            reasons.append(
+                "the inertia check (Eq. 9) was not possible: give rotor speed, radius and displacement "
+                "amplitude to see whether the quasi-static method applies"
+            )
         elif fe and max(fe) >= f5 / 2:
-            reasons.append(f"the excitation ({max(fe):g} Hz) is close to or above {f5 / 1e3:.3g} kHz, where inertia "
-                           f"reaches {rho_limit:.0%} of the centrifugal load: inertia matters")
+            reasons.append(
+                f"the excitation ({max(fe):g} Hz) is close to or above {f5 / 1e3:.3g} kHz, where inertia "
+                f"reaches {rho_limit:.0%} of the centrifugal load: inertia matters"
+            )
         if singular_v:
-            reasons.append("some visited states have no quasi-static equilibrium (mechanism or lift-off): the "
-                           "quasi-static method would stop there")
-        reasons.append("Method 3 needs about one solve per step (paper case: 1.2) and reproduces Method 1's "
-                       "solution; the adaptive step (2+3) saves steps in slip and lift-off, but each saved step "
-                       "is paid back in re-factorisations and redone steps (paper case: 222 against 221 solves "
-                       "per period), so use it when slip or lift-off dominates the period")
+            reasons.append(
+                "some visited states have no quasi-static equilibrium (mechanism or lift-off): the "
+                "quasi-static method would stop there"
+            )
+        reasons.append(
+            "Method 3 needs about one solve per step (paper case: 1.2) and reproduces Method 1's "
+            "solution; the adaptive step (2+3) saves steps in slip and lift-off, but each saved step "
+            "is paid back in re-factorisations and redone steps (paper case: 222 against 221 solves "
+            "per period), so use it when slip or lift-off dominates the period"
+        )
     if flutter_v:
-        reasons.append("flutter-prone states are visited: expect growing oscillations in undamped dynamic runs; "
-                       "add damping or check the friction coefficients")
+        reasons.append(
+            "flutter-prone states are visited: expect growing oscillations in undamped dynamic runs; "
+            "add damping or check the friction coefficients"
+        )
     if fe and stick.frequencies_Hz:
-        low = min((i.frequencies_Hz[0] for i in infos if i.visited and i.frequencies_Hz and not i.singular),
-                  default=stick.frequencies_Hz[0])
+        low = min(
+            (i.frequencies_Hz[0] for i in infos if i.visited and i.frequencies_Hz and not i.singular),
+            default=stick.frequencies_Hz[0],
+        )
         if partial is not None:  # an assembly: the structure's low modes are physics, the ringing is the damper's
             low = min(partial["internal_Hz"], default=low)
         if low < 5 * max(fe):
-            reasons.append(f"the lowest internal frequency of the visited states ({low / 1e3:.3g} kHz) is within a "
-                           "factor 5 of the excitation: the ringing cannot be filtered safely (paper Remark 3)")
-    return Advice(system.name, names, fe, period, rotor_speed_rpm, radius_m, displacement_amplitude_m, rho, f5,
-                  stick.t_min_s, fixed_dt, fixed_n, adaptive_n, enumerated, infos, flutter_v, flutter_nv, singular,
-                  singular_v, rec, reasons, notes, runs, rho_limit, partial)
+            reasons.append(
+                f"the lowest internal frequency of the visited states ({low / 1e3:.3g} kHz) is within a "
+                "factor 5 of the excitation: the ringing cannot be filtered safely (paper Remark 3)"
+            )
+    return Advice(
+        system.name,
+        names,
+        fe,
+        period,
+        rotor_speed_rpm,
+        radius_m,
+        displacement_amplitude_m,
+        rho,
+        f5,
+        stick.t_min_s,
+        fixed_dt,
+        fixed_n,
+        adaptive_n,
+        enumerated,
+        infos,
+        flutter_v,
+        flutter_nv,
+        singular,
+        singular_v,
+        rec,
+        reasons,
+        notes,
+        runs,
+        rho_limit,
+        partial,
+    )
 
 
 def _massless_analysis(system, cs, t_min_stick: float, fe: list[float], rho, rho_limit: float) -> dict | None:
@@ -372,26 +458,50 @@ def _massless_analysis(system, cs, t_min_stick: float, fe: list[float], rho, rho
     try:
         t_min = ML.condensed_t_min(ML.inertia_free(cs, idx), stick, idx)[0]
     except InputError:
-        return {"dofs": dofs, "internal_Hz": internal, "t_min_s": math.nan, "step_gain": math.nan, "applies": False,
-                "why": "the contacts do not hold those DOFs in full stick (no quasi-static equilibrium)"}
+        return {
+            "dofs": dofs,
+            "internal_Hz": internal,
+            "t_min_s": math.nan,
+            "step_gain": math.nan,
+            "applies": False,
+            "why": "the contacts do not hold those DOFs in full stick (no quasi-static equilibrium)",
+        }
     fmax = max(fe) if fe else None
     low = min(internal) if internal else math.inf
     if fmax is None:
         applies, why = False, "the case has no harmonic excitation to compare the internal frequencies with"
     elif low < 5 * fmax or low - fmax < 1000.0:
-        applies, why = False, (f"their lowest internal frequency ({low / 1e3:.3g} kHz) is within a factor 5 or 1 kHz "
-                               f"of the excitation ({fmax:g} Hz): their dynamics couple with the structure's "
-                               "(paper Remark 3), keep their inertia")
+        applies, why = (
+            False,
+            (
+                f"their lowest internal frequency ({low / 1e3:.3g} kHz) is within a factor 5 or 1 kHz "
+                f"of the excitation ({fmax:g} Hz): their dynamics couple with the structure's "
+                "(paper Remark 3), keep their inertia"
+            ),
+        )
     elif rho is not None and rho >= rho_limit:
-        applies, why = False, (f"their inertia reaches {rho:.2g} of the centrifugal load at the excitation "
-                               f"(paper Eq. 9, limit {rho_limit:.0%})")
+        applies, why = (
+            False,
+            (
+                f"their inertia reaches {rho:.2g} of the centrifugal load at the excitation "
+                f"(paper Eq. 9, limit {rho_limit:.0%})"
+            ),
+        )
     else:
         applies = True
-        why = (f"their lowest internal frequency ({low / 1e3:.3g} kHz) is far above the excitation ({fmax:g} Hz): "
-               "they act mainly as a spring coupling (paper Remark 3); their inertia adds the ringing and forces "
-               "small against the contact forces (a few % of the friction forces can still shift a resonant "
-               "amplitude by a few %: compare with a dynamic run at the peak)"
-               + ("" if rho is None else f"; inertia ratio {rho:.2g} < {rho_limit:.0%} (paper Eq. 9)")
-               + "; treat them without inertia")
-    return {"dofs": dofs, "internal_Hz": internal, "t_min_s": float(t_min), "step_gain": float(t_min / t_min_stick),
-            "applies": applies, "why": why}
+        why = (
+            f"their lowest internal frequency ({low / 1e3:.3g} kHz) is far above the excitation ({fmax:g} Hz): "
+            "they act mainly as a spring coupling (paper Remark 3); their inertia adds the ringing and forces "
+            "small against the contact forces (a few % of the friction forces can still shift a resonant "
+            "amplitude by a few %: compare with a dynamic run at the peak)"
+            + ("" if rho is None else f"; inertia ratio {rho:.2g} < {rho_limit:.0%} (paper Eq. 9)")
+            + "; treat them without inertia"
+        )
+    return {
+        "dofs": dofs,
+        "internal_Hz": internal,
+        "t_min_s": float(t_min),
+        "step_gain": float(t_min / t_min_stick),
+        "applies": applies,
+        "why": why,
+    }

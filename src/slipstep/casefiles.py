@@ -42,13 +42,17 @@ def read_toml(path: Path) -> dict:
         with open(path, "rb") as fh:
             return tomllib.load(fh)
     except FileNotFoundError:
-        raise InputError("case", f"file {str(path)!r} not found",
-                         f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})") from None
+        raise InputError(
+            "case",
+            f"file {str(path)!r} not found",
+            f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})",
+        ) from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError("case", f"{path} is not valid TOML ({exc})", "fix the TOML syntax") from None
     except UnicodeDecodeError:
         raise InputError("case", f"{path} is not UTF-8 text", "give a TOML text file (UTF-8)") from None
     except (OSError, ValueError) as exc:  # a directory, no permission, a NUL in the path, ...
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise InputError("case", f"{str(path)!r} cannot be read ({reason})",
-                         "give a readable TOML file or a built-in case name") from None
+        raise InputError(
+            "case", f"{str(path)!r} cannot be read ({reason})", "give a readable TOML file or a built-in case name"
+        ) from None

@@ -121,8 +121,11 @@ def report_failure(exc: BaseException) -> int:
         fail_line("interrupted", "aborted by the user (Ctrl-C); files being written were not replaced")
         return EXIT_ABORTED
     if isinstance(exc, MemoryError):
-        fail_line("out of memory", "the process ran out of memory. Fix: simulate fewer periods or use --max-memory "
-                                   "to be refused before the run")
+        fail_line(
+            "out of memory",
+            "the process ran out of memory. Fix: simulate fewer periods or use --max-memory "
+            "to be refused before the run",
+        )
         return EXIT_IO
     if isinstance(exc, OSError):
         from slipstep.io import output_error
@@ -131,8 +134,11 @@ def report_failure(exc: BaseException) -> int:
         return EXIT_IO
     path = _save_traceback(exc)
     where = f"the traceback is in {path}" if path else "the traceback could not be saved"
-    fail_line("internal error", f"{type(exc).__name__}: {str(exc)[:200]} -- this is a bug in slipstep; please report "
-                                f"it with the command you ran ({where})")
+    fail_line(
+        "internal error",
+        f"{type(exc).__name__}: {str(exc)[:200]} -- this is a bug in slipstep; please report "
+        f"it with the command you ran ({where})",
+    )
     return EXIT_INTERNAL
 
 
@@ -209,6 +215,7 @@ def _ignore_file_size_signal() -> None:
 
 # -- options shared by the commands ------------------------------------------------------------
 
+
 def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Path:
     """Create the output directory and check that it takes a file, before any long run:
     InputError (exit 2) for a path that cannot be a directory, OutputError (exit 3) for one
@@ -225,11 +232,13 @@ def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Pa
     try:
         path.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
-        raise InputError(option, f"{str(path)!r} cannot be created (a part of it is a file)",
-                         "give a directory path") from None
+        raise InputError(
+            option, f"{str(path)!r} cannot be created (a part of it is a file)", "give a directory path"
+        ) from None
     except NotADirectoryError:
-        raise InputError(option, f"{str(path)!r} cannot be created (a part of it is a file)",
-                         "give a directory path") from None
+        raise InputError(
+            option, f"{str(path)!r} cannot be created (a part of it is a file)", "give a directory path"
+        ) from None
     except OSError as exc:
         from slipstep.io import output_error
 
@@ -272,8 +281,11 @@ def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, d
     over --periods, as duration does in RunOptions; a --periods given on the command line wins
     over the case's duration_s."""
     opts, origin = {}, {}
-    for key, cli_value, case_value in (("periods", periods, spec.periods), ("step_ratio", step_ratio, spec.step_ratio),
-                                       ("steps_per_period", steps_per_period, spec.steps_per_period)):
+    for key, cli_value, case_value in (
+        ("periods", periods, spec.periods),
+        ("step_ratio", step_ratio, spec.step_ratio),
+        ("steps_per_period", steps_per_period, spec.steps_per_period),
+    ):
         flag = "--" + key.replace("_", "-")
         if cli_value is not None:
             opts[key], origin[key] = cli_value, flag
@@ -334,30 +346,43 @@ def _row(table, *cells):
     table.add_row(*(Text(safe(c)) for c in cells))
 
 
-MAX_MEMORY_HELP = ("Memory a run may take, e.g. 8GB (default: half of the available memory); the estimate is "
-                   "checked before anything is allocated.")
+MAX_MEMORY_HELP = (
+    "Memory a run may take, e.g. 8GB (default: half of the available memory); the estimate is "
+    "checked before anything is allocated."
+)
 
 
 @app.command()
 def run(
     case: str = typer.Argument(..., help="Built-in case name (e.g. paper) or path to a .toml case file."),
     method: Optional[str] = typer.Option(
-        None, "--method", "-m",
+        None,
+        "--method",
+        "-m",
         help="Method name or paper number: newmark|1, newmark-adaptive|2, piecewise-linear|3, "
-             "piecewise-linear-adaptive|2+3, quasi-static|4, full-newton. Default: the case's \\[run] method, "
-             "else newmark."),
-    periods: Optional[float] = typer.Option(None, help="Excitation periods to simulate after the static preload "
-                                                       "(default: the case's \\[run] value, else 3)."),
+        "piecewise-linear-adaptive|2+3, quasi-static|4, full-newton. Default: the case's \\[run] method, "
+        "else newmark.",
+    ),
+    periods: Optional[float] = typer.Option(
+        None,
+        help="Excitation periods to simulate after the static preload (default: the case's \\[run] value, else 3).",
+    ),
     step_ratio: Optional[float] = typer.Option(None, help="r in dt = r T_min/pi for dynamic methods (default 1)."),
-    steps_per_period: Optional[int] = typer.Option(None, help="Steps per period of the quasi-static method "
-                                                              "(default 300)."),
-    duration: Optional[float] = typer.Option(None, help="Simulated time \\[s] after the preload, instead of periods "
-                                                        "(default: the case's \\[run] duration_s)."),
+    steps_per_period: Optional[int] = typer.Option(
+        None, help="Steps per period of the quasi-static method (default 300)."
+    ),
+    duration: Optional[float] = typer.Option(
+        None,
+        help="Simulated time \\[s] after the preload, instead of periods (default: the case's \\[run] duration_s).",
+    ),
     output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
     max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
-    rtol: Optional[float] = typer.Option(None, help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
-                                                    "the local error estimate, never beyond the method's step limit."),
+    rtol: Optional[float] = typer.Option(
+        None,
+        help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
+        "the local error estimate, never beyond the method's step limit.",
+    ),
 ):
     """Simulate CASE with one method; print a summary and write the result Dataset (netCDF).
 
@@ -384,14 +409,31 @@ def run(
         sim.keep_interrupted = True
         ds = sim.run()
         path = directory / f"{case_stem(case)}_{chosen.name}.nc"
-        with deferred_interrupt(lambda: say("saving the result: Ctrl-C again aborts the save (the previous file "
-                                            "is kept)", err, "yellow"),
-                                armed=ds.attrs["status"] == "INTERRUPTED"):
+        with deferred_interrupt(
+            lambda: say("saving the result: Ctrl-C again aborts the save (the previous file is kept)", err, "yellow"),
+            armed=ds.attrs["status"] == "INTERRUPTED",
+        ):
             save(ds, path)
     a = ds.attrs
-    keys = ("case", "method", "paper_method", "status", "status_message", "steps", "iterations", "solves",
-            "mean_solves_per_step", "state_changes", "dt_s", "t_min_s", "t_end_s", "kernel_time_s", "wall_time_s",
-            "energy_error_estimate", "peak_force_error_estimate")
+    keys = (
+        "case",
+        "method",
+        "paper_method",
+        "status",
+        "status_message",
+        "steps",
+        "iterations",
+        "solves",
+        "mean_solves_per_step",
+        "state_changes",
+        "dt_s",
+        "t_min_s",
+        "t_end_s",
+        "kernel_time_s",
+        "wall_time_s",
+        "energy_error_estimate",
+        "peak_force_error_estimate",
+    )
     summary = {k: _json_value(a[k]) for k in keys if k in a}
     summary["output"] = str(path)
     if as_json:
@@ -400,15 +442,23 @@ def run(
         table = _table(f"slipstep run: {a['case']}, {a['method']} ({a['paper_method']})", show_header=False)
         table.add_column("quantity", style="cyan")
         table.add_column("value")
-        rows = [("method", f"{a['method']} ({a['paper_method']})"), ("status", a["status"]),
-                ("steps", a["steps"]), ("iterations (linear solves)", a["iterations"]),
-                ("mean iterations per step", _fmt(a["mean_solves_per_step"])),
-                ("state changes", a["state_changes"]), ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
-                ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
-                ("est. error, loop energy / peak force",
-                 f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %"),
-                ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
-                ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"), ("output", str(path))]
+        rows = [
+            ("method", f"{a['method']} ({a['paper_method']})"),
+            ("status", a["status"]),
+            ("steps", a["steps"]),
+            ("iterations (linear solves)", a["iterations"]),
+            ("mean iterations per step", _fmt(a["mean_solves_per_step"])),
+            ("state changes", a["state_changes"]),
+            ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
+            ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
+            (
+                "est. error, loop energy / peak force",
+                f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %",
+            ),
+            ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
+            ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"),
+            ("output", str(path)),
+        ]
         for name, value in rows:
             _row(table, name, value)
         out.print(table)
@@ -418,14 +468,21 @@ def run(
 
 
 COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
-    ("method", "method", None), ("status", "status", None),
-    ("kernel time [ms] (median)", "kernel_time_s", 1e3), ("time ratio to Method 1", "time_ratio", 1.0),
-    ("kernel time [ms] (min)", "kernel_time_min_s", 1e3), ("time ratio, min to min", "time_ratio_min", 1.0),
+    ("method", "method", None),
+    ("status", "status", None),
+    ("kernel time [ms] (median)", "kernel_time_s", 1e3),
+    ("time ratio to Method 1", "time_ratio", 1.0),
+    ("kernel time [ms] (min)", "kernel_time_min_s", 1e3),
+    ("time ratio, min to min", "time_ratio_min", 1.0),
     ("timing spread (IQR/median)", "time_spread", 1.0),
-    ("steps", "steps", None), ("solves (iterations)", "solves", None),
-    ("mean solves per step", "mean_solves_per_step", 1.0), ("single-solve step share", "single_solve_share", 1.0),
-    ("state changes (raw)", "state_changes", None), ("state changes, last period", "state_changes_last_period", None),
-    ("max disp. diff. [um]", "max_disp_diff_um", 1.0), ("max force diff. [% CF]", "max_force_diff_pct_cf", 1.0),
+    ("steps", "steps", None),
+    ("solves (iterations)", "solves", None),
+    ("mean solves per step", "mean_solves_per_step", 1.0),
+    ("single-solve step share", "single_solve_share", 1.0),
+    ("state changes (raw)", "state_changes", None),
+    ("state changes, last period", "state_changes_last_period", None),
+    ("max disp. diff. [um]", "max_disp_diff_um", 1.0),
+    ("max force diff. [% CF]", "max_force_diff_pct_cf", 1.0),
     ("  after low-pass [um]", "max_disp_diff_filtered_um", 1.0),
     ("  after low-pass [% CF]", "max_force_diff_filtered_pct_cf", 1.0),
 )
@@ -438,17 +495,26 @@ COMPARE_METHODS_TEXT = ",".join(COMPARE_METHODS)
 def compare(
     case: str = typer.Argument(..., help="Built-in case name (e.g. paper) or path to a .toml case file."),
     periods: Optional[float] = typer.Option(None, help="Periods per run (default: the case's \\[run] value, else 3)."),
-    repeats: int = typer.Option(21, help="Timed kernel runs per method, interleaved across the methods after every "
-                                        "kernel is warmed; the median and the minimum are reported."),
-    methods: str = typer.Option(COMPARE_METHODS_TEXT, help="Comma-separated methods (names or paper numbers); "
-                                                           "Method 1 (newmark) always runs as the reference."),
-    output_dir: str = typer.Option("slipstep-out", help="Directory of the comparisons: the files go to "
-                                                        "OUTPUT_DIR/<case-file-stem>/."),
+    repeats: int = typer.Option(
+        21,
+        help="Timed kernel runs per method, interleaved across the methods after every "
+        "kernel is warmed; the median and the minimum are reported.",
+    ),
+    methods: str = typer.Option(
+        COMPARE_METHODS_TEXT,
+        help="Comma-separated methods (names or paper numbers); Method 1 (newmark) always runs as the reference.",
+    ),
+    output_dir: str = typer.Option(
+        "slipstep-out", help="Directory of the comparisons: the files go to OUTPUT_DIR/<case-file-stem>/."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the table as a JSON list (one object per method)."),
-    schemes: Optional[str] = typer.Option(None, help="Compare integration schemes instead (paper App. A): 'all' or "
-                                                     "a comma list, e.g. 'newmark,hht(0.1),rk4'; every scheme in "
-                                                     "every variant it supports (fixed, adaptive, "
-                                                     "piecewise-linear, both)."),
+    schemes: Optional[str] = typer.Option(
+        None,
+        help="Compare integration schemes instead (paper App. A): 'all' or "
+        "a comma list, e.g. 'newmark,hht(0.1),rk4'; every scheme in "
+        "every variant it supports (fixed, adaptive, "
+        "piecewise-linear, both).",
+    ),
     max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
 ):
     """Run the paper's methods on CASE side by side (paper Figs. 5 and 8).
@@ -479,16 +545,20 @@ def compare(
     if as_json:
         print(json.dumps(rows, default=_json_value))
         return
-    table = _table(f"slipstep compare: {system.name}, {n_periods:g} period(s), {repeats} interleaved kernel runs "
-                   "per method after warming every kernel")
+    table = _table(
+        f"slipstep compare: {system.name}, {n_periods:g} period(s), {repeats} interleaved kernel runs "
+        "per method after warming every kernel"
+    )
     table.add_column("", style="cyan")
     for r in rows:
         table.add_column(safe(r["paper_method"]), justify="right")
     for label, key, scale in COMPARE_ROWS:
         _row(table, label, *(str(r[key]) if scale is None else _fmt(r[key] * scale, 3) for r in rows))
     out.print(table)
-    say(f"CF = {rows[0]['force_scale_N']:.4g} N; differences over the last period vs Method 1; "
-        f"low-pass cut-off {rows[0]['filter_cutoff_Hz']:.4g} Hz.")
+    say(
+        f"CF = {rows[0]['force_scale_N']:.4g} N; differences over the last period vs Method 1; "
+        f"low-pass cut-off {rows[0]['filter_cutoff_Hz']:.4g} Hz."
+    )
     for path in files.values():
         say(f"wrote {path}")
     failed = [r["method"] for r in rows if r["status"] != "OK"]

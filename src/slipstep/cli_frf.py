@@ -31,6 +31,7 @@ def _steady_solver(name: str):
         from slipstep.frequency import frf
 
         return frf(system, frequencies, solver=name, direction=direction, progress=progress, **options)
+
     return run
 
 
@@ -78,26 +79,35 @@ SOLVERS = {
 }
 
 
-def frf(case: str = typer.Argument(..., help="built-in case name or TOML case file"),
-        frequencies: str = typer.Option(..., "--frequencies", "-f",
-                                        help="start:stop:count [Hz], both ends included, or a comma list"),
-        solver: str = typer.Option("march", "--solver", help="steady-state solver: " + ", ".join(SOLVERS)),
-        direction: str = typer.Option("up", "--direction", help="up, down or both (shows jumps)"),
-        sine_sweep: bool = typer.Option(False, "--sine-sweep",
-                                        help="one transient run with the frequency swept (envelope), not steady states"),
-        method: str = typer.Option("piecewise-linear", "--method", help="time-marching method"),
-        tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
-        max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
-        harmonics: str = typer.Option("5", help="march/shoot: harmonics 0..H reported per response DOF; hbm: the "
-                                      "retained harmonics, H (all of 0..H) or a set such as 1,3,5"),
-        samples: int | None = typer.Option(None, help="hbm: AFT time samples per period (default 8 H, a power of 2)"),
-        check_at: str | None = typer.Option(None, "--check-frequencies",
-                                                     help="hbm: comma list of frequencies [Hz] cross-checked by "
-                                                          "time marching besides the peak"),
-        min_steps_per_period: int | None = typer.Option(None, help="at least this many steps per period"),
-        responses: str | None = typer.Option(None, help="comma list of response DOFs (default all)"),
-        output_dir: Path = typer.Option(Path("slipstep-out"), "--output-dir", "-o", help="folder for the results"),
-        as_json: bool = typer.Option(False, "--json", help="print one JSON object (no progress bar)")):
+def frf(
+    case: str = typer.Argument(..., help="built-in case name or TOML case file"),
+    frequencies: str = typer.Option(
+        ..., "--frequencies", "-f", help="start:stop:count [Hz], both ends included, or a comma list"
+    ),
+    solver: str = typer.Option("march", "--solver", help="steady-state solver: " + ", ".join(SOLVERS)),
+    direction: str = typer.Option("up", "--direction", help="up, down or both (shows jumps)"),
+    sine_sweep: bool = typer.Option(
+        False, "--sine-sweep", help="one transient run with the frequency swept (envelope), not steady states"
+    ),
+    method: str = typer.Option("piecewise-linear", "--method", help="time-marching method"),
+    tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
+    max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
+    harmonics: str = typer.Option(
+        "5",
+        help="march/shoot: harmonics 0..H reported per response DOF; hbm: the "
+        "retained harmonics, H (all of 0..H) or a set such as 1,3,5",
+    ),
+    samples: int | None = typer.Option(None, help="hbm: AFT time samples per period (default 8 H, a power of 2)"),
+    check_at: str | None = typer.Option(
+        None,
+        "--check-frequencies",
+        help="hbm: comma list of frequencies [Hz] cross-checked by time marching besides the peak",
+    ),
+    min_steps_per_period: int | None = typer.Option(None, help="at least this many steps per period"),
+    responses: str | None = typer.Option(None, help="comma list of response DOFs (default all)"),
+    output_dir: Path = typer.Option(Path("slipstep-out"), "--output-dir", "-o", help="folder for the results"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object (no progress bar)"),
+):
     """Forced response of CASE against frequency: steady state per point (each from the previous
     one), harmonics, energies per cycle, both linear limits; netCDF + PNG."""
     with _user_errors():
@@ -129,31 +139,54 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
 
             kept = parse_harmonics(harmonics)
             if direction == "both":
-                _err.print("note: harmonic balance follows the whole branch by continuation (turning points "
-                           "included); --direction both gives the same curve as up", style="yellow")
+                _err.print(
+                    "note: harmonic balance follows the whole branch by continuation (turning points "
+                    "included); --direction both gives the same curve as up",
+                    style="yellow",
+                )
                 direction = "up"
         else:
             try:
                 kept = int(harmonics)
             except ValueError:
-                raise InputError("--harmonics", f"is {harmonics!r}",
-                                 "give the highest reported harmonic H as a whole number (a set like 1,3,5 is "
-                                 "for --solver hbm)") from None
-        options = dict(method=method, tolerance=tolerance, max_periods=max_periods, harmonics=kept,
-                       min_steps_per_period=min_steps_per_period,
-                       responses=None if responses is None else [r.strip() for r in responses.split(",")])
+                raise InputError(
+                    "--harmonics",
+                    f"is {harmonics!r}",
+                    "give the highest reported harmonic H as a whole number (a set like 1,3,5 is for --solver hbm)",
+                ) from None
+        options = dict(
+            method=method,
+            tolerance=tolerance,
+            max_periods=max_periods,
+            harmonics=kept,
+            min_steps_per_period=min_steps_per_period,
+            responses=None if responses is None else [r.strip() for r in responses.split(",")],
+        )
         if hbm:
-            options.update(samples=samples, check_frequencies=[] if check_at is None else
-                           list(parse_frequencies(check_at, field="--check-frequencies")))
+            options.update(
+                samples=samples,
+                check_frequencies=[]
+                if check_at is None
+                else list(parse_frequencies(check_at, field="--check-frequencies")),
+            )
         folder = _output_dir(output_dir)
         start = time.perf_counter()
         run = _sine_sweep if sine_sweep else SOLVERS[solver]
         total = freqs.size * (2 if direction == "both" else 1)
-        with Progress(TextColumn("[bold]frf[/] {task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TimeRemainingColumn(), console=_err, transient=True, disable=as_json) as bar:
+        with Progress(
+            TextColumn("[bold]frf[/] {task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            console=_err,
+            transient=True,
+            disable=as_json,
+        ) as bar:
             label = escape(escape_text(_case_stem(case)))  # a file name is text, never markup
-            task = bar.add_task(f"{label} ({'sine sweep' if sine_sweep else solver})",
-                                total=2 if sine_sweep and direction == "both" else (1 if sine_sweep else total))
+            task = bar.add_task(
+                f"{label} ({'sine sweep' if sine_sweep else solver})",
+                total=2 if sine_sweep and direction == "both" else (1 if sine_sweep else total),
+            )
             done = [0]
 
             def progress(i, n, f, steady):
@@ -179,8 +212,19 @@ def frf(case: str = typer.Argument(..., help="built-in case name or TOML case fi
         summary = _summary(ds, time.perf_counter() - start)
         if hbm:
             extra = hbm_summary(ds)
-            summary.update({k: extra[k] for k in ("harmonics", "samples", "turning_points", "checks",
-                                                  "max_harmonic_truncation_estimate", "time_per_point_s")})
+            summary.update(
+                {
+                    k: extra[k]
+                    for k in (
+                        "harmonics",
+                        "samples",
+                        "turning_points",
+                        "checks",
+                        "max_harmonic_truncation_estimate",
+                        "time_per_point_s",
+                    )
+                }
+            )
         summary.update(output=str(nc), figure=str(png))
         if as_json:
             print(json.dumps(summary))
@@ -204,9 +248,13 @@ def _summary(ds, wall: float) -> dict:
     i = int(np.argmax(values[:, j]))
     periods = ds["periods_to_steady"].values
     return {
-        "case": ds.attrs.get("case"), "solver": ds.attrs.get("solver"), "sweep": ds.attrs.get("sweep"),
-        "points": int(status.size), "points_not_ok": int((status != "OK").sum()),
-        "peak_frequency_Hz": float(ds["frequency"].values[i]), "peak_response": str(ds["response"].values[j]),
+        "case": ds.attrs.get("case"),
+        "solver": ds.attrs.get("solver"),
+        "sweep": ds.attrs.get("sweep"),
+        "points": int(status.size),
+        "points_not_ok": int((status != "OK").sum()),
+        "peak_frequency_Hz": float(ds["frequency"].values[i]),
+        "peak_response": str(ds["response"].values[j]),
         "peak_amplitude": float(values[i, j]),
         "peak_unit": str(ds["response_unit"].values[j]),
         "periods_total": float(np.nansum(periods)) if np.isfinite(periods).any() else None,
@@ -216,8 +264,10 @@ def _summary(ds, wall: float) -> dict:
 
 def _text(s: dict) -> str:
     scale, unit = (1e6, "um") if s["peak_unit"] == "m" else ((1e3, "mrad") if s["peak_unit"] == "rad" else (1, ""))
-    lines = [f"{s['case']}: {s['points']} points ({s['solver']}, {s['sweep']}) in {s['wall_time_s']:.2f} s",
-             f"peak {s['peak_amplitude'] * scale:.4g} {unit} of {s['peak_response']} at {s['peak_frequency_Hz']:.4g} Hz"]
+    lines = [
+        f"{s['case']}: {s['points']} points ({s['solver']}, {s['sweep']}) in {s['wall_time_s']:.2f} s",
+        f"peak {s['peak_amplitude'] * scale:.4g} {unit} of {s['peak_response']} at {s['peak_frequency_Hz']:.4g} Hz",
+    ]
     if s["periods_total"] is not None:
         lines.append(f"periods marched: {s['periods_total']:.0f}")
     if s["points_not_ok"]:
@@ -225,14 +275,18 @@ def _text(s: dict) -> str:
     if "checks" in s:  # harmonic balance: the retained harmonics, the adequacy estimate, the cross-check
         from slipstep.hbm.cli_support import harmonics_text
 
-        lines.append(f"harmonics {harmonics_text(s['harmonics'])} ({s['samples']} AFT samples), "
-                     f"{s['time_per_point_s'] * 1e3:.3g} ms per point, {s['turning_points']} turning point(s); "
-                     f"harmonic truncation estimate (max) {s['max_harmonic_truncation_estimate']:.2e}")
+        lines.append(
+            f"harmonics {harmonics_text(s['harmonics'])} ({s['samples']} AFT samples), "
+            f"{s['time_per_point_s'] * 1e3:.3g} ms per point, {s['turning_points']} turning point(s); "
+            f"harmonic truncation estimate (max) {s['max_harmonic_truncation_estimate']:.2e}"
+        )
         for c in s["checks"]:
             de = c["energy_rel_diff"]
-            lines.append(f"cross-check by marching at {c['frequency_Hz']:.5g} Hz ({c['march_status']}, "
-                         f"{c['march_periods']} periods): amplitude differs by {c['amplitude_rel_diff']:.2e}, "
-                         f"friction energy by {'n/a' if de is None or math.isnan(de) else f'{de:.2e}'}")
+            lines.append(
+                f"cross-check by marching at {c['frequency_Hz']:.5g} Hz ({c['march_status']}, "
+                f"{c['march_periods']} periods): amplitude differs by {c['amplitude_rel_diff']:.2e}, "
+                f"friction energy by {'n/a' if de is None or math.isnan(de) else f'{de:.2e}'}"
+            )
     lines += [s["output"], s["figure"]]
     return "\n".join(lines)
 

@@ -25,10 +25,16 @@ def _load_case(case: str):
     return load_system(case)
 
 
-def plot(result: Path = typer.Argument(..., help="a result file written by `slipstep run` (.nc)"),
-         output_dir: str = typer.Option("figures", "--output-dir", "-o", help="folder for the PNG files"),
-         case: Optional[str] = typer.Option(None, "--case", help="the case of the result, to filter the loops "
-                                            "(default: the case named in the result, if it is a built-in one)")):
+def plot(
+    result: Path = typer.Argument(..., help="a result file written by `slipstep run` (.nc)"),
+    output_dir: str = typer.Option("figures", "--output-dir", "-o", help="folder for the PNG files"),
+    case: Optional[str] = typer.Option(
+        None,
+        "--case",
+        help="the case of the result, to filter the loops "
+        "(default: the case named in the result, if it is a built-in one)",
+    ),
+):
     """Write the figures of a result (time histories, loops, step size, iterations, states) as PNG."""
     with _user_errors():
         from slipstep import plots
@@ -44,12 +50,14 @@ def plot(result: Path = typer.Argument(..., help="a result file written by `slip
             say(p)
 
 
-def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
-           output: Optional[str] = typer.Option(None, "--output", "-o", help="HTML file (default CASE_report.html)"),
-           periods: float = typer.Option(3.0, help="excitation periods to simulate"),
-           rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] for the Eq. 9 check"),
-           radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
-           displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]")):
+def report(
+    case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
+    output: Optional[str] = typer.Option(None, "--output", "-o", help="HTML file (default CASE_report.html)"),
+    periods: float = typer.Option(3.0, help="excitation periods to simulate"),
+    rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] for the Eq. 9 check"),
+    radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
+    displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]"),
+):
     """Run CASE (quasi-static + Method 3) and write one self-contained HTML report."""
     with _user_errors():
         from slipstep.report import write_report
@@ -58,24 +66,36 @@ def report(case: str = typer.Argument(..., help="built-in case name (e.g. paper)
         if output is not None and not output.strip():
             raise InputError("--output", "is empty", "give an HTML file name such as paper_report.html")
         if path.is_dir():
-            raise InputError("--output", f"{str(path)!r} is a directory", "give an HTML file name such as "
-                             f"{str(path / (case_stem(case) + '_report.html'))!r}")
+            raise InputError(
+                "--output",
+                f"{str(path)!r} is a directory",
+                f"give an HTML file name such as {str(path / (case_stem(case) + '_report.html'))!r}",
+            )
         if path.parent.exists() and not path.parent.is_dir():
-            raise InputError("--output", f"{str(path.parent)!r} is a file, not a directory",
-                             "give a path in a directory")
+            raise InputError(
+                "--output", f"{str(path.parent)!r} is a file, not a directory", "give a path in a directory"
+            )
         output_dir_option(path.parent, "--output")  # a read-only directory fails now, not after the run
         system = _load_case(case)
         xd = None if displacement_um is None else displacement_um * 1e-6
-        write_report(system, path, periods=periods, rotor_speed_rpm=rotor_speed_rpm, radius_m=radius_m,
-                     displacement_amplitude_m=xd)
+        write_report(
+            system,
+            path,
+            periods=periods,
+            rotor_speed_rpm=rotor_speed_rpm,
+            radius_m=radius_m,
+            displacement_amplitude_m=xd,
+        )
         say(path)
 
 
-def advise(case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
-           rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] (paper Eq. 9)"),
-           radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
-           displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]"),
-           as_json: bool = typer.Option(False, "--json", help="print the findings as JSON")):
+def advise(
+    case: str = typer.Argument(..., help="built-in case name (e.g. paper) or TOML case file"),
+    rotor_speed_rpm: Optional[float] = typer.Option(None, help="rotor speed [rpm] (paper Eq. 9)"),
+    radius_m: Optional[float] = typer.Option(None, help="radius of the damper [m]"),
+    displacement_um: Optional[float] = typer.Option(None, help="damper displacement amplitude [um]"),
+    as_json: bool = typer.Option(False, "--json", help="print the findings as JSON"),
+):
     """Which method suits CASE and why: Eq. 9 inertia ratio, T_min per state, flutter, steps."""
     with _user_errors():
         from slipstep.advise import advise as _advise

@@ -42,7 +42,12 @@ from slipstep.io import plain_text_figures, save_figure, write_text
 from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.post.filtering import (
-    choose_cutoff, excitation_frequencies, lowest_internal_frequency, lowpass, samples_per_period, visited_states,
+    choose_cutoff,
+    excitation_frequencies,
+    lowest_internal_frequency,
+    lowpass,
+    samples_per_period,
+    visited_states,
 )
 from slipstep.system import System
 
@@ -50,10 +55,26 @@ REFERENCE = "newmark"
 
 #: Columns of the comparison table, in order (all keys of a row).
 COLUMNS = (
-    "method", "paper_method", "status", "steps", "solves", "mean_solves_per_step", "single_solve_share",
-    "state_changes", "state_changes_last_period", "kernel_time_s", "time_ratio", "kernel_time_min_s",
-    "time_ratio_min", "time_spread", "dt_min_s", "dt_max_s",
-    "max_disp_diff_um", "max_force_diff_pct_cf", "max_disp_diff_filtered_um", "max_force_diff_filtered_pct_cf",
+    "method",
+    "paper_method",
+    "status",
+    "steps",
+    "solves",
+    "mean_solves_per_step",
+    "single_solve_share",
+    "state_changes",
+    "state_changes_last_period",
+    "kernel_time_s",
+    "time_ratio",
+    "kernel_time_min_s",
+    "time_ratio_min",
+    "time_spread",
+    "dt_min_s",
+    "dt_max_s",
+    "max_disp_diff_um",
+    "max_force_diff_pct_cf",
+    "max_disp_diff_filtered_um",
+    "max_force_diff_filtered_pct_cf",
 )
 
 
@@ -81,8 +102,15 @@ def time_kernels(sims: dict, repeats: int, warmups: int = 2) -> dict[str, list[f
     return samples
 
 
-def compare(system: System, methods=COMPARE_METHODS, periods: float = 3, repeats: int = 21,
-            cutoff_Hz: float | None = None, datasets: dict | None = None, **options) -> list[dict]:
+def compare(
+    system: System,
+    methods=COMPARE_METHODS,
+    periods: float = 3,
+    repeats: int = 21,
+    cutoff_Hz: float | None = None,
+    datasets: dict | None = None,
+    **options,
+) -> list[dict]:
     """Run ``methods`` on ``system`` and return one row (dict, keys :data:`COLUMNS` plus
     ``force_scale_N`` and ``filter_cutoff_Hz``) per method, Method 1 first.
 
@@ -93,7 +121,9 @@ def compare(system: System, methods=COMPARE_METHODS, periods: float = 3, repeats
     names = _method_names(methods)
     if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
         raise InputError("repeats", f"is {repeats!r}", "give a whole number >= 1")
-    if cutoff_Hz is not None and not (isinstance(cutoff_Hz, (int, float)) and math.isfinite(cutoff_Hz) and cutoff_Hz > 0):
+    if cutoff_Hz is not None and not (
+        isinstance(cutoff_Hz, (int, float)) and math.isfinite(cutoff_Hz) and cutoff_Hz > 0
+    ):
         raise InputError("cutoff_Hz", f"is {cutoff_Hz!r}", "give a frequency > 0 [Hz], or None to choose it")
     sims = {name: Simulation(system, name, periods=periods, **options) for name in names}
     results = {name: sim.run() for name, sim in sims.items()}  # the results (and the first, compiling call)
@@ -132,8 +162,10 @@ def _force_scale(system: System, ref: xr.Dataset) -> float:
     cf = float(np.linalg.norm(f0)) if f0 is not None else 0.0
     if cf > 0:
         return cf
-    peak = max(float(np.abs(ref.tangential_force.values).max(initial=0.0)),
-               float(np.abs(ref.normal_force.values).max(initial=0.0)))
+    peak = max(
+        float(np.abs(ref.tangential_force.values).max(initial=0.0)),
+        float(np.abs(ref.normal_force.values).max(initial=0.0)),
+    )
     return peak if peak > 0 else 1.0
 
 
@@ -225,7 +257,8 @@ def _row(ds, ref, filtered_ref, samples, ref_samples, force_scale, cutoff) -> di
         "time_ratio": float(kernel_time / ref_time) if ref_time > 0 else math.nan,
         "kernel_time_min_s": float(fastest),
         "time_ratio_min": float(fastest / ref_fastest) if ref_fastest > 0 else math.nan,
-        "time_spread": float(np.subtract(*np.percentile(samples, [75, 25])) / kernel_time) if kernel_time > 0
+        "time_spread": float(np.subtract(*np.percentile(samples, [75, 25])) / kernel_time)
+        if kernel_time > 0
         else math.nan,
         "dt_min_s": float(steps_dt.min()) if steps_dt.size else math.nan,
         "dt_max_s": float(steps_dt.max()) if steps_dt.size else math.nan,
@@ -244,6 +277,7 @@ def _grid_last(grid: np.ndarray, ref: xr.Dataset) -> np.ndarray:
 
 
 # -- writers ------------------------------------------------------------------------------------
+
 
 def write_csv(rows: list[dict], path) -> Path:
     """The table as CSV (one line per method, header = keys of the first row)."""
@@ -283,8 +317,13 @@ def plot_time_ratios(rows: list[dict], path, title: str = "") -> Path:
     fig, ax = plt.subplots(figsize=(max(6.0, 1.6 * len(rows)), 4.2))
     bars = ax.bar(range(len(rows)), ratios, color="tab:blue")
     for bar, r in zip(bars, rows):
-        ax.annotate(f"{r['time_ratio']:.3g}\n({r['kernel_time_s'] * 1e3:.3g} ms)",
-                    (bar.get_x() + bar.get_width() / 2, bar.get_height()), ha="center", va="bottom", fontsize=8)
+        ax.annotate(
+            f"{r['time_ratio']:.3g}\n({r['kernel_time_s'] * 1e3:.3g} ms)",
+            (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+            ha="center",
+            va="bottom",
+            fontsize=8,
+        )
     ax.set_xticks(range(len(rows)), labels, fontsize=8)
     ax.set_ylabel("kernel time / Method 1 kernel time [-]")
     ax.set_ylim(0, max(1.0, max(ratios)) * 1.25)

@@ -139,13 +139,20 @@ def parse_case(data: dict, source: str = "case") -> CaseSpec:
     return spec
 
 
-def _signal(harmonics: list[HarmonicSpec], tables: list[TableSpec], components: tuple[str, ...],
-            scale: float, kind: str, ramp: float) -> Signal | None:
+def _signal(
+    harmonics: list[HarmonicSpec],
+    tables: list[TableSpec],
+    components: tuple[str, ...],
+    scale: float,
+    kind: str,
+    ramp: float,
+) -> Signal | None:
     if not harmonics and not tables:
         return None
     index = {c: i for i, c in enumerate(components)}
     by_freq: dict[float, tuple[np.ndarray, np.ndarray]] = defaultdict(
-        lambda: (np.zeros(len(components)), np.zeros(len(components))))
+        lambda: (np.zeros(len(components)), np.zeros(len(components)))
+    )
     for h in harmonics:  # components and duplicates checked by config_check
         amp, ph = by_freq[h.frequency_Hz]
         amp[index[h.component]] = h.amplitude * scale
@@ -163,20 +170,24 @@ def _signal(harmonics: list[HarmonicSpec], tables: list[TableSpec], components: 
 # layer (slipstep.model) name SI fields; a case-file user reads the key they wrote
 _MODEL_KEYS = {
     "damper": [
-        (r"^damper\.mass$", ("damper", "mass_kg")), (r"^damper\.inertia$", ("damper", "inertia_kg_m2")),
+        (r"^damper\.mass$", ("damper", "mass_kg")),
+        (r"^damper\.inertia$", ("damper", "inertia_kg_m2")),
         (r"^damper\.centrifugal_force$", ("damper", "centrifugal_force_N")),
         (r"^damper\.platforms\[(.*)\]\.angle$", ("damper", "platforms", "{platforms}", "angle_deg")),
         (r"^damper\.platforms$", ("damper", "platforms")),
         (r"^damper\.contacts\[(.*)\]\.position$", ("damper", "contacts", "{contacts}", "position_mm")),
         (r"^damper\.contacts\[(.*)\]\.platform$", ("damper", "contacts", "{contacts}", "platform")),
-        (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", ("damper", "contacts", "{contacts}",
-                                                                 "{2}_stiffness_N_per_um")),
+        (
+            r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$",
+            ("damper", "contacts", "{contacts}", "{2}_stiffness_N_per_um"),
+        ),
         (r"^contacts\[(.*)\]\.friction_coefficient$", ("damper", "contacts", "{contacts}", "friction_coefficient")),
         (r"^(contacts|damper\.contacts)$", ("damper", "contacts")),
         (r"^motion\.component$", ("motion",)),
     ],
     "structure": [
-        (r"^structure\.mass$", ("structure", "mass_kg")), (r"^structure\.damping$", ("structure", "damping_N_s_per_m")),
+        (r"^structure\.mass$", ("structure", "mass_kg")),
+        (r"^structure\.damping$", ("structure", "damping_N_s_per_m")),
         (r"^structure\.stiffness$", ("structure", "stiffness_N_per_m")),
         (r"^structure\.dof_(names|units)$", ("structure", "dof_{1}")),
         (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", ("contacts", "{contacts}", "{2}_stiffness_N_per_m")),
@@ -187,8 +198,11 @@ _MODEL_KEYS = {
         (r"^excitation\.motion\.components$", ("motion_names",)),
         (r"^excitation\.force\.components$", ("structure", "dof_names")),
     ],
-    "any": [(r"^harmonic\.frequency$", ("motion",)), (r"^table\.times$", ("motion_table",)),
-            (r"^ramp_time$", ("run", "ramp_time_s"))],
+    "any": [
+        (r"^harmonic\.frequency$", ("motion",)),
+        (r"^table\.times$", ("motion_table",)),
+        (r"^ramp_time$", ("run", "ramp_time_s")),
+    ],
 }
 
 
@@ -206,7 +220,7 @@ def _case_key(field: str, kind: str, data: dict) -> str | None:
                 names = [item.get("name") for item in items]
                 seg = names.index(match.group(1)) if match.group(1) in names else 0
             elif isinstance(seg, str) and "{" in seg:
-                seg = re.sub(r"\{(\d)\}", lambda m: match.group(int(m.group(1))), seg)
+                seg = re.sub(r"\{(\d)\}", lambda m: match.group(int(m.group(1))), seg)  # noqa: B023 (called here)
             path.append(seg)
         return key_path(tuple(path), data)
     return None
@@ -228,8 +242,11 @@ def build_system(spec: CaseSpec) -> System:
 def _build_system(spec: CaseSpec) -> System:
     ramp = spec.run.ramp_time_s or 0.0
     if (spec.damper is None) == (spec.structure is None):
-        raise InputError("case", "must contain exactly one of [damper] or [structure]",
-                         "describe a rigid damper ([damper]) or a general structure ([structure] + [[contacts]])")
+        raise InputError(
+            "case",
+            "must contain exactly one of [damper] or [structure]",
+            "describe a rigid damper ([damper]) or a general structure ([structure] + [[contacts]])",
+        )
     if spec.damper is not None:
         d = spec.damper
         if spec.contacts:
@@ -237,26 +254,51 @@ def _build_system(spec: CaseSpec) -> System:
         motion_names = tuple(f"{p.name}.{ax}" for p in d.platforms for ax in ("x", "y"))
         motion = _signal(spec.motion, spec.motion_table, motion_names, UM, "motion", ramp)
         if spec.force or spec.force_table:
-            raise InputError("force", "is not supported for [damper] cases", "drive the damper through platform motions")
+            raise InputError(
+                "force", "is not supported for [damper] cases", "drive the damper through platform motions"
+            )
         return rigid_damper(
-            mass=d.mass_kg, inertia=d.inertia_kg_m2,
+            mass=d.mass_kg,
+            inertia=d.inertia_kg_m2,
             platforms=[Platform(p.name, math.radians(p.angle_deg)) for p in d.platforms],
-            contacts=[DamperContact(c.name, c.platform, tuple(np.asarray(c.position_mm) * MM),
-                                    c.normal_stiffness_N_per_um * N_PER_UM, c.tangential_stiffness_N_per_um * N_PER_UM,
-                                    c.friction_coefficient) for c in d.contacts],
-            centrifugal_force=d.centrifugal_force_N, motion=motion,
-            centrifugal_angle=math.radians(d.centrifugal_angle_deg), name=spec.name)
+            contacts=[
+                DamperContact(
+                    c.name,
+                    c.platform,
+                    tuple(np.asarray(c.position_mm) * MM),
+                    c.normal_stiffness_N_per_um * N_PER_UM,
+                    c.tangential_stiffness_N_per_um * N_PER_UM,
+                    c.friction_coefficient,
+                )
+                for c in d.contacts
+            ],
+            centrifugal_force=d.centrifugal_force_N,
+            motion=motion,
+            centrifugal_angle=math.radians(d.centrifugal_angle_deg),
+            name=spec.name,
+        )
     s = spec.structure
-    structure = Structure(np.asarray(s.mass_kg), None if s.damping_N_s_per_m is None else np.asarray(s.damping_N_s_per_m),
-                          None if s.stiffness_N_per_m is None else np.asarray(s.stiffness_N_per_m),
-                          tuple(s.dof_names or ()), tuple(s.dof_units or ()))
+    structure = Structure(
+        np.asarray(s.mass_kg),
+        None if s.damping_N_s_per_m is None else np.asarray(s.damping_N_s_per_m),
+        None if s.stiffness_N_per_m is None else np.asarray(s.stiffness_N_per_m),
+        tuple(s.dof_names or ()),
+        tuple(s.dof_units or ()),
+    )
     motion_names = tuple(spec.motion_names or ())
-    contacts = tuple(ContactElement(
-        name=c.name, dof_gather=np.asarray(c.dof_gather),
-        motion_gather=None if c.motion_gather is None else np.asarray(c.motion_gather),
-        tangential_stiffness=c.tangential_stiffness_N_per_m, normal_stiffness=c.normal_stiffness_N_per_m,
-        friction_coefficient=c.friction_coefficient, normal_offset=c.normal_offset_m,
-        law=c.law) for c in spec.contacts or ())
+    contacts = tuple(
+        ContactElement(
+            name=c.name,
+            dof_gather=np.asarray(c.dof_gather),
+            motion_gather=None if c.motion_gather is None else np.asarray(c.motion_gather),
+            tangential_stiffness=c.tangential_stiffness_N_per_m,
+            normal_stiffness=c.normal_stiffness_N_per_m,
+            friction_coefficient=c.friction_coefficient,
+            normal_offset=c.normal_offset_m,
+            law=c.law,
+        )
+        for c in spec.contacts or ()
+    )
     motion = _signal(spec.motion, spec.motion_table, motion_names, 1.0, "motion", ramp)
     force = _signal(spec.force, spec.force_table, structure.dof_names, 1.0, "force", ramp)
     exc = Excitation(constant_force=s.constant_force_N, force=force, motion=motion, period=spec.period_s)
@@ -266,8 +308,9 @@ def _build_system(spec: CaseSpec) -> System:
 def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
     """A built-in case by name (``paper``) or a TOML file: (System, default run options)."""
     if not str(name_or_path).strip():
-        raise InputError("case", "is empty",
-                         f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})")
+        raise InputError(
+            "case", "is empty", f"give a TOML file path or a built-in case name ({', '.join(builtin_cases())})"
+        )
     path = case_path(name_or_path)
     data = read_toml(path)
     if "substructures" in data:  # the third kind: an assembly (slipstep.config_assembly)

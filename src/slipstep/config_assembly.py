@@ -166,12 +166,16 @@ def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
         field = _named_loc(data, first["loc"])
         if first["type"] == "extra_forbidden":
             valid = getattr(_model_at(AssemblyCaseSpec, first["loc"]), "model_fields", {})
-            raise InputError(field, f"is not a known key in {source}{suggestion(str(first['loc'][-1]), valid)}",
-                             "check the spelling against the assembly case format in the README "
-                             "(units are part of key names)") from None
+            raise InputError(
+                field,
+                f"is not a known key in {source}{suggestion(str(first['loc'][-1]), valid)}",
+                "check the spelling against the assembly case format in the README (units are part of key names)",
+            ) from None
         if first["type"] == "missing":
             raise InputError(field, f"is required in {source} but missing", "add it") from None
-        raise InputError(field, f"{first['msg']} (got {first.get('input')!r})", "give a value of the right type") from None
+        raise InputError(
+            field, f"{first['msg']} (got {first.get('input')!r})", "give a value of the right type"
+        ) from None
 
 
 def _named_loc(data: dict, loc) -> str:
@@ -199,12 +203,15 @@ _TOML_KEYS = [
     (r"^substructures\[(.*)\]\.second_moment$", r"substructures[\1].second_moment_mm4"),
     (r"^substructures\[(.*)\]\.rayleigh$", r"substructures[\1].rayleigh_alpha_per_s/rayleigh_beta_s"),
     (r"^substructures\[(.*)\]\.(boundary_dofs|modes)$", r"substructures[\1].reduction.\2"),
-    (r"^dampers\[(.*)\]\.mass$", r"dampers[\1].mass_kg"), (r"^dampers\[(.*)\]\.inertia$", r"dampers[\1].inertia_kg_m2"),
+    (r"^dampers\[(.*)\]\.mass$", r"dampers[\1].mass_kg"),
+    (r"^dampers\[(.*)\]\.inertia$", r"dampers[\1].inertia_kg_m2"),
     (r"^dampers\[(.*)\]\.centrifugal_force$", r"dampers[\1].centrifugal_force_N"),
     (r"^dampers\[(.*)\]\.platforms\[(.*)\]\.(angle|offset)$", r"dampers[\1].platforms[\2].\3_deg"),
     (r"^dampers\[(.*)\]\.contacts\[(.*)\]\.position$", r"dampers[\1].contacts[\2].position_mm"),
-    (r"^dampers\[(.*)\]\.contacts\[(.*)\]\.(normal|tangential)_stiffness$",
-     r"dampers[\1].contacts[\2].\3_stiffness_N_per_um"),
+    (
+        r"^dampers\[(.*)\]\.contacts\[(.*)\]\.(normal|tangential)_stiffness$",
+        r"dampers[\1].contacts[\2].\3_stiffness_N_per_um",
+    ),
     (r"^contacts\[(.*)\]\.(normal|tangential)_stiffness$", r"contacts[\1].\2_stiffness_N_per_m"),
     (r"^contacts\[(.*)\]\.normal_offset$", r"contacts[\1].normal_offset_m"),
     (r"^forces\[(\d+)\]\.dof$", r"force[\1].component"),
@@ -250,8 +257,11 @@ def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
         if chain.blades < (3 if chain.closed else 2):
             raise InputError("chain.blades", f"is {chain.blades}", f"give at least {3 if chain.closed else 2} blades")
         if len(dampers[chain.damper].platforms) != 2:
-            raise InputError(f"dampers[{chain.damper}].platforms", "must hold two platforms in a chain",
-                             "give the platform on the left blade first, then the one on the right blade")
+            raise InputError(
+                f"dampers[{chain.damper}].platforms",
+                "must hold two platforms in a chain",
+                "give the platform on the left blade first, then the one on the right blade",
+            )
         template = subs.pop(chain.blade)
         chain_blades = [f"{chain.blade}{j + 1}" for j in range(chain.blades)]
         for nm in chain_blades:
@@ -262,41 +272,73 @@ def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
             links.append(_damper(d, f"{d.name}{k + 1}", (chain_blades[jl], chain_blades[jr])))
     for d in dampers.values():
         links.append(_damper(d, d.name, None))
-    contacts = [LinkContact(c.name, tuple(c.dofs), c.dof_gather,
-                            tuple(c.tangential_stiffness_N_per_m) if isinstance(c.tangential_stiffness_N_per_m, list)
-                            else c.tangential_stiffness_N_per_m,
-                            c.normal_stiffness_N_per_m, c.friction_coefficient, c.normal_offset_m) for c in spec.contacts]
+    contacts = [
+        LinkContact(
+            c.name,
+            tuple(c.dofs),
+            c.dof_gather,
+            tuple(c.tangential_stiffness_N_per_m)
+            if isinstance(c.tangential_stiffness_N_per_m, list)
+            else c.tangential_stiffness_N_per_m,
+            c.normal_stiffness_N_per_m,
+            c.friction_coefficient,
+            c.normal_offset_m,
+        )
+        for c in spec.contacts
+    ]
     forces = [HarmonicForce(f.component, f.amplitude, f.frequency_Hz, math.radians(f.phase_deg)) for f in spec.force]
     for k, eo in enumerate(spec.engine_order_force):
         blades = eo.blades or chain_blades
         if not blades:
-            raise InputError(f"engine_order_force[{k}].blades", "is missing and there is no [chain]",
-                             "list the blades in order (blade j lags by 2 pi EO j / N)")
+            raise InputError(
+                f"engine_order_force[{k}].blades",
+                "is missing and there is no [chain]",
+                "list the blades in order (blade j lags by 2 pi EO j / N)",
+            )
         unknown = [b for b in blades if b not in subs]
         if unknown:
-            raise InputError(f"engine_order_force[{k}].blades", f"names unknown substructure(s) {unknown}",
-                             f"use names from {list(subs)}")
+            raise InputError(
+                f"engine_order_force[{k}].blades",
+                f"names unknown substructure(s) {unknown}",
+                f"use names from {list(subs)}",
+            )
         for b in blades:
             if eo.dof not in subs[b].dof_names:
-                raise InputError(f"engine_order_force[{k}].dof", f"{eo.dof!r} is not a DOF of {b}",
-                                 f"use one of {', '.join(subs[b].dof_names[:6])} (without the blade's name)")
-        forces += engine_order_forces(blades, eo.dof, eo.amplitude_N, eo.frequency_Hz, eo.engine_order,
-                                      math.radians(eo.phase_deg))
-    return assemble(list(subs.values()), links, contacts, forces, spec.constant_force_N, name=spec.name,
-                    ramp_time=spec.run.ramp_time_s or 0.0, period=spec.period_s)
+                raise InputError(
+                    f"engine_order_force[{k}].dof",
+                    f"{eo.dof!r} is not a DOF of {b}",
+                    f"use one of {', '.join(subs[b].dof_names[:6])} (without the blade's name)",
+                )
+        forces += engine_order_forces(
+            blades, eo.dof, eo.amplitude_N, eo.frequency_Hz, eo.engine_order, math.radians(eo.phase_deg)
+        )
+    return assemble(
+        list(subs.values()),
+        links,
+        contacts,
+        forces,
+        spec.constant_force_N,
+        name=spec.name,
+        ramp_time=spec.run.ramp_time_s or 0.0,
+        period=spec.period_s,
+    )
 
 
 def _renamed(s: Substructure, name: str) -> Substructure:
-    return Substructure(name, s.mass, s.stiffness, s.dof_names, s.dof_units, s.damping, s.rayleigh,
-                        s.modal_damping_ratio, s.points)
+    return Substructure(
+        name, s.mass, s.stiffness, s.dof_names, s.dof_units, s.damping, s.rayleigh, s.modal_damping_ratio, s.points
+    )
 
 
 def _damping(s: SubstructureSpec) -> dict:
     ray = (s.rayleigh_alpha_per_s, s.rayleigh_beta_s)
     if any(v is not None for v in ray):
         if s.modal_damping_ratio is not None:
-            raise InputError(f"substructures[{s.name}].modal_damping_ratio", "is given together with rayleigh_*",
-                             "give one damping description")
+            raise InputError(
+                f"substructures[{s.name}].modal_damping_ratio",
+                "is given together with rayleigh_*",
+                "give one damping description",
+            )
         return {"rayleigh": tuple(0.0 if v is None else v for v in ray)}
     return {} if s.modal_damping_ratio is None else {"modal_damping_ratio": s.modal_damping_ratio}
 
@@ -306,24 +348,49 @@ def _substructure(s: SubstructureSpec, done: dict, base_dir: Path) -> Substructu
     damping = _damping(s)
     if s.copy_of is not None:
         if s.copy_of not in done:
-            raise InputError(f"{where}.copy_of", f"names {s.copy_of!r}, not an earlier substructure",
-                             f"use one of {list(done)} (define the original first)")
+            raise InputError(
+                f"{where}.copy_of",
+                f"names {s.copy_of!r}, not an earlier substructure",
+                f"use one of {list(done)} (define the original first)",
+            )
         return _renamed(done[s.copy_of], s.name)
     if s.kind == "frame_blade":
-        for key in ("length_mm", "elements", "youngs_modulus_GPa", "density_kg_per_m3", "area_mm2", "second_moment_mm4"):
+        for key in (
+            "length_mm",
+            "elements",
+            "youngs_modulus_GPa",
+            "density_kg_per_m3",
+            "area_mm2",
+            "second_moment_mm4",
+        ):
             if getattr(s, key) is None:
                 raise InputError(f"{where}.{key}", "is required for kind = 'frame_blade' but missing", "add it")
         for key in ("file", "mass_file", "stiffness_file", "damping_file", "dofs_file", "dof_names", "dof_units"):
             if getattr(s, key) not in (None, []):
                 raise InputError(f"{where}.{key}", "is for kind = 'matrices'", "remove it or set kind = 'matrices'")
-        sub = frame_blade(s.name, s.length_mm * MM, s.elements, s.youngs_modulus_GPa * GPA, s.density_kg_per_m3,
-                          s.area_mm2 * MM ** 2, s.second_moment_mm4 * MM ** 4, s.platform_node,
-                          root=tuple(np.asarray(s.root_mm) * MM), angle=math.radians(s.angle_deg),
-                          tip_mass=s.tip_mass_kg, platform_mass=s.platform_mass_kg,
-                          **({} if s.reduction else damping))
+        sub = frame_blade(
+            s.name,
+            s.length_mm * MM,
+            s.elements,
+            s.youngs_modulus_GPa * GPA,
+            s.density_kg_per_m3,
+            s.area_mm2 * MM**2,
+            s.second_moment_mm4 * MM**4,
+            s.platform_node,
+            root=tuple(np.asarray(s.root_mm) * MM),
+            angle=math.radians(s.angle_deg),
+            tip_mass=s.tip_mass_kg,
+            platform_mass=s.platform_mass_kg,
+            **({} if s.reduction else damping),
+        )
     else:
-        points = {p.name: Point({c: getattr(p, c) for c in ("x", "y", "rz") if getattr(p, c) is not None},
-                                tuple(np.asarray(p.position_mm, float) * MM)) for p in s.points}
+        points = {
+            p.name: Point(
+                {c: getattr(p, c) for c in ("x", "y", "rz") if getattr(p, c) is not None},
+                tuple(np.asarray(p.position_mm, float) * MM),
+            )
+            for p in s.points
+        }
         kwargs = dict(points=points, **({} if s.reduction else damping))
         if s.dof_names is not None:
             kwargs["dof_names"] = tuple(s.dof_names)
@@ -332,15 +399,25 @@ def _substructure(s: SubstructureSpec, done: dict, base_dir: Path) -> Substructu
         path = lambda p: p if Path(p).is_absolute() else base_dir / p
         if s.file is not None:
             if s.mass_file or s.stiffness_file:
-                raise InputError(f"{where}.file", "is given together with mass_file/stiffness_file", "give one of the two forms")
+                raise InputError(
+                    f"{where}.file", "is given together with mass_file/stiffness_file", "give one of the two forms"
+                )
             sub = load_npz(path(s.file), s.name, field_name=f"{where}.file", **kwargs)
         elif s.mass_file and s.stiffness_file:
-            sub = load_mtx(path(s.mass_file), path(s.stiffness_file), s.name,
-                           damping=None if s.damping_file is None else path(s.damping_file),
-                           dofs_file=None if s.dofs_file is None else path(s.dofs_file), **kwargs)
+            sub = load_mtx(
+                path(s.mass_file),
+                path(s.stiffness_file),
+                s.name,
+                damping=None if s.damping_file is None else path(s.damping_file),
+                dofs_file=None if s.dofs_file is None else path(s.dofs_file),
+                **kwargs,
+            )
         else:
-            raise InputError(f"{where}.file", "is missing (kind = 'matrices')",
-                             "give file = an .npz, or mass_file and stiffness_file (.mtx)")
+            raise InputError(
+                f"{where}.file",
+                "is missing (kind = 'matrices')",
+                "give file = an .npz, or mass_file and stiffness_file (.mtx)",
+            )
     if s.reduction is not None:
         sub = craig_bampton(sub, list(s.reduction.boundary_dofs), s.reduction.modes, **damping)
     return sub
@@ -351,22 +428,45 @@ def _damper(d: DamperLinkSpec, name: str, chain_pair: tuple[str, str] | None) ->
     for k, p in enumerate(d.platforms):
         sub = chain_pair[k] if chain_pair is not None else p.substructure
         if sub is None:
-            raise InputError(f"dampers[{d.name}].platforms[{p.name}].substructure", "is missing",
-                             "name the substructure whose point the platform follows")
+            raise InputError(
+                f"dampers[{d.name}].platforms[{p.name}].substructure",
+                "is missing",
+                "name the substructure whose point the platform follows",
+            )
         if len(p.offset_mm) != 2:
-            raise InputError(f"dampers[{d.name}].platforms[{p.name}].offset_mm", f"has {len(p.offset_mm)} values",
-                             "give [X, Y] in mm")
+            raise InputError(
+                f"dampers[{d.name}].platforms[{p.name}].offset_mm",
+                f"has {len(p.offset_mm)} values",
+                "give [X, Y] in mm",
+            )
         plats.append(PlatformLink(p.name, math.radians(p.angle_deg), sub, p.point, tuple(np.asarray(p.offset_mm) * MM)))
     contacts = []
     for c in d.contacts:
         if len(c.position_mm) != 2:
-            raise InputError(f"dampers[{d.name}].contacts[{c.name}].position_mm", f"has {len(c.position_mm)} values",
-                             "give [a, b] in mm")
-        contacts.append(DamperContact(c.name, c.platform, tuple(np.asarray(c.position_mm) * MM),
-                                      c.normal_stiffness_N_per_um * N_PER_UM, c.tangential_stiffness_N_per_um * N_PER_UM,
-                                      c.friction_coefficient))
-    return DamperLink(name, d.mass_kg, d.inertia_kg_m2, d.centrifugal_force_N, tuple(plats), tuple(contacts),
-                      math.radians(d.centrifugal_angle_deg))
+            raise InputError(
+                f"dampers[{d.name}].contacts[{c.name}].position_mm",
+                f"has {len(c.position_mm)} values",
+                "give [a, b] in mm",
+            )
+        contacts.append(
+            DamperContact(
+                c.name,
+                c.platform,
+                tuple(np.asarray(c.position_mm) * MM),
+                c.normal_stiffness_N_per_um * N_PER_UM,
+                c.tangential_stiffness_N_per_um * N_PER_UM,
+                c.friction_coefficient,
+            )
+        )
+    return DamperLink(
+        name,
+        d.mass_kg,
+        d.inertia_kg_m2,
+        d.centrifugal_force_N,
+        tuple(plats),
+        tuple(contacts),
+        math.radians(d.centrifugal_angle_deg),
+    )
 
 
 def load_assembly_case(data: dict, path: Path) -> tuple[System, RunSpec]:

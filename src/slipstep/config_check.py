@@ -20,8 +20,17 @@ from slipstep.model.validate import MAX_MAGNITUDE
 from slipstep.text import check_name, escape_text
 
 UNITS = (  # key suffix -> unit as printed (longest first)
-    ("_N_s_per_m", "N s/m"), ("_N_per_um", "N/um"), ("_N_per_m", "N/m"), ("_kg_m2", "kg m^2"), ("_kg", "kg"),
-    ("_Hz", "Hz"), ("_deg", "deg"), ("_mm", "mm"), ("_N", "N"), ("_m", "m"), ("_s", "s"),
+    ("_N_s_per_m", "N s/m"),
+    ("_N_per_um", "N/um"),
+    ("_N_per_m", "N/m"),
+    ("_kg_m2", "kg m^2"),
+    ("_kg", "kg"),
+    ("_Hz", "Hz"),
+    ("_deg", "deg"),
+    ("_mm", "mm"),
+    ("_N", "N"),
+    ("_m", "m"),
+    ("_s", "s"),
 )
 FIX_FORMAT = "check the spelling against the case format in the README (units are part of key names)"
 
@@ -86,7 +95,7 @@ def _key_path(loc, data) -> str:
 
 def _short(value, limit: int = 60) -> str:
     text = repr(value) if not isinstance(value, str) else value
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def describe(value) -> str:
@@ -105,9 +114,16 @@ def describe(value) -> str:
 
 
 _EXPECTED = {
-    "float_type": "a number", "float_parsing": "a number", "int_type": "a whole number",
-    "int_from_float": "a whole number", "int_parsing": "a whole number", "string_type": "text in quotes",
-    "list_type": "a list [...]", "model_type": "a table", "dict_type": "a table", "bool_type": "true or false",
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "int_type": "a whole number",
+    "int_from_float": "a whole number",
+    "int_parsing": "a whole number",
+    "string_type": "text in quotes",
+    "list_type": "a list [...]",
+    "model_type": "a table",
+    "dict_type": "a table",
+    "bool_type": "true or false",
     "model_attributes_type": "a table",
 }
 
@@ -152,20 +168,25 @@ def spec_error(errors: list[dict], data: dict, model, source: str) -> InputError
         holder = _model_at(model, loc)
         valid = list(getattr(holder, "model_fields", {}))
         key = str(loc[-1])
-        return InputError(field, f"is not a known key in {source}{suggestion(key, valid)}",
-                          f"{FIX_FORMAT}; valid keys here: {', '.join(valid)}" if valid else FIX_FORMAT)
+        return InputError(
+            field,
+            f"is not a known key in {source}{suggestion(key, valid)}",
+            f"{FIX_FORMAT}; valid keys here: {', '.join(valid)}" if valid else FIX_FORMAT,
+        )
     if first["type"] == "missing":
         return InputError(field, f"is required in {source} but missing", "add it")
     if first["type"] == "finite_number":
         return InputError(field, f"is {describe(first.get('input'))}, not a finite number", "give a finite number")
     expected = _EXPECTED.get(first["type"])
     if expected is None:
-        return InputError(field, f"{first['msg']} (got {describe(first.get('input'))})",
-                          "give a value of the right type")
+        return InputError(
+            field, f"{first['msg']} (got {describe(first.get('input'))})", "give a value of the right type"
+        )
     return InputError(field, f"is {describe(first.get('input'))}, expected {expected}", f"give {expected}")
 
 
 # -- semantic checks (after the schema) -----------------------------------------------------------
+
 
 class _Checker:
     """Walks the raw TOML data of a validated case; raises the first problem found."""
@@ -186,8 +207,11 @@ class _Checker:
         if not math.isfinite(value):
             raise InputError(self.path(*loc), f"is {shown}, not a finite number", "give a finite number")
         if abs(value) > MAX_MAGNITUDE:
-            raise InputError(self.path(*loc), f"is {shown}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
-                             f"check the value and its unit ({unit or 'dimensionless'})")
+            raise InputError(
+                self.path(*loc),
+                f"is {shown}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
+                f"check the value and its unit ({unit or 'dimensionless'})",
+            )
         if bound == ">0" and not value > 0:
             raise InputError(self.path(*loc), f"is {shown}, must be > 0", "give a value > 0")
         if bound == ">=0" and not value >= 0:
@@ -201,10 +225,16 @@ class _Checker:
         unit = unit_of(str(loc[-1]), self.kind, table)
         for where, x in _flat(value):
             if not math.isfinite(x) or abs(x) > MAX_MAGNITUDE:
-                what = "not a finite number" if not math.isfinite(x) else \
-                    f"beyond any physical value (|x| > {MAX_MAGNITUDE:g})"
-                raise InputError(self.path(*loc), f"entry {where} is {x:g}{' ' + unit if unit else ''}, {what}",
-                                 "give finite numbers of physical size")
+                what = (
+                    "not a finite number"
+                    if not math.isfinite(x)
+                    else f"beyond any physical value (|x| > {MAX_MAGNITUDE:g})"
+                )
+                raise InputError(
+                    self.path(*loc),
+                    f"entry {where} is {x:g}{' ' + unit if unit else ''}, {what}",
+                    "give finite numbers of physical size",
+                )
 
     def matrix(self, loc, rows: int | None, cols: int | None, what: str) -> int | None:
         """A present list of lists: rectangular, ``rows`` x ``cols`` where given; returns its rows."""
@@ -216,8 +246,11 @@ class _Checker:
             raise InputError(self.path(*loc), "is empty", f"give {what}")
         if len(set(lengths)) > 1:
             bad = next(i for i, n in enumerate(lengths) if n != lengths[0])
-            raise InputError(self.path(*loc), f"is ragged: row 1 has {lengths[0]} entries, row {bad + 1} has "
-                                              f"{lengths[bad]}", f"give rows of equal length ({what})")
+            raise InputError(
+                self.path(*loc),
+                f"is ragged: row 1 has {lengths[0]} entries, row {bad + 1} has {lengths[bad]}",
+                f"give rows of equal length ({what})",
+            )
         if rows is not None and len(value) != rows:
             raise InputError(self.path(*loc), f"has {len(value)} rows", f"give {what}")
         if cols is not None and lengths[0] != cols:
@@ -252,9 +285,11 @@ class _Checker:
                 continue
             check_name(self.path(*table_loc, i, "name"), name)
             if name in first:
-                raise InputError(self.path(*table_loc, i, "name"),
-                                 f"{name!r} is already the name of {self.path(*table_loc, first[name]).split(':')[0]}",
-                                 f"give every {what} its own name")
+                raise InputError(
+                    self.path(*table_loc, i, "name"),
+                    f"{name!r} is already the name of {self.path(*table_loc, first[name]).split(':')[0]}",
+                    f"give every {what} its own name",
+                )
             first[name] = i
 
 
@@ -333,16 +368,23 @@ def _check_structure(c: _Checker, data: dict) -> None:
         rows = c.matrix(("contacts", i, "dof_gather"), None, n, f"{n} columns, one per DOF")
         c.numbers(("contacts", i, "dof_gather"))
         if "motion_gather" in contact:
-            c.matrix(("contacts", i, "motion_gather"), rows, m,
-                     f"the rows of dof_gather and {m} column(s), one per component of motion_names")
+            c.matrix(
+                ("contacts", i, "motion_gather"),
+                rows,
+                m,
+                f"the rows of dof_gather and {m} column(s), one per component of motion_names",
+            )
             c.numbers(("contacts", i, "motion_gather"))
         kt = contact.get("tangential_stiffness_N_per_m")
         if isinstance(kt, list):
             c.numbers(("contacts", i, "tangential_stiffness_N_per_m"))
             for x in kt:
                 if not x > 0:
-                    raise InputError(c.path("contacts", i, "tangential_stiffness_N_per_m"),
-                                     f"holds {x:g} N/m, must be > 0", "give values > 0")
+                    raise InputError(
+                        c.path("contacts", i, "tangential_stiffness_N_per_m"),
+                        f"holds {x:g} N/m, must be > 0",
+                        "give values > 0",
+                    )
         else:
             c.number(("contacts", i, "tangential_stiffness_N_per_m"), ">0")
         c.number(("contacts", i, "normal_stiffness_N_per_m"), ">0")
@@ -365,8 +407,11 @@ def _check_excitation(c: _Checker, data: dict, kind: str) -> None:
     for table in ("motion", "force", "motion_table", "force_table"):
         items = data.get(table) or []
         if items and kind == "damper" and table.startswith("force"):
-            raise InputError(c.path(table, 0), f"[[{table}]] is not supported for [damper] cases",
-                             "drive the damper through platform motions ([[motion]], [[motion_table]])")
+            raise InputError(
+                c.path(table, 0),
+                f"[[{table}]] is not supported for [damper] cases",
+                "drive the damper through platform motions ([[motion]], [[motion_table]])",
+            )
         components = _components(data, kind, table)
         seen: dict = {}
         for i, item in enumerate(items):
@@ -374,11 +419,16 @@ def _check_excitation(c: _Checker, data: dict, kind: str) -> None:
             check_name(c.path(table, i, "component"), comp)
             if comp not in components:
                 if not components and table.startswith("motion"):
-                    raise InputError(c.path(table, i, "component"), f"{comp!r} is not a prescribed motion "
-                                     "component: motion_names is empty",
-                                     "list the prescribed motion components in motion_names (top level)")
-                raise InputError(c.path(table, i, "component"), f"{comp!r} is not a known component"
-                                 f"{suggestion(comp, components)}", f"use one of {components}")
+                    raise InputError(
+                        c.path(table, i, "component"),
+                        f"{comp!r} is not a prescribed motion component: motion_names is empty",
+                        "list the prescribed motion components in motion_names (top level)",
+                    )
+                raise InputError(
+                    c.path(table, i, "component"),
+                    f"{comp!r} is not a known component{suggestion(comp, components)}",
+                    f"use one of {components}",
+                )
             if table in ("motion", "force"):
                 c.number((table, i, "frequency_Hz"), ">0")
                 c.number((table, i, "amplitude"), table=table)
@@ -390,17 +440,26 @@ def _check_excitation(c: _Checker, data: dict, kind: str) -> None:
                 c.numbers((table, i, "values"), table=table)
                 times, values = item.get("times_s", []), item.get("values", [])
                 if len(values) != len(times):
-                    raise InputError(c.path(table, i, "values"), f"has {len(values)} values for {len(times)} times",
-                                     "give one value per time")
+                    raise InputError(
+                        c.path(table, i, "values"),
+                        f"has {len(values)} values for {len(times)} times",
+                        "give one value per time",
+                    )
                 if len(times) < 2 or any(b <= a for a, b in zip(times, times[1:])):
-                    raise InputError(c.path(table, i, "times_s"), "must hold at least 2 strictly increasing times",
-                                     "sort the table and remove repeated times")
+                    raise InputError(
+                        c.path(table, i, "times_s"),
+                        "must hold at least 2 strictly increasing times",
+                        "sort the table and remove repeated times",
+                    )
                 key, what = comp, f"{comp!r}"
             if key in seen:
-                raise InputError(c.path(table, i, "component"),
-                                 f"{what} is already given by [[{table}]] {seen[key] + 1}",
-                                 "give each component" + (" and frequency" if table in ("motion", "force") else "")
-                                 + " once (merge the two entries)")
+                raise InputError(
+                    c.path(table, i, "component"),
+                    f"{what} is already given by [[{table}]] {seen[key] + 1}",
+                    "give each component"
+                    + (" and frequency" if table in ("motion", "force") else "")
+                    + " once (merge the two entries)",
+                )
             seen[key] = i
 
 

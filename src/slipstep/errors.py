@@ -36,8 +36,7 @@ _MESSAGES = {
         "ratio (--step-ratio) or raise max_iterations"
     ),
     Status.STATE_CYCLING: (
-        "the contact-state iteration cycled between incompatible states; raise "
-        "state_tolerance or reduce the step"
+        "the contact-state iteration cycled between incompatible states; raise state_tolerance or reduce the step"
     ),
     Status.SINGULAR: (
         "the effective stiffness of the contact state is singular: no equilibrium exists "

@@ -33,8 +33,10 @@ os.umask(_UMASK)
 _OS_PROBLEMS = {  # errno -> (problem, fix)
     errno.ENOSPC: ("no space left on the device (disk full)", "free disk space or write elsewhere"),
     errno.EDQUOT: ("the disk quota is exceeded", "free disk space or write elsewhere"),
-    errno.EFBIG: ("the file exceeds the file size limit (ulimit -f) or the file system's largest file",
-                  "raise the limit or write a smaller result"),
+    errno.EFBIG: (
+        "the file exceeds the file size limit (ulimit -f) or the file system's largest file",
+        "raise the limit or write a smaller result",
+    ),
     errno.EROFS: ("the file system is read-only", "write to a writable directory"),
     errno.EACCES: ("permission denied", "write to a directory you may write to"),
     errno.EPERM: ("operation not permitted", "write to a directory you may write to"),
@@ -48,8 +50,9 @@ _OS_PROBLEMS = {  # errno -> (problem, fix)
 
 def output_error(path, exc: OSError) -> OutputError:
     """The :class:`OutputError` of an ``OSError`` met while writing ``path``."""
-    problem, fix = _OS_PROBLEMS.get(exc.errno, (exc.strerror or str(exc) or type(exc).__name__,
-                                                "check the path and the disk"))
+    problem, fix = _OS_PROBLEMS.get(
+        exc.errno, (exc.strerror or str(exc) or type(exc).__name__, "check the path and the disk")
+    )
     return OutputError(path, f"cannot be written: {problem}", fix)
 
 
@@ -71,7 +74,7 @@ def remove_stale_temporaries(target: Path) -> None:
             name = entry.name
             if not (name.startswith(prefix) and name.endswith(".tmp")):
                 continue
-            pid = name[len(prefix):].split(".", 1)[0]
+            pid = name[len(prefix) :].split(".", 1)[0]
             if pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid)):
                 with contextlib.suppress(OSError):
                     os.unlink(entry.path)
@@ -88,8 +91,7 @@ def atomic_path(target: str | os.PathLike):
         raise OutputError(target, "is a directory", "give a file name, not a directory")
     remove_stale_temporaries(target)
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp",
-                                        dir=target.parent)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise output_error(target, exc) from None
     os.close(fd)
@@ -141,12 +143,18 @@ def ensure_space(path, nbytes: float) -> float:
     if nbytes > free:
         with contextlib.suppress(OSError):
             if free < shutil.disk_usage(Path(path).parent).free:
-                raise OutputError(path, f"cannot be written: it needs about {format_bytes(nbytes)}, more than the "
-                                        f"file size limit (ulimit -f) of {format_bytes(free)}",
-                                  "raise the limit or write a smaller result")
-        raise OutputError(path, f"cannot be written: no space left on the device: it needs about "
-                                f"{format_bytes(nbytes)} and the disk has {format_bytes(free)} free",
-                          "free disk space or write elsewhere")
+                raise OutputError(
+                    path,
+                    f"cannot be written: it needs about {format_bytes(nbytes)}, more than the "
+                    f"file size limit (ulimit -f) of {format_bytes(free)}",
+                    "raise the limit or write a smaller result",
+                )
+        raise OutputError(
+            path,
+            f"cannot be written: no space left on the device: it needs about "
+            f"{format_bytes(nbytes)} and the disk has {format_bytes(free)} free",
+            "free disk space or write elsewhere",
+        )
     return free
 
 
@@ -180,6 +188,7 @@ def plain_text_figures(func):
     """Decorator: the figures ``func`` makes draw every text as written, not as mathtext, so that a
     name such as ``P$\\frac$1`` from a case file is a label, not a formula that fails to parse
     (matplotlib's rcParams are restored afterwards)."""
+
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         import matplotlib

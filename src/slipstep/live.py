@@ -91,13 +91,22 @@ class _Progress:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
         self.progress = Progress(
-            TextColumn("march"), BarColumn(), TextColumn("t = {task.fields[t]} of {task.fields[t_end]}"),
-            TextColumn("{task.fields[steps]} steps"), TextColumn("{task.fields[rate]} steps/s"),
-            TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
-            console=Console(stderr=True), transient=True, refresh_per_second=5)
+            TextColumn("march"),
+            BarColumn(),
+            TextColumn("t = {task.fields[t]} of {task.fields[t_end]}"),
+            TextColumn("{task.fields[steps]} steps"),
+            TextColumn("{task.fields[rate]} steps/s"),
+            TimeElapsedColumn(),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            console=Console(stderr=True),
+            transient=True,
+            refresh_per_second=5,
+        )
         self.progress.start()
-        self.task = self.progress.add_task("march", total=self.t_end, t="0 s", t_end=_seconds(self.t_end),
-                                           steps=0, rate="-")
+        self.task = self.progress.add_task(
+            "march", total=self.t_end, t="0 s", t_end=_seconds(self.t_end), steps=0, rate="-"
+        )
         self.started, self.steps0 = time.monotonic(), int(self.counters[C_PROGRESS])
 
     def update(self):
@@ -107,8 +116,9 @@ class _Progress:
         t = float(self.times[min(k, self.times.shape[0] - 1)])
         elapsed = max(time.monotonic() - self.started, 1e-9)
         rate = (k - self.steps0) / elapsed
-        self.progress.update(self.task, completed=min(t, self.t_end), t=_seconds(t), steps=f"{k:,}",
-                             rate=f"{rate:,.0f}")
+        self.progress.update(
+            self.task, completed=min(t, self.t_end), t=_seconds(t), steps=f"{k:,}", rate=f"{rate:,.0f}"
+        )
 
     def note(self, text: str):
         if self.progress is not None:

@@ -31,8 +31,9 @@ from slipstep.results import STATE_NAMES  # noqa: E402
 STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61", "#7b3294")  # one per STATE_NAMES entry
 _SCALE = {"m": (1e6, "um"), "rad": (1e3, "mrad"), "N": (1.0, "N"), "s": (1e3, "ms"), "J": (1e3, "mJ")}
 
-plt.rcParams.update({"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9,
-                     "figure.dpi": 100})
+plt.rcParams.update(
+    {"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9, "figure.dpi": 100}
+)
 
 
 def _unit(units: str) -> tuple[float, str]:
@@ -92,8 +93,9 @@ def plot_time_histories(datasets, last_periods: float | None = 1.0):
         if last_periods and T:
             sel = ds["time"].values >= ds["time"].values[-1] - last_periods * T * (1 + 1e-9)
         ls, lw = styles[k % 4], 1.6 if k == 0 else 1.1
-        for col, (var, dim) in enumerate((("tangential_force", "direction"), ("normal_force", "contact"),
-                                          ("displacement", "dof"))):
+        for col, (var, dim) in enumerate(
+            (("tangential_force", "direction"), ("normal_force", "contact"), ("displacement", "dof"))
+        ):
             f, u = _unit(ds[var].attrs.get("units"))
             for i, name in enumerate(ds[dim].values):
                 ax = axes[i, col]
@@ -140,15 +142,27 @@ def plot_loops(ds: xr.Dataset, filtered: xr.Dataset | None = None, period: float
     ft, ut = _unit(lp["tangential_force"].attrs.get("units"))
     for d, name in enumerate(names):
         ax = axes[0, d]
-        ax.plot(lp["tangential_displacement"].values[:, d] * fu, lp["tangential_force"].values[:, d] * ft,
-                lw=0.9, color="#999999" if lf is not None else "C0", label="raw")
+        ax.plot(
+            lp["tangential_displacement"].values[:, d] * fu,
+            lp["tangential_force"].values[:, d] * ft,
+            lw=0.9,
+            color="#999999" if lf is not None else "C0",
+            label="raw",
+        )
         if lf is not None:
             fc = filtered.attrs.get("filter_cutoff_Hz")
             lab = f"filtered ({fc / 1e3:.2g} kHz low-pass)" if fc else "filtered"
-            ax.plot(lf[0]["tangential_displacement"].values[:, d] * fu, lf[0]["tangential_force"].values[:, d] * ft,
-                    lw=1.6, color="C3", label=lab)
+            ax.plot(
+                lf[0]["tangential_displacement"].values[:, d] * fu,
+                lf[0]["tangential_force"].values[:, d] * ft,
+                lw=1.6,
+                color="C3",
+                label=lab,
+            )
         ax.set_title(name if interfaces is None else f"interface {name}")
-        ax.set_xlabel(f"tangential displacement u [{uu}]" if interfaces is None else f"mean tangential displacement [{uu}]")
+        ax.set_xlabel(
+            f"tangential displacement u [{uu}]" if interfaces is None else f"mean tangential displacement [{uu}]"
+        )
         ax.set_ylabel(f"tangential force T [{ut}]" if interfaces is None else f"total tangential force [{ut}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best")
@@ -166,13 +180,23 @@ def _state_strip(ax, ds: xr.Dataset):
         for s in range(4):
             mask = S[1:, d] == s
             if mask.any():
-                ax.broken_barh([(a, b - a) for a, b in zip(t[:-1][mask], t[1:][mask])], (d - 0.4, 0.8),
-                               facecolors=STATE_COLORS[s], edgecolor="none")
+                ax.broken_barh(
+                    [(a, b - a) for a, b in zip(t[:-1][mask], t[1:][mask])],
+                    (d - 0.4, 0.8),
+                    facecolors=STATE_COLORS[s],
+                    edgecolor="none",
+                )
     ax.set_yticks(range(len(names)), names)
     ax.set_ylim(-0.6, len(names) - 0.4)
     ax.invert_yaxis()
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(STATE_COLORS, STATE_NAMES)], loc="lower center",
-              bbox_to_anchor=(0.5, 1.0), ncol=4, frameon=False, fontsize=9)
+    ax.legend(
+        handles=[Patch(color=c, label=n) for c, n in zip(STATE_COLORS, STATE_NAMES)],
+        loc="lower center",
+        bbox_to_anchor=(0.5, 1.0),
+        ncol=4,
+        frameon=False,
+        fontsize=9,
+    )
 
 
 def plot_step_size(ds: xr.Dataset):
@@ -223,8 +247,12 @@ def plot_method_comparison(rows: list[dict]):
     bars = ax.bar(range(len(rows)), ratios, color=[f"C{i}" for i in range(len(rows))])
     for b, r in zip(bars, ratios):
         ax.annotate(f"{r:.2f}", (b.get_x() + b.get_width() / 2, b.get_height()), ha="center", va="bottom")
-    ax.set_xticks(range(len(rows)), labels, rotation=20 if max(map(len, labels)) > 10 else 0, ha="right"
-                  if max(map(len, labels)) > 10 else "center")
+    ax.set_xticks(
+        range(len(rows)),
+        labels,
+        rotation=20 if max(map(len, labels)) > 10 else 0,
+        ha="right" if max(map(len, labels)) > 10 else "center",
+    )
     ax.set_ylabel("CPU time / Method 1 [-]")
     ax.set_title("Computational time relative to Method 1")
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
@@ -245,8 +273,14 @@ def plot_state_timeline(ds: xr.Dataset):
 
 
 @_plain_text_figures
-def write_figures(ds: xr.Dataset, output_dir, reference: xr.Dataset | None = None, system=None,
-                  comparison: list[dict] | None = None, prefix: str = "") -> list[Path]:
+def write_figures(
+    ds: xr.Dataset,
+    output_dir,
+    reference: xr.Dataset | None = None,
+    system=None,
+    comparison: list[dict] | None = None,
+    prefix: str = "",
+) -> list[Path]:
     """Every figure that applies to ``ds`` as PNG files in ``output_dir``: time histories
     (with ``reference`` superposed), loops (filtered too when ``ds`` is dynamic and
     ``system`` is given), step size, iterations, state timeline, method comparison (if

@@ -18,8 +18,11 @@ from slipstep.io import atomic_path
 
 _DISPLAY = {"m": (1e6, "um"), "rad": (1e3, "mrad")}
 MAX_CONTACT_LINES = 6  # beyond this many contacts the energy panel shows their total and range
-_SWEEP_STYLE = {"up": ("C0", "o", "upward sweep"), "down": ("C3", "v", "downward sweep"),
-                None: ("C0", "o", "friction contacts")}
+_SWEEP_STYLE = {
+    "up": ("C0", "o", "upward sweep"),
+    "down": ("C3", "v", "downward sweep"),
+    None: ("C0", "o", "friction contacts"),
+}
 
 
 def _sweeps(ds: xr.Dataset):
@@ -49,8 +52,9 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
     f = ds["frequency"].values
     solver = ds.attrs.get("solver", "")
     has_energy = np.isfinite(ds["energy_per_cycle"].values).any()
-    fig, axes = plt.subplots(2 if has_energy else 1, 1, figsize=(7.5, 7.5 if has_energy else 4.5), sharex=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        2 if has_energy else 1, 1, figsize=(7.5, 7.5 if has_energy else 4.5), sharex=True, squeeze=False
+    )
     ax = axes[0, 0]
     labelled = set()
     for name, part in _sweeps(ds):
@@ -61,11 +65,12 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         unstable = part["floquet_multiplier_max"].values > 1.0 + 1e-6  # beyond round-off of |mu| = 1
         for mask, style, text in ((~ok, "x", "not steady / failed"), (unstable, "s", "unstable orbit (|Floquet| > 1)")):
             if mask.any():
-                ax.plot(f[mask], y[mask], style, mfc="none", color="k", ms=7,
-                        label=None if text in labelled else text)
+                ax.plot(f[mask], y[mask], style, mfc="none", color="k", ms=7, label=None if text in labelled else text)
                 labelled.add(text)
-    for name, style, text in (("linear_free_amplitude", "--", "linear: contacts removed"),
-                              ("linear_stuck_amplitude", ":", "linear: contacts stuck")):
+    for name, style, text in (
+        ("linear_free_amplitude", "--", "linear: contacts removed"),
+        ("linear_stuck_amplitude", ":", "linear: contacts stuck"),
+    ):
         lim = ds[name]
         if "sweep" in lim.dims:
             lim = lim.isel(sweep=0)
@@ -89,10 +94,12 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
                     ax.plot(f, e[:, j], ls, color=f"C{j}", marker=".", ms=3, label=f"{contact}{suffix}")
             else:  # many contacts: the total, and the range over the contacts
                 color = _SWEEP_STYLE.get(name, _SWEEP_STYLE[None])[0]
-                ax.plot(f, e.sum(axis=1), ls, color=color, marker=".", ms=3,
-                        label=f"all {len(contacts)} contacts{suffix}")
-                ax.fill_between(f, e.min(axis=1), e.max(axis=1), color=color, alpha=0.2,
-                                label=f"range over the contacts{suffix}")
+                ax.plot(
+                    f, e.sum(axis=1), ls, color=color, marker=".", ms=3, label=f"all {len(contacts)} contacts{suffix}"
+                )
+                ax.fill_between(
+                    f, e.min(axis=1), e.max(axis=1), color=color, alpha=0.2, label=f"range over the contacts{suffix}"
+                )
         ax.set_ylabel("friction energy per cycle [mJ]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", ncol=2)

@@ -62,8 +62,10 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
             continue
         dims, units, long_name = SCHEMA[name]
         variables[name] = xr.Variable(dims, np.array(values), {"units": units, "long_name": long_name})
-    variables["contact_state"].attrs.update(flag_values=np.arange(len(STATE_NAMES), dtype=np.int8), flag_meanings=" ".join(
-        s.replace("-", "_").replace("+", "_pos") for s in STATE_NAMES))
+    variables["contact_state"].attrs.update(
+        flag_values=np.arange(len(STATE_NAMES), dtype=np.int8),
+        flag_meanings=" ".join(s.replace("-", "_").replace("+", "_pos") for s in STATE_NAMES),
+    )
     coords = {
         "time": ("time", np.array(out.t[:k]), {"units": "s", "long_name": "time after the static preload"}),
         "dof": ("dof", list(system.structure.dof_names)),
@@ -101,7 +103,7 @@ def save(ds: xr.Dataset, path) -> None:
     size = ds.nbytes * 1.02 + 262144  # the file: the data plus about 30 KB of HDF5 metadata (measured)
     free = ensure_space(path, size)
     with atomic_path(path) as tmp:
-        if free < 2 * size + 32 * 2 ** 20:
+        if free < 2 * size + 32 * 2**20:
             image = io.BytesIO()
             ds.to_netcdf(image, engine="h5netcdf")
             with open(tmp, "wb") as fh:
@@ -124,16 +126,18 @@ def load(path, field: str = "result") -> xr.Dataset:
         raise InputError(field, f"is {path!r}", "give the path of a .nc result file")
 
     def refuse(problem: str) -> InputError:
-        return InputError(field, f"{str(path)!r} {problem}",
-                          "give a .nc file written by `slipstep run` or slipstep.save_result")
+        return InputError(
+            field, f"{str(path)!r} {problem}", "give a .nc file written by `slipstep run` or slipstep.save_result"
+        )
 
     try:
         fh = open(path, "rb")
     except FileNotFoundError:
         raise InputError(field, f"file {str(path)!r} does not exist", "give the path of a .nc result file") from None
     except OSError as exc:
-        raise InputError(field, f"{str(path)!r} cannot be read ({exc.strerror})",
-                         "give a readable .nc result file") from None
+        raise InputError(
+            field, f"{str(path)!r} cannot be read ({exc.strerror})", "give a readable .nc result file"
+        ) from None
     with fh:
         head = fh.read(8)
         if head != HDF5_SIGNATURE:
@@ -147,8 +151,9 @@ def load(path, field: str = "result") -> xr.Dataset:
         if nbytes > limit:
             from slipstep.io import format_bytes
 
-            raise refuse(f"would need {format_bytes(nbytes)} of memory to load, more than the limit "
-                         f"{format_bytes(limit)}")
+            raise refuse(
+                f"would need {format_bytes(nbytes)} of memory to load, more than the limit {format_bytes(limit)}"
+            )
         fh.seek(0)
         try:
             with xr.open_dataset(fh, engine="h5netcdf") as opened:
@@ -179,15 +184,15 @@ def _check_hdf5(fh, refuse) -> int:
                 link = group.get(name, getlink=True)
                 if not isinstance(link, h5py.HardLink):
                     kind = "an external link" if isinstance(link, h5py.ExternalLink) else "a soft or user-defined link"
-                    raise refuse(f"contains {kind} ({group.name.rstrip('/')}/{name}): refused, it reads outside "
-                                 "the file")
+                    raise refuse(
+                        f"contains {kind} ({group.name.rstrip('/')}/{name}): refused, it reads outside the file"
+                    )
                 obj = group[name]
                 if isinstance(obj, h5py.Group):
                     stack.append(obj)
                 elif isinstance(obj, h5py.Dataset):
                     if obj.external:
-                        raise refuse(f"stores dataset {obj.name} in external files: refused, it reads outside "
-                                     "the file")
+                        raise refuse(f"stores dataset {obj.name} in external files: refused, it reads outside the file")
                     if obj.is_virtual:
                         raise refuse(f"holds a virtual dataset ({obj.name}): refused, it reads outside the file")
                     total += int(obj.size) * max(int(obj.dtype.itemsize), 1)

@@ -74,35 +74,53 @@ class System:
         if len(set(names)) != len(names):
             raise InputError("contacts", f"names are not unique: {names}", "give every contact its own name")
         check_name("name", self.name)
-        for kind, values in (("contacts", names), ("motion_names", self.motion_names),
-                             ("structure.dof_names", self.structure.dof_names)):
+        for kind, values in (
+            ("contacts", names),
+            ("motion_names", self.motion_names),
+            ("structure.dof_names", self.structure.dof_names),
+        ):
             for value in values:
                 check_name(kind, value)
         motion_names = tuple(self.motion_names)
         if len(set(motion_names)) != len(motion_names):
-            raise InputError("motion_names", f"are not unique: {list(motion_names)}",
-                             "give every prescribed motion component its own name")
+            raise InputError(
+                "motion_names",
+                f"are not unique: {list(motion_names)}",
+                "give every prescribed motion component its own name",
+            )
         if self.excitation.motion is not None:
             if motion_names and motion_names != self.excitation.motion.components:
-                raise InputError("excitation.motion.components",
-                                 f"{self.excitation.motion.components} differ from motion_names {motion_names}",
-                                 "use the same component names")
+                raise InputError(
+                    "excitation.motion.components",
+                    f"{self.excitation.motion.components} differ from motion_names {motion_names}",
+                    "use the same component names",
+                )
             motion_names = self.excitation.motion.components
         m = len(motion_names)
         for c in contacts:
             if c.dof_gather.shape[1] != n:
-                raise InputError(f"contacts[{c.name}].dof_gather", f"has {c.dof_gather.shape[1]} columns, structure has {n} DOFs",
-                                 f"give {n} columns")
+                raise InputError(
+                    f"contacts[{c.name}].dof_gather",
+                    f"has {c.dof_gather.shape[1]} columns, structure has {n} DOFs",
+                    f"give {n} columns",
+                )
             if c.motion_gather is not None and c.motion_gather.shape[1] != m:
-                raise InputError(f"contacts[{c.name}].motion_gather",
-                                 f"has {c.motion_gather.shape[1]} columns for {m} motion components {motion_names}",
-                                 f"give {m} columns, one per prescribed motion component")
+                raise InputError(
+                    f"contacts[{c.name}].motion_gather",
+                    f"has {c.motion_gather.shape[1]} columns for {m} motion components {motion_names}",
+                    f"give {m} columns, one per prescribed motion component",
+                )
         exc = self.excitation
         if exc.constant_force is not None:
-            object.__setattr__(exc, "constant_force", float_array("excitation.constant_force", exc.constant_force, shape=(n,)))
+            object.__setattr__(
+                exc, "constant_force", float_array("excitation.constant_force", exc.constant_force, shape=(n,))
+            )
         if exc.force is not None and len(exc.force.components) != n:
-            raise InputError("excitation.force.components", f"has {len(exc.force.components)} components, structure has {n} DOFs",
-                             "give one force component per DOF")
+            raise InputError(
+                "excitation.force.components",
+                f"has {len(exc.force.components)} components, structure has {n} DOFs",
+                "give one force component per DOF",
+            )
         object.__setattr__(self, "contacts", contacts)
         object.__setattr__(self, "motion_names", motion_names)
 
@@ -165,15 +183,34 @@ class System:
         as_i = lambda v: np.asarray(v, dtype=np.int64)
         as_f = lambda v: np.ascontiguousarray(np.asarray(v, dtype=np.float64))
         return CompiledSystem(
-            as_f(s.mass), as_f(s.damping), as_f(s.stiffness),
-            as_f(A), as_f(A.T),
+            as_f(s.mass),
+            as_f(s.damping),
+            as_f(s.stiffness),
+            as_f(A),
+            as_f(A.T),
             as_f(np.vstack(B_rows) if B_rows else np.zeros((0, m))).reshape(row, m),
-            as_f(g), as_i(normal_row), as_f(kn), as_f(mu), as_i(first_dir), as_i(n_dir),
-            as_i(tan_row), as_i(dir_contact), as_f(kt), as_f(f0),
-            as_f(fs.frequency), as_f(fs.sin_coefficient), as_f(fs.cos_coefficient),
-            as_f(fs.table_time), as_f(fs.table_value), float(fs.ramp_time),
-            as_f(ms.frequency), as_f(ms.sin_coefficient), as_f(ms.cos_coefficient),
-            as_f(ms.table_time), as_f(ms.table_value), float(ms.ramp_time),
+            as_f(g),
+            as_i(normal_row),
+            as_f(kn),
+            as_f(mu),
+            as_i(first_dir),
+            as_i(n_dir),
+            as_i(tan_row),
+            as_i(dir_contact),
+            as_f(kt),
+            as_f(f0),
+            as_f(fs.frequency),
+            as_f(fs.sin_coefficient),
+            as_f(fs.cos_coefficient),
+            as_f(fs.table_time),
+            as_f(fs.table_value),
+            float(fs.ramp_time),
+            as_f(ms.frequency),
+            as_f(ms.sin_coefficient),
+            as_f(ms.cos_coefficient),
+            as_f(ms.table_time),
+            as_f(ms.table_value),
+            float(ms.ramp_time),
             scale,
             as_i([c.law_code for c in self.contacts]),
             _law_table(kn, mu),
@@ -192,9 +229,14 @@ def _length_scale(f0, fs, ms, stiffnesses) -> float:
     """A displacement scale [m] for tolerances: the larger of the motion amplitude and the
     static deflection ``|f| / k`` the loads produce (k the largest contact normal or structural
     diagonal stiffness), never below 1 nm."""
-    motion = max(np.abs(ms.sin_coefficient).sum(initial=0.0) + np.abs(ms.cos_coefficient).sum(initial=0.0),
-                 np.abs(ms.table_value).max(initial=0.0))
-    force = max(np.abs(f0).sum(), np.abs(fs.sin_coefficient).sum(initial=0.0) + np.abs(fs.cos_coefficient).sum(initial=0.0),
-                np.abs(fs.table_value).max(initial=0.0))
+    motion = max(
+        np.abs(ms.sin_coefficient).sum(initial=0.0) + np.abs(ms.cos_coefficient).sum(initial=0.0),
+        np.abs(ms.table_value).max(initial=0.0),
+    )
+    force = max(
+        np.abs(f0).sum(),
+        np.abs(fs.sin_coefficient).sum(initial=0.0) + np.abs(fs.cos_coefficient).sum(initial=0.0),
+        np.abs(fs.table_value).max(initial=0.0),
+    )
     k = stiffnesses.max(initial=0.0)
     return float(max(motion, force / k if k > 0 else 0.0, 1e-9))

@@ -27,14 +27,20 @@ def check_name(field: str, name) -> str:
         raise InputError(field, f"is {len(name)} characters long", f"give a name of at most {MAX_NAME_LENGTH}")
     for ch in name:
         if unicodedata.category(ch) in _UNSAFE:
-            raise InputError(field, f"'{escape_text(name)}' contains the control character {escape_text(ch)}",
-                             "use printable characters only")
+            raise InputError(
+                field,
+                f"'{escape_text(name)}' contains the control character {escape_text(ch)}",
+                "use printable characters only",
+            )
     return name
 
 
 def escape_text(text) -> str:
     """``text`` with every control, format or line-break character written as an escape
     (\\x1b, \\u202e): safe to print on a terminal."""
-    return "".join(ch if unicodedata.category(ch) not in _UNSAFE
-                   else (f"\\x{ord(ch):02x}" if ord(ch) < 256 else f"\\u{ord(ch):04x}" if ord(ch) < 65536
-                         else f"\\U{ord(ch):08x}") for ch in str(text))
+    return "".join(
+        ch
+        if unicodedata.category(ch) not in _UNSAFE
+        else (f"\\x{ord(ch):02x}" if ord(ch) < 256 else f"\\u{ord(ch):04x}" if ord(ch) < 65536 else f"\\U{ord(ch):08x}")
+        for ch in str(text)
+    )

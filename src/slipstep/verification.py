@@ -78,16 +78,22 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
         B = rng.standard_normal((rows, n_motion)) if n_motion else None
         kn = 10 ** rng.uniform(5.5, 7.5)
         kt = 10 ** rng.uniform(5.5, 7.5, rows - 1)
-        contacts.append(ContactElement(
-            name=f"C{c}", dof_gather=A, motion_gather=B, normal_stiffness=kn,
-            tangential_stiffness=tuple(kt), friction_coefficient=float(rng.uniform(0.1, 0.8)),
-            normal_offset=float(rng.uniform(0.0, 2e-5)) if rng.random() < 0.5 else 0.0))
+        contacts.append(
+            ContactElement(
+                name=f"C{c}",
+                dof_gather=A,
+                motion_gather=B,
+                normal_stiffness=kn,
+                tangential_stiffness=tuple(kt),
+                friction_coefficient=float(rng.uniform(0.1, 0.8)),
+                normal_offset=float(rng.uniform(0.0, 2e-5)) if rng.random() < 0.5 else 0.0,
+            )
+        )
     # constant load pushing the contacts closed on average (a sum of their normal rows)
     normals = np.array([c.dof_gather[-1] for c in contacts])
     f0 = normals.T @ rng.uniform(0.0, 100.0, nc) + rng.standard_normal(n) * rng.uniform(0, 20)
     # excitation frequency relative to the highest full-stick frequency: 20..400 steps of T_min/pi per period
-    system0 = System(Structure(M, C, K), tuple(contacts), Excitation(constant_force=f0),
-                     motion_names=motion_names)
+    system0 = System(Structure(M, C, K), tuple(contacts), Excitation(constant_force=f0), motion_names=motion_names)
     cs = system0.compile()
     Keff = cs.K.copy()
     for c in range(cs.kn.shape[0]):
@@ -99,20 +105,31 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
     frequency = 1.0 / (dt_limit * 10 ** rng.uniform(math.log10(20), math.log10(400)))
     force = motion = None
     if rng.random() < 0.8 or n_motion == 0:
-        force = Signal(tuple(f"x{i}" for i in range(n)),
-                       (Harmonic(frequency, rng.standard_normal(n) * rng.uniform(5, 100), rng.uniform(0, 6.3, n)),))
+        force = Signal(
+            tuple(f"x{i}" for i in range(n)),
+            (Harmonic(frequency, rng.standard_normal(n) * rng.uniform(5, 100), rng.uniform(0, 6.3, n)),),
+        )
     if n_motion:
-        motion = Signal(motion_names, (Harmonic(frequency, rng.standard_normal(n_motion) * rng.uniform(1e-6, 3e-5),
-                                                np.zeros(n_motion)),))
-    return System(Structure(M, C, K), tuple(contacts), Excitation(constant_force=f0, force=force, motion=motion),
-                  motion_names=motion_names, name="random")
+        motion = Signal(
+            motion_names,
+            (Harmonic(frequency, rng.standard_normal(n_motion) * rng.uniform(1e-6, 3e-5), np.zeros(n_motion)),),
+        )
+    return System(
+        Structure(M, C, K),
+        tuple(contacts),
+        Excitation(constant_force=f0, force=force, motion=motion),
+        motion_names=motion_names,
+        name="random",
+    )
 
 
 def agreement_error(ds, ref) -> float:
     """max_t,j |x_j - x_ref,j| / (largest DOF range of the reference); inf if the grids differ."""
     x = ds["displacement"].values
     xr_ = ref["displacement"].values
-    if x.shape != xr_.shape or not np.allclose(ds.time.values, ref.time.values, rtol=0, atol=1e-12 * ref.time.values[-1]):
+    if x.shape != xr_.shape or not np.allclose(
+        ds.time.values, ref.time.values, rtol=0, atol=1e-12 * ref.time.values[-1]
+    ):
         return math.inf
     span = float((xr_.max(axis=0) - xr_.min(axis=0)).max())
     return float(np.abs(x - xr_).max() / max(span, 1e-300))
@@ -120,18 +137,30 @@ def agreement_error(ds, ref) -> float:
 
 def perturbed(system: System, eps: float) -> System:
     """The system with every load and motion (constant, harmonic, tabulated) scaled by 1 + eps."""
+
     def scale(sig):
         if sig is None:
             return None
-        return replace(sig, harmonics=tuple(replace(h, amplitude=h.amplitude * (1 + eps)) for h in sig.harmonics),
-                       tables=tuple(replace(tab, values=tab.values * (1 + eps)) for tab in sig.tables))
+        return replace(
+            sig,
+            harmonics=tuple(replace(h, amplitude=h.amplitude * (1 + eps)) for h in sig.harmonics),
+            tables=tuple(replace(tab, values=tab.values * (1 + eps)) for tab in sig.tables),
+        )
+
     exc = system.excitation
     f0 = None if exc.constant_force is None else np.asarray(exc.constant_force) * (1 + eps)
     return replace(system, excitation=replace(exc, constant_force=f0, force=scale(exc.force), motion=scale(exc.motion)))
 
 
-def check_system(system: System, methods=CHECK_METHODS, periods: float = 2.0, reference_tolerance: float = 1e-13,
-                 rtol: float = 1e-6, adaptive: bool = False, **options) -> dict | None:
+def check_system(
+    system: System,
+    methods=CHECK_METHODS,
+    periods: float = 2.0,
+    reference_tolerance: float = 1e-13,
+    rtol: float = 1e-6,
+    adaptive: bool = False,
+    **options,
+) -> dict | None:
     """Run ``methods`` and a full-Newton reference at ``reference_tolerance`` on the same grid;
     returns {method: {'status', 'error'}} (error against the reference, NaN when not OK) and
     'sensitive' (see the module docstring; the twins run only when a method fails), or None
@@ -157,14 +186,18 @@ def check_system(system: System, methods=CHECK_METHODS, periods: float = 2.0, re
             ok = ds.attrs["status"] == "OK"
             rows[m] = {"status": ds.attrs["status"], "error": agreement_error(ds, ref) if ok else math.nan}
         if adaptive:
-            aref = run(system, "piecewise-linear-adaptive", periods=periods, state_tolerance=reference_tolerance,
-                       **options)
+            aref = run(
+                system, "piecewise-linear-adaptive", periods=periods, state_tolerance=reference_tolerance, **options
+            )
             ds = run(system, "newmark-adaptive", periods=periods, **options)
             ok = ds.attrs["status"] == "OK" and aref.attrs["status"] == "OK"
-            rows["newmark-adaptive"] = {"status": ds.attrs["status"],
-                                        "error": agreement_error(ds, aref) if ok else math.nan}
-        rows["sensitive"] = bool(_failed(rows, rtol)) and _sensitive(system, ref, periods, reference_tolerance, rtol,
-                                                                  options)
+            rows["newmark-adaptive"] = {
+                "status": ds.attrs["status"],
+                "error": agreement_error(ds, aref) if ok else math.nan,
+            }
+        rows["sensitive"] = bool(_failed(rows, rtol)) and _sensitive(
+            system, ref, periods, reference_tolerance, rtol, options
+        )
     return rows
 
 
@@ -176,12 +209,14 @@ def _sensitive(system, ref, periods, reference_tolerance, rtol, options) -> bool
     """The two sensitivity twins of the module docstring (run only for a system with a failure)."""
     from slipstep.methods.simulation import run
 
-    twin = run(perturbed(system, PERTURBATION), "full-newton", periods=periods, tolerance=reference_tolerance,
-               **options)
+    twin = run(
+        perturbed(system, PERTURBATION), "full-newton", periods=periods, tolerance=reference_tolerance, **options
+    )
     other = "direct" if ref.attrs["linear_solver"] == "low-rank" else "low-rank"
     try:
-        path = run(system, "full-newton", periods=periods, tolerance=reference_tolerance, linear_solver=other,
-                   **options)
+        path = run(
+            system, "full-newton", periods=periods, tolerance=reference_tolerance, linear_solver=other, **options
+        )
         spread = agreement_error(path, ref) if path.attrs["status"] == "OK" else 0.0
     except SolverError:  # the other solver cannot even preload: no second path to compare
         spread = 0.0

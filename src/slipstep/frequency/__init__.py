@@ -11,5 +11,13 @@ from slipstep.frequency.retune import retune
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.frequency.slow_sweep import sine_sweep
 
-__all__ = ["FRF_SCHEMA", "STEADY_SOLVERS", "frf", "harmonics", "linear_limits", "linear_response", "retune", "sine_sweep"]
-
+__all__ = [
+    "FRF_SCHEMA",
+    "STEADY_SOLVERS",
+    "frf",
+    "harmonics",
+    "linear_limits",
+    "linear_response",
+    "retune",
+    "sine_sweep",
+]

@@ -8,14 +8,19 @@ import xarray as xr
 from slipstep.frequency.schema import FRF_SCHEMA
 
 
-def empty_frf(frequencies, responses, response_units, contacts, n_harmonics: int, attrs: dict | None = None
-              ) -> xr.Dataset:
+def empty_frf(
+    frequencies, responses, response_units, contacts, n_harmonics: int, attrs: dict | None = None
+) -> xr.Dataset:
     """An FRF Dataset of the schema with every value NaN (floats) or "" (status), to be
     filled point by point. Dims: frequency (as given, in computing order), harmonic 0..H,
     response (DOF names, coordinate response_unit), contact."""
     freqs = np.asarray(frequencies, float)
-    sizes = {"frequency": freqs.size, "harmonic": int(n_harmonics) + 1, "response": len(responses),
-             "contact": len(contacts)}
+    sizes = {
+        "frequency": freqs.size,
+        "harmonic": int(n_harmonics) + 1,
+        "response": len(responses),
+        "contact": len(contacts),
+    }
     variables = {}
     for name, (dims, units, long_name) in FRF_SCHEMA.items():
         shape = tuple(sizes[d] for d in dims)
@@ -42,8 +47,14 @@ def concat_sweeps(up: xr.Dataset, down: xr.Dataset) -> xr.Dataset:
     """Both directions in one Dataset along ``sweep`` ("up", "down"), frequencies ascending."""
     up = up.sortby("frequency")
     down = down.sortby("frequency")
-    out = xr.concat([up, down], dim=xr.DataArray(["up", "down"], dims="sweep", name="sweep"),
-                    data_vars="all", coords="minimal", compat="override", join="override")
+    out = xr.concat(
+        [up, down],
+        dim=xr.DataArray(["up", "down"], dims="sweep", name="sweep"),
+        data_vars="all",
+        coords="minimal",
+        compat="override",
+        join="override",
+    )
     for name in ("linear_free_amplitude", "linear_stuck_amplitude"):  # the same in both
         if name in out and "sweep" in out[name].dims:
             out[name] = out[name].isel(sweep=0, drop=True)

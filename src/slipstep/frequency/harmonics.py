@@ -27,8 +27,11 @@ def fourier_coefficients(t: np.ndarray, y: np.ndarray, period: float, n_harmonic
     if dt.size and np.allclose(dt, dt.mean(), rtol=1e-9, atol=0.0):
         n = t.size - 1
         if n_harmonics > n // 2:
-            raise InputError("harmonics", f"is {n_harmonics}, more than the {n // 2} a period of {n} steps resolves",
-                             "ask for fewer harmonics or use more steps per period")
+            raise InputError(
+                "harmonics",
+                f"is {n_harmonics}, more than the {n // 2} a period of {n} steps resolves",
+                "ask for fewer harmonics or use more steps per period",
+            )
         return np.fft.rfft(y[:-1], axis=0)[: n_harmonics + 1] / n
     h = np.arange(n_harmonics + 1)
     e = np.exp(-1j * 2 * np.pi / period * np.outer(t, h))  # (nt, H+1)
@@ -45,8 +48,9 @@ def amplitudes_phases(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return A, phase
 
 
-def harmonics(ds: xr.Dataset, responses=None, n_harmonics: int = 5, variable: str = "displacement",
-              period: float | None = None) -> xr.Dataset:
+def harmonics(
+    ds: xr.Dataset, responses=None, n_harmonics: int = 5, variable: str = "displacement", period: float | None = None
+) -> xr.Dataset:
     """Amplitudes and phases of harmonics 0..n_harmonics of ``variable`` over the last period
     of the result ``ds`` (a steady-state period or a longer record), for the DOFs named in
     ``responses`` (default all). Returns a Dataset with ``harmonic_amplitude`` and
@@ -67,7 +71,10 @@ def harmonics(ds: xr.Dataset, responses=None, n_harmonics: int = 5, variable: st
     units = list(ds["dof_unit"].sel(dof=responses).values)
     coords = {"harmonic": np.arange(n_harmonics + 1), "response": responses, "response_unit": ("response", units)}
     return xr.Dataset(
-        {"harmonic_amplitude": (("harmonic", "response"), A, {"units": "m or rad (see response_unit)"}),
-         "harmonic_phase": (("harmonic", "response"), phase, {"units": "rad"}),
-         "amplitude": (("response",), 0.5 * np.ptp(y, axis=0), {"units": "m or rad (see response_unit)"})},
-        coords=coords)
+        {
+            "harmonic_amplitude": (("harmonic", "response"), A, {"units": "m or rad (see response_unit)"}),
+            "harmonic_phase": (("harmonic", "response"), phase, {"units": "rad"}),
+            "amplitude": (("response",), 0.5 * np.ptp(y, axis=0), {"units": "m or rad (see response_unit)"}),
+        },
+        coords=coords,
+    )

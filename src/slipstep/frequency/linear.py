@@ -94,6 +94,9 @@ def linear_limits(system: System, frequencies, responses=None) -> xr.Dataset:
         stuck[i] = linear_response(s, True, state)[1][idx] if state is not None else free[i]
     units = "m or rad (see response_unit)"
     return xr.Dataset(
-        {"linear_free_amplitude": (("frequency", "response"), free, {"units": units}),
-         "linear_stuck_amplitude": (("frequency", "response"), stuck, {"units": units})},
-        coords={"frequency": ("frequency", freqs, {"units": "Hz"}), "response": responses})
+        {
+            "linear_free_amplitude": (("frequency", "response"), free, {"units": units}),
+            "linear_stuck_amplitude": (("frequency", "response"), stuck, {"units": units}),
+        },
+        coords={"frequency": ("frequency", freqs, {"units": "Hz"}), "response": responses},
+    )

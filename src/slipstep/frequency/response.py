@@ -55,8 +55,9 @@ def parse_frequencies(text: str, field: str = "--frequencies") -> list[float]:
             return [start + (stop - start) * i / (count - 1) for i in range(count)]
         return [float(p) for p in text.split(",") if p.strip()]
     except ValueError:
-        raise InputError(field, f"cannot read {text!r}",
-                         "give start:stop:count (e.g. 150:450:61) or a comma list (e.g. 300,350,400)") from None
+        raise InputError(
+            field, f"cannot read {text!r}", "give start:stop:count (e.g. 150:450:61) or a comma list (e.g. 300,350,400)"
+        ) from None
 
 
 def check_frequencies(frequencies) -> np.ndarray:
@@ -65,8 +66,11 @@ def check_frequencies(frequencies) -> np.ndarray:
     except (TypeError, ValueError):
         raise InputError("frequencies", f"is {frequencies!r}", "give a list of frequencies in Hz") from None
     if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise InputError("frequencies", f"must be positive finite numbers (got {f.tolist()[:5]}...)",
-                         "give frequencies in Hz, e.g. 150:450:61")
+        raise InputError(
+            "frequencies",
+            f"must be positive finite numbers (got {f.tolist()[:5]}...)",
+            "give frequencies in Hz, e.g. 150:450:61",
+        )
     if np.unique(f).size != f.size:
         raise InputError("frequencies", "contains repeated values", "give each frequency once")
     return f
@@ -78,8 +82,11 @@ def period_energies(ds: xr.Dataset, cs) -> tuple[float, float, np.ndarray]:
     t = ds["time"].values
     x = ds["displacement"].values
     fe = np.asarray(cs.constant_force, float)[None, :] + evaluate_compiled(
-        CompiledSignal(cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value,
-                       cs.force_ramp), t)
+        CompiledSignal(
+            cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value, cs.force_ramp
+        ),
+        t,
+    )
     dx = np.diff(x, axis=0)
     work = float((0.5 * (fe[1:] + fe[:-1]) * dx).sum())
     if cs.B.shape[1]:
@@ -118,14 +125,26 @@ def point_values(steady: SteadyState, system: System, responses, n_harmonics: in
         "energy_balance_residual": (work - visc - per_contact.sum()) / scale,
         "periods_to_steady": steady.periods,
         "steady_change": steady.change,
-        "floquet_multiplier_max": (float(np.abs(steady.floquet_multipliers).max(initial=0.0))
-                                   if steady.floquet_multipliers is not None else math.nan),
+        "floquet_multiplier_max": (
+            float(np.abs(steady.floquet_multipliers).max(initial=0.0))
+            if steady.floquet_multipliers is not None
+            else math.nan
+        ),
         "status": steady.status,
     }
 
 
-def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", responses=None, n_harmonics: int = 5,
-          initial=None, progress=None, **options) -> tuple[xr.Dataset, SteadyState | None]:
+def sweep(
+    system: System,
+    frequencies: np.ndarray,
+    *,
+    solver: str = "march",
+    responses=None,
+    n_harmonics: int = 5,
+    initial=None,
+    progress=None,
+    **options,
+) -> tuple[xr.Dataset, SteadyState | None]:
     """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state)."""
     if solver not in STEADY_SOLVERS:
         raise InputError("solver", f"is {solver!r}", f"use one of {sorted(STEADY_SOLVERS)}")
@@ -149,8 +168,11 @@ def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", res
             columns["status"][i:] = "INTERRUPTED"
             ds.attrs["interrupted"] = 1
             break
-        values = point_values(steady, system_f, responses, n_harmonics) if steady.status in ("OK", "NOT_STEADY") \
+        values = (
+            point_values(steady, system_f, responses, n_harmonics)
+            if steady.status in ("OK", "NOT_STEADY")
             else {"status": steady.status, "periods_to_steady": steady.periods}
+        )
         values["point_time"] = time.perf_counter() - start
         for name, value in values.items():
             columns[name][i] = value
@@ -164,9 +186,20 @@ def sweep(system: System, frequencies: np.ndarray, *, solver: str = "march", res
     return ds, last
 
 
-def frf(system: System, frequencies, *, solver: str = "march", direction: str = "up", responses=None,
-        harmonics: int = 5, method="piecewise-linear", tolerance: float = 1e-6, linear: bool = True, progress=None,
-        **options) -> xr.Dataset:
+def frf(
+    system: System,
+    frequencies,
+    *,
+    solver: str = "march",
+    direction: str = "up",
+    responses=None,
+    harmonics: int = 5,
+    method="piecewise-linear",
+    tolerance: float = 1e-6,
+    linear: bool = True,
+    progress=None,
+    **options,
+) -> xr.Dataset:
     """Frequency response of ``system`` at ``frequencies`` [Hz] (see the module docstring).
 
     solver: "march" or "shoot" (STEADY_SOLVERS); direction: "up", "down" or "both" (two
@@ -182,11 +215,18 @@ def frf(system: System, frequencies, *, solver: str = "march", direction: str = 
         raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
     f = np.sort(check_frequencies(frequencies))
     initial = options.pop("initial", None)
-    common = dict(solver=solver, responses=responses, n_harmonics=harmonics, method=method, tolerance=tolerance,
-                  progress=progress, **options)
+    common = dict(
+        solver=solver,
+        responses=responses,
+        n_harmonics=harmonics,
+        method=method,
+        tolerance=tolerance,
+        progress=progress,
+        **options,
+    )
     sweeps = []
     last = initial
-    for name in (("up", "down") if direction == "both" else (direction,)):
+    for name in ("up", "down") if direction == "both" else (direction,):
         grid = f if name == "up" else f[::-1]
         ds, steady = sweep(system, grid, initial=last, **common)
         ds.attrs["sweep"] = name
@@ -210,6 +250,11 @@ def frf(system: System, frequencies, *, solver: str = "march", direction: str = 
             out[name] = (("frequency", "response"), lim[name].values, attrs)
     from slipstep import __version__
 
-    out.attrs.update(case=system.name, steady_tolerance=tolerance, slipstep_version=__version__,
-                     method=out.attrs.get("method", ""), solver=solver)
+    out.attrs.update(
+        case=system.name,
+        steady_tolerance=tolerance,
+        slipstep_version=__version__,
+        method=out.attrs.get("method", ""),
+        solver=solver,
+    )
     return finalise(out)

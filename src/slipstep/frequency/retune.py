@@ -14,8 +14,11 @@ def _retuned(signal: Signal | None, f_old: float, f_new: float, what: str) -> Si
     if signal is None:
         return None
     if signal.tables:
-        raise InputError(f"excitation.{what}", "has tabulated components, which cannot be moved to another frequency",
-                         "describe the periodic excitation by harmonics ([[force]] / [[motion]])")
+        raise InputError(
+            f"excitation.{what}",
+            "has tabulated components, which cannot be moved to another frequency",
+            "describe the periodic excitation by harmonics ([[force]] / [[motion]])",
+        )
     harmonics = tuple(Harmonic(h.frequency / f_old * f_new, h.amplitude, h.phase) for h in signal.harmonics)
     return dataclasses.replace(signal, harmonics=harmonics)
 
@@ -28,10 +31,16 @@ def retune(system: System, frequency_hz: float) -> System:
     f_new = positive("frequency", frequency_hz)
     f_old = system.excitation.fundamental_frequency
     if f_old is None:
-        raise InputError("excitation", "has no harmonic (tables only): there is no frequency to move",
-                         "give a harmonic force or motion")
+        raise InputError(
+            "excitation",
+            "has no harmonic (tables only): there is no frequency to move",
+            "give a harmonic force or motion",
+        )
     exc = system.excitation
     new = dataclasses.replace(
-        exc, force=_retuned(exc.force, f_old, f_new, "force"), motion=_retuned(exc.motion, f_old, f_new, "motion"),
-        period=None if exc.period is None else 1.0 / f_new)
+        exc,
+        force=_retuned(exc.force, f_old, f_new, "force"),
+        motion=_retuned(exc.motion, f_old, f_new, "motion"),
+        period=None if exc.period is None else 1.0 / f_new,
+    )
     return dataclasses.replace(system, excitation=new)

@@ -20,38 +20,70 @@ from __future__ import annotations
 
 FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     # name: (dims, units, long_name)
-    "amplitude": (("frequency", "response"), "m or rad (see response_unit)",
-                  "half the peak-to-peak response over one steady-state period"),
-    "harmonic_amplitude": (("frequency", "harmonic", "response"), "m or rad (see response_unit)",
-                           "amplitude A_h of harmonic h of the response (h = 0: mean)"),
-    "harmonic_phase": (("frequency", "harmonic", "response"), "rad",
-                       "phase phi_h of harmonic h: x = sum_h A_h cos(h Omega t + phi_h)"),
+    "amplitude": (
+        ("frequency", "response"),
+        "m or rad (see response_unit)",
+        "half the peak-to-peak response over one steady-state period",
+    ),
+    "harmonic_amplitude": (
+        ("frequency", "harmonic", "response"),
+        "m or rad (see response_unit)",
+        "amplitude A_h of harmonic h of the response (h = 0: mean)",
+    ),
+    "harmonic_phase": (
+        ("frequency", "harmonic", "response"),
+        "rad",
+        "phase phi_h of harmonic h: x = sum_h A_h cos(h Omega t + phi_h)",
+    ),
     "energy_per_cycle": (("frequency", "contact"), "J", "energy dissipated by friction per cycle in each contact"),
     "excitation_work": (("frequency",), "J", "work of the external forces and prescribed motions per cycle"),
     "viscous_dissipation": (("frequency",), "J", "energy dissipated by the damping matrix C per cycle"),
     "periods_to_steady": (("frequency",), "1", "excitation periods marched before the steady state was reached"),
-    "energy_balance_residual": (("frequency",), "1",
-                                "(excitation work - viscous - friction dissipation) / excitation work over the "
-                                "steady-state period (0 for an exactly periodic orbit)"),
-    "steady_change": (("frequency",), "1",
-                      "change of the full state over the last period relative to its amplitude "
-                      "(slipstep.steady.state.period_change)"),
+    "energy_balance_residual": (
+        ("frequency",),
+        "1",
+        "(excitation work - viscous - friction dissipation) / excitation work over the "
+        "steady-state period (0 for an exactly periodic orbit)",
+    ),
+    "steady_change": (
+        ("frequency",),
+        "1",
+        "change of the full state over the last period relative to its amplitude (slipstep.steady.state.period_change)",
+    ),
     "point_time": (("frequency",), "s", "wall time spent on the point"),
-    "floquet_multiplier_max": (("frequency",), "1",
-                               "largest modulus of the Floquet multipliers (< 1: stable orbit; shooting only)"),
-    "linear_free_amplitude": (("frequency", "response"), "m or rad (see response_unit)",
-                              "linear limit with the contacts removed (frequency-domain solution)"),
-    "linear_stuck_amplitude": (("frequency", "response"), "m or rad (see response_unit)",
-                               "linear limit with every contact stuck (frequency-domain solution)"),
-    "check_amplitude_rel_diff": (("frequency",), "1",
-                                 "relative difference of the peak amplitude against the time-marching "
-                                 "cross-check (harmonic balance only; NaN where not checked)"),
-    "check_energy_rel_diff": (("frequency",), "1",
-                              "relative difference of the dissipated energy per cycle against the "
-                              "time-marching cross-check (harmonic balance only; NaN where not checked)"),
-    "harmonic_truncation_estimate": (("frequency",), "1",
-                                     "estimated relative change of the response amplitude or friction energy "
-                                     "with more harmonics (harmonic balance only: slipstep.hbm.adequacy)"),
+    "floquet_multiplier_max": (
+        ("frequency",),
+        "1",
+        "largest modulus of the Floquet multipliers (< 1: stable orbit; shooting only)",
+    ),
+    "linear_free_amplitude": (
+        ("frequency", "response"),
+        "m or rad (see response_unit)",
+        "linear limit with the contacts removed (frequency-domain solution)",
+    ),
+    "linear_stuck_amplitude": (
+        ("frequency", "response"),
+        "m or rad (see response_unit)",
+        "linear limit with every contact stuck (frequency-domain solution)",
+    ),
+    "check_amplitude_rel_diff": (
+        ("frequency",),
+        "1",
+        "relative difference of the peak amplitude against the time-marching "
+        "cross-check (harmonic balance only; NaN where not checked)",
+    ),
+    "check_energy_rel_diff": (
+        ("frequency",),
+        "1",
+        "relative difference of the dissipated energy per cycle against the "
+        "time-marching cross-check (harmonic balance only; NaN where not checked)",
+    ),
+    "harmonic_truncation_estimate": (
+        ("frequency",),
+        "1",
+        "estimated relative change of the response amplitude or friction energy "
+        "with more harmonics (harmonic balance only: slipstep.hbm.adequacy)",
+    ),
     "status": (("frequency",), "1", "status of the point: OK or the name of the failure"),
 }
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),

@@ -56,14 +56,17 @@ def swept_system(system: System, f0: float, f1: float, duration: float, samples_
         raise InputError("excitation", "has no harmonic to sweep", "give a harmonic force or motion")
     exc = system.excitation
     new = dataclasses.replace(
-        exc, force=_swept(exc.force, f_fund, f0, f1, duration, samples_per_cycle, "force"),
-        motion=_swept(exc.motion, f_fund, f0, f1, duration, samples_per_cycle, "motion"), period=None)
+        exc,
+        force=_swept(exc.force, f_fund, f0, f1, duration, samples_per_cycle, "force"),
+        motion=_swept(exc.motion, f_fund, f0, f1, duration, samples_per_cycle, "motion"),
+        period=None,
+    )
     return dataclasses.replace(system, excitation=new)
 
 
 def cycle_envelope(t: np.ndarray, y: np.ndarray, f0: float, f1: float, duration: float):
     """(instantaneous frequency at each cycle's middle, half peak-to-peak of y per cycle)."""
-    cycles = (f0 * t + (f1 - f0) * t * t / (2 * duration))  # theta / 2 pi
+    cycles = f0 * t + (f1 - f0) * t * t / (2 * duration)  # theta / 2 pi
     k = np.floor(cycles).astype(np.int64)
     n_cycles = int(k[-1])
     freq, env = [], []
@@ -72,17 +75,27 @@ def cycle_envelope(t: np.ndarray, y: np.ndarray, f0: float, f1: float, duration:
         a, b = bounds[c], bounds[c + 1]
         if b - a < 2:
             continue
-        seg = y[a:b + 1]
+        seg = y[a : b + 1]
         env.append(0.5 * (seg.max(axis=0) - seg.min(axis=0)))
         tm = 0.5 * (t[a] + t[min(b, t.size - 1)])
         freq.append(f0 + (f1 - f0) * tm / duration)
     return np.array(freq), np.array(env).reshape(len(env), -1)
 
 
-def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: float | None = None,
-               cycles_per_point: float = 30.0, method="piecewise-linear", responses=None,
-               min_steps_per_period: int = 50, samples_per_cycle: int = 128, linear: bool = True,
-               **run_options) -> xr.Dataset:
+def sine_sweep(
+    system: System,
+    frequencies,
+    *,
+    direction: str = "up",
+    duration: float | None = None,
+    cycles_per_point: float = 30.0,
+    method="piecewise-linear",
+    responses=None,
+    min_steps_per_period: int = 50,
+    samples_per_cycle: int = 128,
+    linear: bool = True,
+    **run_options,
+) -> xr.Dataset:
     """Sweep through the range of ``frequencies`` [Hz] (upward or downward) in one march and
     return the envelope on that grid in the FRF layout (``amplitude``; the harmonic and energy
     variables are NaN; the linear limits are computed unless linear=False). ``duration`` [s] defaults to ``cycles_per_point`` cycles of the mean
@@ -97,12 +110,25 @@ def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: 
     if direction not in ("up", "down"):
         raise InputError("direction", f"is {direction!r} for a sine sweep", "use 'up' or 'down'")
     f0, f1 = (f[0], f[-1]) if direction == "up" else (f[-1], f[0])
-    D = positive("duration", duration) if duration is not None else \
-        positive("cycles_per_point", cycles_per_point) * f.size / f.mean()
+    D = (
+        positive("duration", duration)
+        if duration is not None
+        else positive("cycles_per_point", cycles_per_point) * f.size / f.mean()
+    )
     swept = swept_system(system, f0, f1, D, samples_per_cycle)
     f_fund = system.excitation.fundamental_frequency
-    r_max = max((h.frequency for s in (system.excitation.force, system.excitation.motion) if s is not None
-                 for h in s.harmonics), default=f_fund) / f_fund
+    r_max = (
+        max(
+            (
+                h.frequency
+                for s in (system.excitation.force, system.excitation.motion)
+                if s is not None
+                for h in s.harmonics
+            ),
+            default=f_fund,
+        )
+        / f_fund
+    )
     opts = dict(run_options)
     opts.setdefault("max_step", 1.0 / (f[-1] * r_max * min_steps_per_period))
     sim = Simulation(swept, method, duration=D, **opts)
@@ -133,6 +159,13 @@ def sine_sweep(system: System, frequencies, *, direction: str = "up", duration: 
         lim = linear_limits(system, grid, responses)
         for name in ("linear_free_amplitude", "linear_stuck_amplitude"):
             out[name].values[:] = lim[name].values
-    out.attrs.update(case=system.name, solver="sine-sweep", sweep=direction, method=sim.method.name,
-                     sweep_duration_s=D, sweep_rate_Hz_per_s=(f1 - f0) / D, slipstep_version=__version__)
+    out.attrs.update(
+        case=system.name,
+        solver="sine-sweep",
+        sweep=direction,
+        method=sim.method.name,
+        sweep_duration_s=D,
+        sweep_rate_Hz_per_s=(f1 - f0) / D,
+        slipstep_version=__version__,
+    )
     return finalise(out)

@@ -55,7 +55,7 @@ def force_content(hb: HarmonicBalance, point: Point) -> float:
     if point.ft is None or point.ft.shape[1] == 0:
         return 0.0
     c = spectrum(point.ft)[1:]  # harmonics 1..N/2
-    total = np.sqrt((c ** 2).sum(axis=0))
+    total = np.sqrt((c**2).sum(axis=0))
     keep = np.zeros(c.shape[0], bool)
     keep[hb.h[hb.h >= 1] - 1] = True
     outside = np.sqrt((c[~keep] ** 2).sum(axis=0))

@@ -92,10 +92,14 @@ def tangent_tables(args, nq: int, nd: int):
     keeps = np.abs(np.diagonal(Ww, axis1=1, axis2=2) - 1.0) < 1e-12
     resets = np.abs(np.diagonal(Ww, axis1=1, axis2=2)) < 1e-12
     off = Ww - np.einsum("sd,de->sde", np.diagonal(Ww, axis1=1, axis2=2), np.eye(nd))
-    if not np.all(keeps | resets) or np.abs(off).max(initial=0.0) > 0 or \
-            np.abs(Wq[:, :, :][np.broadcast_to(keeps[:, :, None], Wq.shape)]).max(initial=0.0) > 0:
-        raise NotImplementedError("the contact law's sliders neither keep nor reset per sample: "
-                                  "the AFT Jacobian assumes they do")
+    if (
+        not np.all(keeps | resets)
+        or np.abs(off).max(initial=0.0) > 0
+        or np.abs(Wq[:, :, :][np.broadcast_to(keeps[:, :, None], Wq.shape)]).max(initial=0.0) > 0
+    ):
+        raise NotImplementedError(
+            "the contact law's sliders neither keep nor reset per sample: the AFT Jacobian assumes they do"
+        )
     return Fq, Fw, Wq, Ww
 
 
@@ -250,9 +254,19 @@ class AFT:
         b = self.basis
         qt = np.ascontiguousarray(b.inverse @ Z)
         self.qt = qt
-        self.periods = march_cycle(self.args, qt, self.w_init, self.max_periods, self.w_tol, self.resets, self.ft,
-                                   self.wt, self.st,
-                                   self.src0, self.src0_state)
+        self.periods = march_cycle(
+            self.args,
+            qt,
+            self.w_init,
+            self.max_periods,
+            self.w_tol,
+            self.resets,
+            self.ft,
+            self.wt,
+            self.st,
+            self.src0,
+            self.src0_state,
+        )
         F = b.forward @ self.ft
         if not jacobian:
             return F, None
@@ -266,13 +280,14 @@ class AFT:
         Fq, Fw, Wq, Ww = self.tables
         dir_of_row, contact_of_row, row_start = self.rows
         Ac, Mc, src = self._Ac, self._Mc, self._src
-        cycle_coefficients(self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start,
-                           Ac, Mc, src)
+        cycle_coefficients(
+            self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Ac, Mc, src
+        )
         n, _, width = Ac.shape
         dm, sm, wa, wb, wg, wd = self._products
         spec = np.fft.fft(Ac.reshape(n, -1), axis=0)  # a_hat[m] = sum_k a_k exp(-i m theta_k)
         C, S = spec.real, -spec.imag
-        D = (wa[..., None] * C[dm] + wb[..., None] * C[sm] + wg[..., None] * S[sm] + wd[..., None] * S[dm])
+        D = wa[..., None] * C[dm] + wb[..., None] * C[sm] + wg[..., None] * S[sm] + wd[..., None] * S[dm]
         D = D.reshape(D.shape[0], D.shape[1], nq, width)  # [i, j, r, l]
         P, E = b.forward, b.inverse
         for r in range(nq):
@@ -282,7 +297,7 @@ class AFT:
                 continue
             u, inv = np.unique(ks[used], return_inverse=True)
             groups = (inv[None, :] == np.arange(u.size)[:, None]).astype(float)  # (u, used) indicator
-            G = (groups @ (P[:, used].T[:, :, None] * Mc[used, r, None, :]).reshape(used.size, -1))
+            G = groups @ (P[:, used].T[:, :, None] * Mc[used, r, None, :]).reshape(used.size, -1)
             D[:, :, r, :] += np.einsum("uil,uj->ijl", G.reshape(u.size, P.shape[0], width), E[u])
         ncoef = b.n_coef
         J = np.zeros((ncoef, nq, ncoef, nq))

@@ -38,8 +38,14 @@ class ContinuationProgress:
         self.start, self.end, self.unit = start, end, unit
         self.to_parameter = to_parameter or (lambda pt: pt.omega / (2 * math.pi))
         self.count = 0
-        self.progress = Progress(TextColumn("[bold]HBM continuation"), BarColumn(), TextColumn("{task.description}"),
-                                 TimeElapsedColumn(), console=console, transient=False)
+        self.progress = Progress(
+            TextColumn("[bold]HBM continuation"),
+            BarColumn(),
+            TextColumn("{task.description}"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=False,
+        )
         self.task = self.progress.add_task("", total=1000)
 
     def __enter__(self):
@@ -54,8 +60,9 @@ class ContinuationProgress:
         value = self.to_parameter(point)
         span = self.end - self.start
         frac = 1.0 if span == 0 else min(max((value - self.start) / span, 0.0), 1.0)
-        self.progress.update(self.task, completed=int(1000 * frac),
-                             description=f"step {self.count}: {value:.5g} {self.unit}")
+        self.progress.update(
+            self.task, completed=int(1000 * frac), description=f"step {self.count}: {value:.5g} {self.unit}"
+        )
 
 
 def summary(ds) -> dict:
@@ -65,11 +72,15 @@ def summary(ds) -> dict:
     amp = ds.amplitude.values
     i, j = np.unravel_index(int(np.nanargmax(amp)), amp.shape)
     out = {
-        "case": ds.attrs.get("case"), "solver": "hbm",
-        "harmonics": [int(h) for h in np.atleast_1d(ds.attrs["harmonics"])], "samples": int(ds.attrs["samples"]),
-        "points": int(ds.frequency.size), "continuation_status": ds.attrs.get("continuation_status"),
+        "case": ds.attrs.get("case"),
+        "solver": "hbm",
+        "harmonics": [int(h) for h in np.atleast_1d(ds.attrs["harmonics"])],
+        "samples": int(ds.attrs["samples"]),
+        "points": int(ds.frequency.size),
+        "continuation_status": ds.attrs.get("continuation_status"),
         "turning_points": int(ds.attrs.get("turning_points", 0)),
-        "peak_frequency_Hz": float(ds.frequency.values[i]), "peak_response": str(ds.response.values[j]),
+        "peak_frequency_Hz": float(ds.frequency.values[i]),
+        "peak_response": str(ds.response.values[j]),
         "peak_amplitude": float(amp[i, j]),
         "peak_energy_per_cycle_J": float(ds.energy_per_cycle.values[i].sum()),
         "max_harmonic_truncation_estimate": float(ds.attrs.get("max_harmonic_truncation_estimate", math.nan)),
@@ -89,25 +100,48 @@ def summary_table(ds):
     table = Table(title=f"slipstep frf: {s['case']}, harmonic balance", show_header=False)
     table.add_column("quantity", style="cyan")
     table.add_column("value")
-    rows = [("harmonics", harmonics_text(s["harmonics"])),
-            ("AFT samples per period", s["samples"]),
-            ("points (continuation)", f"{s['points']} ({s['continuation_status']}, {s['turning_points']} turning points)"),
-            ("peak", f"{s['peak_amplitude']:.6g} ({s['peak_response']}) at {s['peak_frequency_Hz']:.6g} Hz"),
-            ("friction energy per cycle at the peak", f"{s['peak_energy_per_cycle_J'] * 1e3:.6g} mJ"),
-            ("harmonic truncation estimate (max)", f"{s['max_harmonic_truncation_estimate']:.2e}"),
-            ("time per point", f"{s['time_per_point_s'] * 1e3:.4g} ms"), ("wall time", f"{s['wall_time_s']:.3g} s")]
+    rows = [
+        ("harmonics", harmonics_text(s["harmonics"])),
+        ("AFT samples per period", s["samples"]),
+        ("points (continuation)", f"{s['points']} ({s['continuation_status']}, {s['turning_points']} turning points)"),
+        ("peak", f"{s['peak_amplitude']:.6g} ({s['peak_response']}) at {s['peak_frequency_Hz']:.6g} Hz"),
+        ("friction energy per cycle at the peak", f"{s['peak_energy_per_cycle_J'] * 1e3:.6g} mJ"),
+        ("harmonic truncation estimate (max)", f"{s['max_harmonic_truncation_estimate']:.2e}"),
+        ("time per point", f"{s['time_per_point_s'] * 1e3:.4g} ms"),
+        ("wall time", f"{s['wall_time_s']:.3g} s"),
+    ]
     for c in s["checks"]:
         de = c["energy_rel_diff"]
-        rows.append((f"cross-check at {c['frequency_Hz']:.6g} Hz ({c['march_status']}, {c['march_periods']} periods)",
-                     (f"amplitude diff {c['amplitude_rel_diff']:.2e}, energy diff "
-                      f"{'n/a' if de is None or not math.isfinite(de) else f'{de:.2e}'}")))
+        rows.append(
+            (
+                f"cross-check at {c['frequency_Hz']:.6g} Hz ({c['march_status']}, {c['march_periods']} periods)",
+                (
+                    f"amplitude diff {c['amplitude_rel_diff']:.2e}, energy diff "
+                    f"{'n/a' if de is None or not math.isfinite(de) else f'{de:.2e}'}"
+                ),
+            )
+        )
     for name, value in rows:
         table.add_row(name, str(value))
     return table
 
 
-def run_command(system, frequencies, *, harmonics, samples=None, check_frequencies=(), check="peak", responses=None,
-                output, plot_path=None, console=None, progress=True, as_json=False, level=1.0):
+def run_command(
+    system,
+    frequencies,
+    *,
+    harmonics,
+    samples=None,
+    check_frequencies=(),
+    check="peak",
+    responses=None,
+    output,
+    plot_path=None,
+    console=None,
+    progress=True,
+    as_json=False,
+    level=1.0,
+):
     """The body of ``slipstep frf CASE --solver hbm``: the HBM FRF with a progress bar over the
     continuation steps, saved (netCDF, atomically) to ``output``, the summary returned (and,
     unless ``as_json``, printed as a table with the cross-check beside the answer), the
@@ -116,8 +150,14 @@ def run_command(system, frequencies, *, harmonics, samples=None, check_frequenci
     from slipstep.results import save
 
     hs = parse_harmonics(harmonics) if isinstance(harmonics, str) else harmonics
-    kwargs = {"harmonics": hs, "samples": samples, "check": check, "check_frequencies": check_frequencies,
-              "responses": responses, "level": level}
+    kwargs = {
+        "harmonics": hs,
+        "samples": samples,
+        "check": check,
+        "check_frequencies": check_frequencies,
+        "responses": responses,
+        "level": level,
+    }
     if progress and not as_json:
         with ContinuationProgress(float(frequencies[0]), float(frequencies[-1]), console=console) as bar:
             ds = frf(system, frequencies, progress=bar, **kwargs)

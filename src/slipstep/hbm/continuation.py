@@ -100,10 +100,24 @@ def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: 
         return _trace(hb, parameter, start, end, fixed, **options)
 
 
-def _trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, *,
-          ds: float | None = None, max_dp: float | None = None, max_dz: float = 0.1, min_ds: float = 1e-7,
-          max_steps: int = 2000, target_iterations: int = 4, max_corrector: int = 12, tol: float = 1e-10,
-          Z0: np.ndarray | None = None, progress: Callable[[Point], None] | None = None) -> Branch:
+def _trace(
+    hb: HarmonicBalance,
+    parameter: str,
+    start: float,
+    end: float,
+    fixed: float,
+    *,
+    ds: float | None = None,
+    max_dp: float | None = None,
+    max_dz: float = 0.1,
+    min_ds: float = 1e-7,
+    max_steps: int = 2000,
+    target_iterations: int = 4,
+    max_corrector: int = 12,
+    tol: float = 1e-10,
+    Z0: np.ndarray | None = None,
+    progress: Callable[[Point], None] | None = None,
+) -> Branch:
     """Continue the balance from p = start to p = end (p = 'omega' [rad/s] or 'level'), the
     other parameter held at ``fixed``. ``progress(point)`` is called after every point."""
     prob = _Problem(hb, parameter, fixed)
@@ -175,8 +189,10 @@ def _trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed:
             ds *= 0.5
             if ds < min_ds:
                 branch.status = "NOT_CONVERGED"
-                branch.message = (f"the arclength step fell below {min_ds:g} at {parameter} = {y[n] * ps:.6g} "
-                                  f"(the corrector did not converge)")
+                branch.message = (
+                    f"the arclength step fell below {min_ds:g} at {parameter} = {y[n] * ps:.6g} "
+                    f"(the corrector did not converge)"
+                )
                 return branch
             continue
         p = yc[n] * ps
@@ -187,7 +203,10 @@ def _trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed:
             last = prob.solve(end, Zg)
             done(last)
             if not last.converged:
-                branch.status, branch.message = "NOT_CONVERGED", f"the end point ({parameter} = {end:.6g}) did not converge"
+                branch.status, branch.message = (
+                    "NOT_CONVERGED",
+                    f"the end point ({parameter} = {end:.6g}) did not converge",
+                )
             return branch
         Z = (yc[:n] * zs).reshape(shape)
         w, lv = prob.args(p)
@@ -205,5 +224,8 @@ def _trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed:
             t /= np.linalg.norm(t)
             zs = zs_new
         ds = min(ds * min(2.0, max(0.5, target_iterations / max(its - 1, 1))), ds_max)
-    branch.status, branch.message = "NOT_CONVERGED", f"stopped after {max_steps} continuation steps before {parameter} = {end:.6g}"
+    branch.status, branch.message = (
+        "NOT_CONVERGED",
+        f"stopped after {max_steps} continuation steps before {parameter} = {end:.6g}",
+    )
     return branch

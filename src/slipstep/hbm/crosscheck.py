@@ -59,8 +59,12 @@ def retuned(system: System, frequency_hz: float, level: float = 1.0) -> System:
     exc = system.excitation
     f0 = exc.fundamental_frequency
     ratio = frequency_hz / f0
-    new = Excitation(exc.constant_force, _scaled_signal(exc.force, ratio, level), _scaled_signal(exc.motion, ratio, level),
-                     None if exc.period is None else exc.period / ratio)
+    new = Excitation(
+        exc.constant_force,
+        _scaled_signal(exc.force, ratio, level),
+        _scaled_signal(exc.motion, ratio, level),
+        None if exc.period is None else exc.period / ratio,
+    )
     if _retune is not None:
         return _retune(replace(system, excitation=new), frequency_hz)
     return replace(system, excitation=new)
@@ -68,7 +72,7 @@ def retuned(system: System, frequency_hz: float, level: float = 1.0) -> System:
 
 def _periodic_change(x: np.ndarray, n_per: int) -> float:
     """max |x(last period) - x(previous period)| / amplitude, on a grid of n_per steps per period."""
-    last, prev = x[-n_per - 1:], x[-2 * n_per - 1: -n_per]
+    last, prev = x[-n_per - 1 :], x[-2 * n_per - 1 : -n_per]
     amp = max(0.5 * (last.max(axis=0) - last.min(axis=0)).max(), 1e-300)
     return float(np.abs(last - prev).max() / amp)
 
@@ -100,9 +104,19 @@ def hbm_initial_state(hb, point) -> dict:
     return {"x": x0, "v": v0, "w": hb.aft.wt[-1].copy(), "states": hb.aft.st[-1].copy()}
 
 
-def steady_reference(system: System, frequency_hz: float, level: float, responses: np.ndarray, *,
-                     method: str = "piecewise-linear", tolerance: float = 1e-6, max_periods: int = 400,
-                     steps_per_period: int = 2000, initial: dict | None = None, **run_options) -> SteadyReference:
+def steady_reference(
+    system: System,
+    frequency_hz: float,
+    level: float,
+    responses: np.ndarray,
+    *,
+    method: str = "piecewise-linear",
+    tolerance: float = 1e-6,
+    max_periods: int = 400,
+    steps_per_period: int = 2000,
+    initial: dict | None = None,
+    **run_options,
+) -> SteadyReference:
     """The marched periodic steady state of ``system`` at (frequency_hz, level): amplitudes of
     the response DOFs (indices ``responses``) and friction energy per cycle per contact.
     ``initial``: a start state (:func:`hbm_initial_state`; used by slipstep.steady only, the
@@ -116,15 +130,23 @@ def steady_reference(system: System, frequency_hz: float, level: float, response
     except ImportError:
         march_to_steady = None
     if march_to_steady is not None:
-        st = march_to_steady(sys_f, method, tolerance=tolerance, max_periods=max_periods, initial=initial,
-                             min_steps_per_period=steps_per_period, **run_options)
+        st = march_to_steady(
+            sys_f,
+            method,
+            tolerance=tolerance,
+            max_periods=max_periods,
+            initial=initial,
+            min_steps_per_period=steps_per_period,
+            **run_options,
+        )
         last = st.period
         periods, status, message = int(st.periods), str(getattr(st.status, "name", st.status)), str(st.message)
         x = last.displacement.values
         energy = friction_energy_per_period(last, T).values
     else:
-        ds, periods, status, message = _march_own(sys_f, responses, method, tolerance, max_periods, steps_per_period,
-                                                  **run_options)
+        ds, periods, status, message = _march_own(
+            sys_f, responses, method, tolerance, max_periods, steps_per_period, **run_options
+        )
         t = ds.time.values
         last = ds.isel(time=slice(int(np.searchsorted(t, t[-1] - T * (1 + 1e-9))), None))
         x = last.displacement.values
@@ -133,8 +155,9 @@ def steady_reference(system: System, frequency_hz: float, level: float, response
     return SteadyReference(frequency_hz, level, amp, energy, periods, status, message, method)
 
 
-def relative_differences(amp_hbm: np.ndarray, energy_hbm: np.ndarray, ref: SteadyReference,
-                         work: float) -> tuple[float, float]:
+def relative_differences(
+    amp_hbm: np.ndarray, energy_hbm: np.ndarray, ref: SteadyReference, work: float
+) -> tuple[float, float]:
     """(amplitude, energy) relative differences, as defined in the module docstring. The energy
     difference is NaN where the marched friction energy is below 1e-9 of the excitation work
     ``work`` (no friction dissipation to compare: a stuck or lifted point)."""

@@ -33,7 +33,7 @@ def _refine(hv: np.ndarray, X: np.ndarray, theta: np.ndarray) -> np.ndarray:
     for _ in range(4):
         e = np.exp(1j * np.outer(theta, hv))  # (nj, nh)
         d1 = np.real(np.einsum("jh,hj->j", e * (1j * hv), X))
-        d2 = np.real(np.einsum("jh,hj->j", e * (-(hv ** 2.0)), X))
+        d2 = np.real(np.einsum("jh,hj->j", e * (-(hv**2.0)), X))
         step = np.where(d2 != 0, -d1 / np.where(d2 != 0, d2, 1.0), 0.0)
         theta = theta + np.clip(step, -0.01, 0.01)
     e = np.exp(1j * np.outer(theta, hv))
@@ -83,4 +83,4 @@ def viscous_dissipation(hb, point) -> float:
     """Energy dissipated by C per cycle [J]."""
     C = hb.cs.C
     h = hb.basis.h
-    return float(np.pi * point.omega * (h ** 2 * np.real(np.einsum("hn,nm,hm->h", np.conj(point.X), C, point.X))).sum())
+    return float(np.pi * point.omega * (h**2 * np.real(np.einsum("hn,nm,hm->h", np.conj(point.X), C, point.X))).sum())

@@ -58,8 +58,11 @@ class Basis:
         h = np.asarray(self.h, dtype=np.int64)
         n = int(self.samples)
         if n <= 2 * h.max():
-            raise InputError("samples", f"is {n}, not above 2 x the highest harmonic {h.max()}",
-                             f"give at least {2 * h.max() + 1} samples (4-8 x the highest harmonic is usual)")
+            raise InputError(
+                "samples",
+                f"is {n}, not above 2 x the highest harmonic {h.max()}",
+                f"give at least {2 * h.max() + 1} samples (4-8 x the highest harmonic is usual)",
+            )
         theta = 2.0 * np.pi * np.arange(n) / n
         E = np.empty((n, 2 * h.size - 1))
         E[:, 0] = 1.0

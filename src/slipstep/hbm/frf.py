@@ -61,7 +61,9 @@ def response_indices(system: System, responses) -> np.ndarray:
     out = []
     for r in responses:
         if r not in names:
-            raise InputError("responses", f"{r!r} is not a DOF name", f"use one of {names[:10]}{' ...' if len(names) > 10 else ''}")
+            raise InputError(
+                "responses", f"{r!r} is not a DOF name", f"use one of {names[:10]}{' ...' if len(names) > 10 else ''}"
+            )
         out.append(names.index(r))
     return np.array(out, dtype=np.int64)
 
@@ -102,9 +104,28 @@ def _response(system, parameter, values, fixed, **options):
         return _response_body(system, parameter, values, fixed, **options)
 
 
-def _response_body(system, parameter, values, fixed, *, harmonics, samples, responses, continuation, check,
-              check_at, check_options, adequacy, adequacy_tolerance, auto_harmonics, max_harmonics, progress, tol,
-              max_dp, sweep):
+def _response_body(
+    system,
+    parameter,
+    values,
+    fixed,
+    *,
+    harmonics,
+    samples,
+    responses,
+    continuation,
+    check,
+    check_at,
+    check_options,
+    adequacy,
+    adequacy_tolerance,
+    auto_harmonics,
+    max_harmonics,
+    progress,
+    tol,
+    max_dp,
+    sweep,
+):
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
     resp = response_indices(system, responses)
@@ -112,43 +133,84 @@ def _response_body(system, parameter, values, fixed, *, harmonics, samples, resp
         raise InputError("check", f"is {check!r}", "use 'peak' (the default), 'all' or 'none'")
     start = time.perf_counter()
     callback = (lambda pt: progress(pt)) if progress else None
-    hb, branch = _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp)
+    hb, branch = _solve_branch(
+        system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp
+    )
     estimates = np.full(len(branch.points), np.nan)
     if adequacy:
         ad = Adequacy(hb, resp)
         estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
         worst = float(np.max(estimates[~np.isnan(estimates)])) if np.any(~np.isnan(estimates)) else 0.0
         if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
-            return _response_body(system, parameter, values, fixed, harmonics=extended_set(hb.h)[1:], samples=None,
-                             responses=responses, continuation=continuation, check=check, check_at=check_at,
-                             check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
-                             auto_harmonics=auto_harmonics, max_harmonics=max_harmonics, progress=progress, tol=tol,
-                             max_dp=max_dp, sweep=sweep)
+            return _response_body(
+                system,
+                parameter,
+                values,
+                fixed,
+                harmonics=extended_set(hb.h)[1:],
+                samples=None,
+                responses=responses,
+                continuation=continuation,
+                check=check,
+                check_at=check_at,
+                check_options=check_options,
+                adequacy=adequacy,
+                adequacy_tolerance=adequacy_tolerance,
+                auto_harmonics=auto_harmonics,
+                max_harmonics=max_harmonics,
+                progress=progress,
+                tol=tol,
+                max_dp=max_dp,
+                sweep=sweep,
+            )
         if worst > adequacy_tolerance:
             i = int(np.nanargmax(estimates))
             where = f"{branch.points[i].omega / (2 * np.pi):.6g} Hz, level {branch.points[i].level:.3g}"
-            change = ("the balance with more harmonics has no solution near it (an internal resonance or a "
-                      "strongly non-smooth response within the added harmonics)" if np.isinf(worst) else
-                      f"the response would change by about {worst:.2%} with more harmonics")
+            change = (
+                "the balance with more harmonics has no solution near it (an internal resonance or a "
+                "strongly non-smooth response within the added harmonics)"
+                if np.isinf(worst)
+                else f"the response would change by about {worst:.2%} with more harmonics"
+            )
             warnings.warn(
                 f"harmonic balance with harmonics {[int(v) for v in hb.h[1:]]}: at {where} {change}, above the "
                 f"tolerance {adequacy_tolerance:.2%}; raise the harmonics (e.g. harmonics="
                 f"{int(extended_set(hb.h).max())}) or pass auto_harmonics=True (the time-marching cross-check "
-                "tells the actual error)", HarmonicAdequacyWarning, stacklevel=5)
+                "tells the actual error)",
+                HarmonicAdequacyWarning,
+                stacklevel=5,
+            )
     solve_time = time.perf_counter() - start
     ds = _dataset(hb, branch, resp, estimates, parameter, fixed)
-    ds.attrs.update({"sweep": sweep, "solve_time_s": solve_time,
-                     "time_per_point_s": solve_time / max(len(branch.points), 1)})
+    ds.attrs.update(
+        {"sweep": sweep, "solve_time_s": solve_time, "time_per_point_s": solve_time / max(len(branch.points), 1)}
+    )
     if check in (True, "peak", "all") and len(branch.points):
         _cross_check(ds, hb, branch, resp, check, check_at, check_options or {})
     ds.attrs["wall_time_s"] = time.perf_counter() - start
     return ds
 
 
-def frf(system: System, frequencies, *, harmonics=5, samples: int | None = None, level: float = 1.0,
-        responses=None, continuation: bool = True, check="peak", check_frequencies=(), check_options=None,
-        adequacy: bool = True, adequacy_tolerance: float = 0.01, auto_harmonics: bool = False,
-        max_harmonics: int = 127, progress=None, tol: float = 1e-10, max_df: float | None = None) -> xr.Dataset:
+def frf(
+    system: System,
+    frequencies,
+    *,
+    harmonics=5,
+    samples: int | None = None,
+    level: float = 1.0,
+    responses=None,
+    continuation: bool = True,
+    check="peak",
+    check_frequencies=(),
+    check_options=None,
+    adequacy: bool = True,
+    adequacy_tolerance: float = 0.01,
+    auto_harmonics: bool = False,
+    max_harmonics: int = 127,
+    progress=None,
+    tol: float = 1e-10,
+    max_df: float | None = None,
+) -> xr.Dataset:
     """Frequency response of ``system`` by harmonic balance over ``frequencies`` [Hz].
 
     harmonics: int H (0..H) or a set such as (1, 3, 5); samples: AFT samples per period.
@@ -167,11 +229,27 @@ def frf(system: System, frequencies, *, harmonics=5, samples: int | None = None,
         raise InputError("excitation", "has no harmonic force or motion", "give [[force]] or [[motion]] harmonics")
     level = _positive_level(level)
     sweep = "down" if f.size > 1 and f[-1] < f[0] else "up"
-    return _response(system, "omega", 2 * np.pi * f, level, harmonics=harmonics, samples=samples, responses=responses,
-                     continuation=continuation, check=check, check_at=2 * np.pi * np.atleast_1d(check_frequencies),
-                     check_options=check_options, adequacy=adequacy, adequacy_tolerance=adequacy_tolerance,
-                     auto_harmonics=auto_harmonics, max_harmonics=max_harmonics, progress=progress, tol=tol,
-                     max_dp=None if max_df is None else 2 * np.pi * max_df, sweep=sweep)
+    return _response(
+        system,
+        "omega",
+        2 * np.pi * f,
+        level,
+        harmonics=harmonics,
+        samples=samples,
+        responses=responses,
+        continuation=continuation,
+        check=check,
+        check_at=2 * np.pi * np.atleast_1d(check_frequencies),
+        check_options=check_options,
+        adequacy=adequacy,
+        adequacy_tolerance=adequacy_tolerance,
+        auto_harmonics=auto_harmonics,
+        max_harmonics=max_harmonics,
+        progress=progress,
+        tol=tol,
+        max_dp=None if max_df is None else 2 * np.pi * max_df,
+        sweep=sweep,
+    )
 
 
 def level_response(system: System, frequency_hz: float, levels, **options) -> xr.Dataset:
@@ -184,15 +262,34 @@ def level_response(system: System, frequency_hz: float, levels, **options) -> xr
         raise InputError("levels", f"is {levels!r}", "give one or more excitation levels >= 0 (1: as given)")
     valid_frequencies([frequency_hz])
     check_levels = np.atleast_1d(options.pop("check_levels", ()))
-    opts = {"harmonics": 5, "samples": None, "responses": None, "continuation": True, "check": "peak",
-            "check_options": None, "adequacy": True, "adequacy_tolerance": 0.01, "auto_harmonics": False,
-            "max_harmonics": 127, "progress": None, "tol": 1e-10, "max_dp": None}
+    opts = {
+        "harmonics": 5,
+        "samples": None,
+        "responses": None,
+        "continuation": True,
+        "check": "peak",
+        "check_options": None,
+        "adequacy": True,
+        "adequacy_tolerance": 0.01,
+        "auto_harmonics": False,
+        "max_harmonics": 127,
+        "progress": None,
+        "tol": 1e-10,
+        "max_dp": None,
+    }
     unknown = set(options) - set(opts)
     if unknown:
         raise InputError("options", f"unknown option(s) {sorted(unknown)}", f"use only {sorted(opts)}")
     opts.update(options)
-    return _response(system, "level", lv, 2 * np.pi * float(frequency_hz), check_at=check_levels,
-                     sweep="up" if lv[-1] >= lv[0] else "down", **opts)
+    return _response(
+        system,
+        "level",
+        lv,
+        2 * np.pi * float(frequency_hz),
+        check_at=check_levels,
+        sweep="up" if lv[-1] >= lv[0] else "down",
+        **opts,
+    )
 
 
 def _positive_level(level) -> float:
@@ -233,21 +330,29 @@ def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, p
     level = np.array([p.level for p in pts])
     attrs = {
         "title": f"slipstep frequency response: {system.name}, harmonic balance",
-        "case": system.name, "solver": "hbm", "method": "",
-        "harmonics": [int(x) for x in hb.h], "samples": int(hb.basis.samples),
+        "case": system.name,
+        "solver": "hbm",
+        "method": "",
+        "harmonics": [int(x) for x in hb.h],
+        "samples": int(hb.basis.samples),
         "continuation": parameter if len(pts) > 1 else "none",
-        "continuation_status": branch.status, "continuation_message": branch.message,
-        "continuation_steps": branch.steps, "failed_correctors": branch.failed_correctors,
+        "continuation_status": branch.status,
+        "continuation_message": branch.message,
+        "continuation_steps": branch.steps,
+        "failed_correctors": branch.failed_correctors,
         "turning_points": branch.turning_points,
         "newton_iterations": int(sum(p.iterations for p in pts)),
-        "max_harmonic_truncation_estimate": (float(np.max(estimates[~np.isnan(estimates)]))
-                                             if np.any(~np.isnan(estimates)) else math.nan),
+        "max_harmonic_truncation_estimate": (
+            float(np.max(estimates[~np.isnan(estimates)])) if np.any(~np.isnan(estimates)) else math.nan
+        ),
         "max_force_content_outside": float(max((force_content(hb, p) for p in pts), default=0.0)),
-        "steady_tolerance": math.nan, "slipstep_version": __version__,
+        "steady_tolerance": math.nan,
+        "slipstep_version": __version__,
     }
     ds = empty_frf(freq, names, units, list(system.contact_names), int(hb.h.max()), attrs)
-    ds = ds.assign_coords(excitation_level=("frequency", level, {"units": "1",
-                                                                 "long_name": "scale of the harmonic excitation"}))
+    ds = ds.assign_coords(
+        excitation_level=("frequency", level, {"units": "1", "long_name": "scale of the harmonic excitation"})
+    )
     v = {name: ds[name].values for name in ds.data_vars}
     for i, p in enumerate(pts):
         X = p.X[:, resp]
@@ -288,8 +393,11 @@ def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:
 
 
 def _cross_check(ds, hb, branch, resp, check, check_at, options):
-    param = np.array([p.omega for p in branch.points]) if ds.attrs["continuation"] != "level" else \
-        np.array([p.level for p in branch.points])
+    param = (
+        np.array([p.omega for p in branch.points])
+        if ds.attrs["continuation"] != "level"
+        else np.array([p.level for p in branch.points])
+    )
     if ds.attrs["continuation"] == "none" and len(branch.points) == 1:
         param = np.array([p.omega for p in branch.points])
     idx = _check_indices(ds, branch, param, check, check_at)
@@ -304,15 +412,25 @@ def _cross_check(ds, hb, branch, resp, check, check_at, options):
             hb.aft.evaluate(p.Z, False)
             opts["initial"] = hbm_initial_state(hb, p)
         ref = steady_reference(hb.system, f_hz, p.level, resp, **opts)
-        a, e = relative_differences(ds["amplitude"].values[i], ds["energy_per_cycle"].values[i], ref,
-                                    float(ds["excitation_work"].values[i]))
+        a, e = relative_differences(
+            ds["amplitude"].values[i], ds["energy_per_cycle"].values[i], ref, float(ds["excitation_work"].values[i])
+        )
         ds["check_amplitude_rel_diff"].values[i] = a
         ds["check_energy_rel_diff"].values[i] = e
         ds["periods_to_steady"].values[i] = np.nan
-        summary.append({"index": i, "frequency_Hz": f_hz, "level": p.level, "amplitude_rel_diff": a,
-                        "energy_rel_diff": e, "march_amplitude": float(ref.amplitude.max()),
-                        "march_energy_J": float(ref.energy.sum()), "march_periods": ref.periods,
-                        "march_status": ref.status})
+        summary.append(
+            {
+                "index": i,
+                "frequency_Hz": f_hz,
+                "level": p.level,
+                "amplitude_rel_diff": a,
+                "energy_rel_diff": e,
+                "march_amplitude": float(ref.amplitude.max()),
+                "march_energy_J": float(ref.energy.sum()),
+                "march_periods": ref.periods,
+                "march_status": ref.status,
+            }
+        )
         ds.attrs["method"] = ref.method
     ds.attrs["steady_tolerance"] = float(opts.get("tolerance", 1e-6))
     ds.attrs["check_points"] = len(summary)

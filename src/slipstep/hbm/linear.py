@@ -43,14 +43,20 @@ def excitation_multiples(system, fundamental_hz: float | None = None):
         phasors: dict[int, np.ndarray] = {}
         if signal is not None:
             if signal.tables:
-                raise InputError(f"{label}_table", "is tabulated: a harmonic balance needs harmonic excitation",
-                                 f"replace the {label} table by [[{label}]] harmonics or use a time-marching solver")
+                raise InputError(
+                    f"{label}_table",
+                    "is tabulated: a harmonic balance needs harmonic excitation",
+                    f"replace the {label} table by [[{label}]] harmonics or use a time-marching solver",
+                )
             for hm in signal.harmonics:
                 ratio = hm.frequency / (1.0 / exc.period if exc.period is not None else f0)
                 m = round(ratio)
                 if m < 1 or abs(ratio - m) > 1e-9 * max(ratio, 1.0):
-                    raise InputError(f"{label}.frequency_Hz", f"{hm.frequency} Hz is not a whole multiple of the "
-                                     f"fundamental {f0} Hz", "give harmonics at multiples of one fundamental")
+                    raise InputError(
+                        f"{label}.frequency_Hz",
+                        f"{hm.frequency} Hz is not a whole multiple of the fundamental {f0} Hz",
+                        "give harmonics at multiples of one fundamental",
+                    )
                 ph = hm.amplitude * (np.sin(hm.phase) - 1j * np.cos(hm.phase))
                 phasors[m] = phasors.get(m, 0.0) + ph
         out.append(phasors)
@@ -94,7 +100,7 @@ class LinearPart:
         """Factorise D_h(omega) and form G_h, the linear local response and D_h^-1."""
         cs, h = self.cs, self.h
         w = h * omega
-        D = (cs.K[None] - (w ** 2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD)
+        D = cs.K[None] - (w**2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD
         self.omega, self.level = omega, level
         self.D = D
         self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
@@ -116,4 +122,4 @@ class LinearPart:
     def dD_domega(self) -> np.ndarray:
         """dD_h/dOmega = -2 h^2 Omega M + i h C."""
         cs, h = self.cs, self.h
-        return -2.0 * (h ** 2 * self.omega)[:, None, None] * cs.M[None] + 1j * h[:, None, None] * cs.C[None]
+        return -2.0 * (h**2 * self.omega)[:, None, None] * cs.M[None] + 1j * h[:, None, None] * cs.C[None]

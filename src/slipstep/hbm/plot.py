@@ -37,8 +37,10 @@ def plot_frf(datasets, path=None, response: str | None = None):
     unit = str(first.response_unit.sel(response=response).values)
     scale, shown = (1e6, "um") if unit == "m" else ((1e3, "mrad") if unit == "rad" else (1.0, unit))
     fig, (ax_a, ax_e) = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True)
-    for key, style, name in (("linear_free_amplitude", ":", "contacts removed (linear)"),
-                             ("linear_stuck_amplitude", "--", "contacts stuck (linear)")):
+    for key, style, name in (
+        ("linear_free_amplitude", ":", "contacts removed (linear)"),
+        ("linear_stuck_amplitude", "--", "contacts stuck (linear)"),
+    ):
         lin = first[key].sel(response=response).values
         if np.any(np.isfinite(lin)):
             order = np.argsort(first.frequency.values)
@@ -46,7 +48,7 @@ def plot_frf(datasets, path=None, response: str | None = None):
     for ds in items:
         f = ds.frequency.values
         amp = ds.amplitude.sel(response=response).values * scale
-        line, = ax_a.plot(f, amp, "-", label=_label(ds))
+        (line,) = ax_a.plot(f, amp, "-", label=_label(ds))
         ax_e.plot(f, ds.energy_per_cycle.sum("contact").values * 1e3, "-", color=line.get_color(), label=_label(ds))
         checked = np.flatnonzero(np.isfinite(ds.check_amplitude_rel_diff.values))
         if checked.size:

@@ -86,8 +86,9 @@ class HarmonicBalance:
     ``harmonics``: int H (0..H) or a set like (1, 3, 5); the excitation's own multiples are
     added when missing. ``samples``: AFT time samples per period (default 8 H, power of 2)."""
 
-    def __init__(self, system: System, harmonics=5, samples: int | None = None, *, aft_max_periods: int = 50,
-                 preload=None):
+    def __init__(
+        self, system: System, harmonics=5, samples: int | None = None, *, aft_max_periods: int = 50, preload=None
+    ):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
         h = harmonic_set(harmonics)
@@ -133,8 +134,9 @@ class HarmonicBalance:
             out[b, :, b, :] = G[i].real
         return out.reshape(nc * nq, nc * nq)
 
-    def evaluate(self, Z: np.ndarray, omega: float, level: float = 1.0, *, jacobian: bool = True,
-                 refactor: bool = True):
+    def evaluate(
+        self, Z: np.ndarray, omega: float, level: float = 1.0, *, jacobian: bool = True, refactor: bool = True
+    ):
         """R (n_coef nq,), and with ``jacobian`` dR/dZ, dR/dOmega, dR/dlambda, at (Z, omega, level)."""
         b, lin, cs = self.basis, self.linear, self.cs
         if refactor or getattr(lin, "omega", None) != omega:
@@ -177,8 +179,15 @@ class HarmonicBalance:
         return s
 
     # -- one point --------------------------------------------------------------------------
-    def solve(self, omega: float, level: float = 1.0, Z0: np.ndarray | None = None, *, tol: float = 1e-10,
-              max_iterations: int = 50) -> Point:
+    def solve(
+        self,
+        omega: float,
+        level: float = 1.0,
+        Z0: np.ndarray | None = None,
+        *,
+        tol: float = 1e-10,
+        max_iterations: int = 50,
+    ) -> Point:
         """Newton on R(Z) = 0 at fixed (omega, level), exact Jacobian, backtracking on |R|."""
         with blas_threads(self.size):
             return self._solve(omega, level, Z0, tol, max_iterations)
@@ -220,5 +229,16 @@ class HarmonicBalance:
         """Package a solution (the AFT state must be that of Z)."""
         F, _ = self.aft.evaluate(Z, False)
         X = self.linear.dofs(self.basis.phasors(Z), self.basis.phasors(F))
-        return Point(omega, level, Z.copy(), F, X, iterations, bool(converged), float(residual),
-                     int(self.aft.periods), self.aft.ft.copy(), self.aft.qt.copy())
+        return Point(
+            omega,
+            level,
+            Z.copy(),
+            F,
+            X,
+            iterations,
+            bool(converged),
+            float(residual),
+            int(self.aft.periods),
+            self.aft.ft.copy(),
+            self.aft.qt.copy(),
+        )

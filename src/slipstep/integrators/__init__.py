@@ -21,17 +21,25 @@ from slipstep.integrators.newmark import LinearAcceleration, Newmark
 from slipstep.integrators.rk4 import RK4
 
 INTEGRATORS: dict[str, type[Integrator]] = {
-    "newmark": Newmark,                         # beta, gamma (default 1/4, 1/2: average acceleration)
+    "newmark": Newmark,  # beta, gamma (default 1/4, 1/2: average acceleration)
     "linear-acceleration": LinearAcceleration,  # Newmark beta = 1/6, gamma = 1/2
-    "hht": HHT,                                 # alpha in [0, 1/3]
-    "generalized-alpha": GeneralizedAlpha,      # rho_inf in [0, 1]
-    "central-difference": CentralDifference,    # explicit, dt <= T_min / pi
-    "rk4": RK4,                                 # explicit, first-order form, dt <= 2.785 / omega_max
+    "hht": HHT,  # alpha in [0, 1/3]
+    "generalized-alpha": GeneralizedAlpha,  # rho_inf in [0, 1]
+    "central-difference": CentralDifference,  # explicit, dt <= T_min / pi
+    "rk4": RK4,  # explicit, first-order form, dt <= 2.785 / omega_max
 }
 
-ALIASES = {"generalised-alpha": "generalized-alpha", "gen-alpha": "generalized-alpha", "alpha": "generalized-alpha",
-           "hht-alpha": "hht", "cd": "central-difference", "central": "central-difference",
-           "runge-kutta": "rk4", "runge-kutta-4": "rk4", "average-acceleration": "newmark"}
+ALIASES = {
+    "generalised-alpha": "generalized-alpha",
+    "gen-alpha": "generalized-alpha",
+    "alpha": "generalized-alpha",
+    "hht-alpha": "hht",
+    "cd": "central-difference",
+    "central": "central-difference",
+    "runge-kutta": "rk4",
+    "runge-kutta-4": "rk4",
+    "average-acceleration": "newmark",
+}
 
 _CALL = re.compile(r"^\s*([A-Za-z0-9_\- ]+?)\s*(?:\((.*)\))?\s*$")
 
@@ -70,8 +78,9 @@ def get_integrator(name: str | Integrator, *args, **params) -> Integrator:
     try:
         return INTEGRATORS[key](*pargs, *args, **kwargs)
     except TypeError as exc:
-        raise InputError(f"scheme {key}", f"bad parameters ({exc})",
-                         f"see help(slipstep.integrators.{INTEGRATORS[key].__name__})") from None
+        raise InputError(
+            f"scheme {key}", f"bad parameters ({exc})", f"see help(slipstep.integrators.{INTEGRATORS[key].__name__})"
+        ) from None
 
 
 def simulate(system, scheme: str | Integrator = "newmark", variant: str = "fixed", **options):
@@ -87,6 +96,21 @@ def simulate(system, scheme: str | Integrator = "newmark", variant: str = "fixed
 
 from slipstep.integrators.compare import compare_schemes, format_table  # noqa: E402
 
-__all__ = ["INTEGRATORS", "VARIANTS", "CentralDifference", "ExplicitIntegrator", "GeneralizedAlpha", "HHT",
-           "ImplicitIntegrator", "Integrator", "LinearAcceleration", "Newmark", "RK4", "compare_schemes",
-           "format_table", "get_integrator", "parse_scheme", "simulate"]
+__all__ = [
+    "INTEGRATORS",
+    "VARIANTS",
+    "CentralDifference",
+    "ExplicitIntegrator",
+    "GeneralizedAlpha",
+    "HHT",
+    "ImplicitIntegrator",
+    "Integrator",
+    "LinearAcceleration",
+    "Newmark",
+    "RK4",
+    "compare_schemes",
+    "format_table",
+    "get_integrator",
+    "parse_scheme",
+    "simulate",
+]

@@ -80,13 +80,18 @@ class Integrator(abc.ABC):
     def check_variant(self, variant: str) -> str:
         v = str(variant).strip().lower()
         if v not in self.variants:
-            raise InputError("variant", f"{variant!r} is not available for {self.label} ({self.kind})",
-                             f"use one of {', '.join(self.variants)}")
+            raise InputError(
+                "variant",
+                f"{variant!r} is not available for {self.label} ({self.kind})",
+                f"use one of {', '.join(self.variants)}",
+            )
         return v
 
     def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.label}: {self.kind}, order {self.order}, dt <= " \
-               f"{self.step_limit_factor:.4g} T_min>"
+        return (
+            f"<{type(self).__name__} {self.label}: {self.kind}, order {self.order}, dt <= "
+            f"{self.step_limit_factor:.4g} T_min>"
+        )
 
 
 class ImplicitIntegrator(Integrator):
@@ -96,8 +101,12 @@ class ImplicitIntegrator(Integrator):
     kind = "implicit"
     order = 2
     variants = VARIANTS
-    _METHOD = {"fixed": "newmark", "adaptive": "newmark-adaptive", "piecewise-linear": "piecewise-linear",
-               "both": "piecewise-linear-adaptive"}
+    _METHOD = {
+        "fixed": "newmark",
+        "adaptive": "newmark-adaptive",
+        "piecewise-linear": "piecewise-linear",
+        "both": "piecewise-linear-adaptive",
+    }
 
     @abc.abstractmethod
     def scheme(self):
@@ -127,6 +136,7 @@ class ImplicitIntegrator(Integrator):
 
     def simulation(self, system, variant: str = "fixed", **options):
         from slipstep.methods.simulation import Simulation
+
         return Simulation(system, self._METHOD[self.check_variant(variant)], scheme=self.scheme(), **options)
 
 
@@ -146,6 +156,7 @@ class ExplicitIntegrator(Integrator):
 
     def simulation(self, system, variant: str = "fixed", **options):
         from slipstep.integrators.explicit_simulation import ExplicitSimulation
+
         adaptive = self.check_variant(variant) == "adaptive"
         if adaptive and "step_ratio" not in options:
             options["step_ratio"] = self.adaptive_step_ratio

@@ -33,7 +33,9 @@ def _last_period_errors(ds, ref, system, t_from: float) -> tuple[float, float]:
     lin = np.flatnonzero(units == "m")
     x, xr = ds.displacement.values, ref.displacement.values
     disp = max((np.abs(x[sel, j] - np.interp(t[sel], tr, xr[:, j])).max() for j in lin), default=np.nan)
-    cf = float(np.linalg.norm(system.excitation.constant_force)) if system.excitation.constant_force is not None else 0.0
+    cf = (
+        float(np.linalg.norm(system.excitation.constant_force)) if system.excitation.constant_force is not None else 0.0
+    )
     forces = [(ds[name].values, ref[name].values) for name in ("tangential_force", "normal_force")]
     if cf == 0.0:
         cf = max(np.abs(fr).max(initial=0.0) for _, fr in forces) or 1.0
@@ -44,8 +46,16 @@ def _last_period_errors(ds, ref, system, t_from: float) -> tuple[float, float]:
     return disp * 1e6, 100.0 * ferr / cf
 
 
-def compare_schemes(system, schemes="all", variants=VARIANTS, periods: float = 2.0, repeats: int = 3,
-                    reference=None, reference_step_ratio: float = 0.1, **options) -> list[dict]:
+def compare_schemes(
+    system,
+    schemes="all",
+    variants=VARIANTS,
+    periods: float = 2.0,
+    repeats: int = 3,
+    reference=None,
+    reference_step_ratio: float = 0.1,
+    **options,
+) -> list[dict]:
     """One row per scheme x variant (see the module docstring). ``schemes``: 'all' or a list of
     scheme specs (``'hht(0.1)'``...). ``reference``: a Dataset to compare with (default: computed).
     Extra ``options`` go to every run (e.g. step_ratio)."""
@@ -62,8 +72,9 @@ def compare_schemes(system, schemes="all", variants=VARIANTS, periods: float = 2
             raise InputError("variants", f"unknown variant {v!r}", f"use {', '.join(VARIANTS)}")
     if reference is None:
         ref_opts = {k: v for k, v in options.items() if k != "step_ratio"}
-        reference = Simulation(system, "piecewise-linear", periods=periods, step_ratio=reference_step_ratio,
-                               **ref_opts).run()
+        reference = Simulation(
+            system, "piecewise-linear", periods=periods, step_ratio=reference_step_ratio, **ref_opts
+        ).run()
     t_end = float(reference.time.values[-1])
     period = system.period
     t_from = t_end - period if period is not None and period < t_end else 0.0
@@ -82,14 +93,30 @@ def compare_schemes(system, schemes="all", variants=VARIANTS, periods: float = 2
         for variant in variants:
             row = {"scheme": integ.label, "kind": integ.kind, "order": integ.order, "variant": variant}
             if variant not in integ.variants:
-                row.update(status="n/a", steps=None, solves=None, kernel_time_s=None, time_ratio=None,
-                           disp_error_um=None, force_error_pct=None)
+                row.update(
+                    status="n/a",
+                    steps=None,
+                    solves=None,
+                    kernel_time_s=None,
+                    time_ratio=None,
+                    disp_error_um=None,
+                    force_error_pct=None,
+                )
                 rows.append(row)
                 continue
             ds, kt = timed(integ, variant)
-            disp, ferr = _last_period_errors(ds, reference, system, t_from) if ds.attrs["status"] == "OK" else (np.nan,) * 2
-            row.update(status=ds.attrs["status"], steps=int(ds.attrs["steps"]), solves=int(ds.attrs["solves"]),
-                       kernel_time_s=kt, time_ratio=None, disp_error_um=float(disp), force_error_pct=float(ferr))
+            disp, ferr = (
+                _last_period_errors(ds, reference, system, t_from) if ds.attrs["status"] == "OK" else (np.nan,) * 2
+            )
+            row.update(
+                status=ds.attrs["status"],
+                steps=int(ds.attrs["steps"]),
+                solves=int(ds.attrs["solves"]),
+                kernel_time_s=kt,
+                time_ratio=None,
+                disp_error_um=float(disp),
+                force_error_pct=float(ferr),
+            )
             rows.append(row)
     ref_rows = [r for r in rows if r["scheme"] == "newmark" and r["variant"] == "fixed" and r["status"] == "OK"]
     if ref_rows:
@@ -111,7 +138,9 @@ def format_table(rows: list[dict]) -> str:
         return "n/a" if v is None else format(v, spec)
 
     for r in rows:
-        lines.append(f"| {r['scheme']} | {r['variant']} | {r['status']} | {fmt(r['steps'], 'd')} | "
-                     f"{fmt(r['solves'], 'd')} | {fmt(None if r['kernel_time_s'] is None else 1e3 * r['kernel_time_s'], '.3f')} | "
-                     f"{fmt(r['time_ratio'], '.2f')} | {fmt(r['disp_error_um'], '.3f')} | {fmt(r['force_error_pct'], '.2f')} |")
+        lines.append(
+            f"| {r['scheme']} | {r['variant']} | {r['status']} | {fmt(r['steps'], 'd')} | "
+            f"{fmt(r['solves'], 'd')} | {fmt(None if r['kernel_time_s'] is None else 1e3 * r['kernel_time_s'], '.3f')} | "
+            f"{fmt(r['time_ratio'], '.2f')} | {fmt(r['disp_error_um'], '.3f')} | {fmt(r['force_error_pct'], '.2f')} |"
+        )
     return "\n".join(lines)

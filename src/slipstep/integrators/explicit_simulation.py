@@ -16,7 +16,12 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.methods.simulation import (
-    RunOptions, Runner, Simulation, _allocate_outputs, check_divergence, default_max_step,
+    RunOptions,
+    Runner,
+    Simulation,
+    _allocate_outputs,
+    check_divergence,
+    default_max_step,
 )
 from slipstep.methods import accuracy
 from slipstep.methods.accuracy import highest_frequency
@@ -24,8 +29,17 @@ from slipstep.model.validate import positive
 from slipstep.system import System
 
 #: options an explicit run understands (the rest of RunOptions is for implicit solvers)
-EXPLICIT_OPTIONS = ("periods", "duration", "step_ratio", "max_step", "max_redo", "preload_increments",
-                    "singular_tolerance", "state_tolerance", "tolerance")
+EXPLICIT_OPTIONS = (
+    "periods",
+    "duration",
+    "step_ratio",
+    "max_step",
+    "max_redo",
+    "preload_increments",
+    "singular_tolerance",
+    "state_tolerance",
+    "tolerance",
+)
 
 
 class ExplicitSimulation(Runner):
@@ -37,27 +51,39 @@ class ExplicitSimulation(Runner):
     Adaptive: dt = step_ratio * factor * T_min(S_n), capped at max_step (default period / 50).
     """
 
-    failure_hint = (" (an explicit scheme diverges above its stability limit: lower step_ratio; "
-                    "or a fluttering slip state: `slipstep advise` lists states with complex eigenvalues)")
+    failure_hint = (
+        " (an explicit scheme diverges above its stability limit: lower step_ratio; "
+        "or a fluttering slip state: `slipstep advise` lists states with complex eigenvalues)"
+    )
 
     def __init__(self, system: System, integrator, adaptive: bool = False, **options):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
         unknown = set(options) - set(EXPLICIT_OPTIONS)
         if unknown:
-            raise InputError("options", f"unknown option(s) {sorted(unknown)} for the explicit scheme "
-                             f"{integrator.name}", f"use only {sorted(EXPLICIT_OPTIONS)}")
+            raise InputError(
+                "options",
+                f"unknown option(s) {sorted(unknown)} for the explicit scheme {integrator.name}",
+                f"use only {sorted(EXPLICIT_OPTIONS)}",
+            )
         if integrator.kind != "explicit" or integrator.kernel_kind is None:
             raise InputError("scheme", f"{integrator.name} is not an explicit scheme", "use central-difference or rk4")
         self.system, self.integrator, self.adaptive = system, integrator, bool(adaptive)
         ratio = positive("step_ratio", options.get("step_ratio", 1.0))
         self._options_given, self._accuracy = dict(options), None
         if ratio > 1.0:
-            raise InputError("step_ratio", f"is {ratio}: an explicit scheme is unstable above its stability limit",
-                             "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)")
+            raise InputError(
+                "step_ratio",
+                f"is {ratio}: an explicit scheme is unstable above its stability limit",
+                "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)",
+            )
         # preload (and validation of the common options) by the implicit set-up, quasi-static loads ramp
-        pre = Simulation(system, "newmark", error_estimate=False,
-                         **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__})
+        pre = Simulation(
+            system,
+            "newmark",
+            error_estimate=False,
+            **{k: v for k, v in options.items() if k in RunOptions.__dataclass_fields__},
+        )
         self.options = pre.options
         self.compiled = cs = pre.compiled
         self.preload_state = pre.preload_state
@@ -73,8 +99,11 @@ class ExplicitSimulation(Runner):
         limit = min(self.dt_limit, dt_max)
         dt = period / math.ceil(period / limit * (1 - 1e-12)) if period is not None else limit
         if dt > t_end:
-            raise InputError("duration", f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
-                             "simulate longer or use a smaller step")
+            raise InputError(
+                "duration",
+                f"({t_end:.3g} s) is shorter than one time step ({dt:.3g} s)",
+                "simulate longer or use a smaller step",
+            )
         self.dt = dt
         if self.adaptive:
             capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
@@ -115,12 +144,19 @@ class ExplicitSimulation(Runner):
         (methods/accuracy.py); computed once; warns above 1 %."""
         if self._accuracy is not None:
             return self._accuracy
-        nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
-               "error_estimate_method": "none"}
+        nan = {
+            "energy_error_estimate": math.nan,
+            "peak_force_error_estimate": math.nan,
+            "error_estimate_method": "none",
+        }
         if self.status != Status.OK or self.period is None:
             return nan
-        opts = dict(self._options_given, step_ratio=self._options_given.get("step_ratio", 1.0) / 2,
-                    max_step=self.max_step / 2, duration=self.t_end)
+        opts = dict(
+            self._options_given,
+            step_ratio=self._options_given.get("step_ratio", 1.0) / 2,
+            max_step=self.max_step / 2,
+            duration=self.t_end,
+        )
         opts.pop("periods", None)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -130,20 +166,31 @@ class ExplicitSimulation(Runner):
         n, m = int(self.out.counters[E.C_STEPS]), int(twin.out.counters[E.C_STEPS])
         e1, p1 = accuracy.loop_energy(self.out, n, self.compiled, self.period)
         e2, p2 = accuracy.loop_energy(twin.out, m, twin.compiled, self.period)
-        self._accuracy = {"energy_error_estimate": accuracy.richardson(e1, e2, 0.5),
-                          "peak_force_error_estimate": accuracy.richardson(p1, p2, 0.5),
-                          "error_estimate_method": "step halving: the same scheme at half the step"}
+        self._accuracy = {
+            "energy_error_estimate": accuracy.richardson(e1, e2, 0.5),
+            "peak_force_error_estimate": accuracy.richardson(p1, p2, 0.5),
+            "error_estimate_method": "step halving: the same scheme at half the step",
+        }
         if self._accuracy["energy_error_estimate"] > accuracy.WARN_LIMIT:
-            warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
-                          f"{100 * self._accuracy['energy_error_estimate']:.2g} % (step halving): lower step_ratio "
-                          f"or max_step", stacklevel=3)
+            warnings.warn(
+                f"the estimated time-discretisation error of the dissipated energy per cycle is "
+                f"{100 * self._accuracy['energy_error_estimate']:.2g} % (step halving): lower step_ratio "
+                f"or max_step",
+                stacklevel=3,
+            )
         return self._accuracy
 
     def method_attrs(self) -> dict:
         name = self.integrator.name
-        return {"method": f"{name}-adaptive" if self.adaptive else name, "paper_method": "App. A (explicit)",
-                "solver": "explicit", "adaptive_step": self.adaptive, "quasi_static": False, "scheme": name,
-                "fallback_steps": 0}
+        return {
+            "method": f"{name}-adaptive" if self.adaptive else name,
+            "paper_method": "App. A (explicit)",
+            "solver": "explicit",
+            "adaptive_step": self.adaptive,
+            "quasi_static": False,
+            "scheme": name,
+            "fallback_steps": 0,
+        }
 
 
 def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:
@@ -152,9 +199,33 @@ def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
     return E.ExplicitWorkspace(
-        x=z(n), v=z(n), a=z(n), w=z(nd), state=i8(nd),
-        x1=z(n), v1=z(n), a1=z(n), q1=z(nq), f1=z(nq), w1=z(nd), state1=i8(nd),
-        gf=z(n), fe=z(n), p=z(m), rhs=z(n), xs=z(n), vs=z(n), kx=z(4, n), kv=z(4, n),
-        fs=z(nq), ws_=z(nd), ss=i8(nd), lu=z(n, n), piv=np.zeros(n, np.int64),
-        Minv=np.linalg.inv(cs.M), tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
+        x=z(n),
+        v=z(n),
+        a=z(n),
+        w=z(nd),
+        state=i8(nd),
+        x1=z(n),
+        v1=z(n),
+        a1=z(n),
+        q1=z(nq),
+        f1=z(nq),
+        w1=z(nd),
+        state1=i8(nd),
+        gf=z(n),
+        fe=z(n),
+        p=z(m),
+        rhs=z(n),
+        xs=z(n),
+        vs=z(n),
+        kx=z(4, n),
+        kv=z(4, n),
+        fs=z(nq),
+        ws_=z(nd),
+        ss=i8(nd),
+        lu=z(n, n),
+        piv=np.zeros(n, np.int64),
+        Minv=np.linalg.inv(cs.M),
+        tmin_keys=i8(cap, nd),
+        tmin_used=np.zeros(cap, np.bool_),
+        tmin_value=z(cap),
     )

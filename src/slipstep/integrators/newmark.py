@@ -35,7 +35,11 @@ class Newmark(ImplicitIntegrator):
         b, g = self._scheme.beta, self._scheme.gamma
         if (b, g) == (0.25, 0.5):
             return "newmark"
-        frac = lambda v: str(Fraction(v).limit_denominator(1000)) if abs(float(Fraction(v).limit_denominator(1000)) - v) < 1e-15 else repr(v)
+        frac = lambda v: (
+            str(Fraction(v).limit_denominator(1000))
+            if abs(float(Fraction(v).limit_denominator(1000)) - v) < 1e-15
+            else repr(v)
+        )
         return f"newmark(beta={frac(b)},gamma={frac(g)})"
 
 

@@ -99,9 +99,9 @@ def richardson(fine: float, coarse: float, ratio: float = 2.0, order: int = 2) -
     if scale == 0.0:
         return 0.0 if coarse == 0.0 else math.inf
     if ratio > 1:
-        return abs(fine - coarse) / (ratio ** order - 1.0) / scale
+        return abs(fine - coarse) / (ratio**order - 1.0) / scale
     # finer twin: the twin is the better value, err(fine) ~ |fine - twin| r^-p / (r^-p - 1)
-    q = ratio ** -order
+    q = ratio**-order
     return abs(fine - coarse) * q / (q - 1.0) / scale
 
 
@@ -156,10 +156,18 @@ def twin(sim, method: str, **changes):
     from slipstep.methods.simulation import Simulation
 
     opt = sim.options
-    base = {"scheme": opt.scheme, "duration": sim.t_end, "tolerance": opt.tolerance,
-            "state_tolerance": opt.state_tolerance, "singular_tolerance": opt.singular_tolerance,
-            "preload_increments": opt.preload_increments, "linear_solver": opt.linear_solver, "error_estimate": False,
-            "max_state_iterations": opt.max_state_iterations, "step_ratio": opt.step_ratio}
+    base = {
+        "scheme": opt.scheme,
+        "duration": sim.t_end,
+        "tolerance": opt.tolerance,
+        "state_tolerance": opt.state_tolerance,
+        "singular_tolerance": opt.singular_tolerance,
+        "preload_increments": opt.preload_increments,
+        "linear_solver": opt.linear_solver,
+        "error_estimate": False,
+        "max_state_iterations": opt.max_state_iterations,
+        "step_ratio": opt.step_ratio,
+    }
     base.update(changes)
     if sim.method.massless:
         method = sim.method.name
@@ -203,8 +211,7 @@ def estimate(sim) -> dict:
     """energy_error_estimate and peak_force_error_estimate (relative, NaN when not available)
     of a finished march by step doubling (module docstring), and error_estimate_method.
     Warns when the loop-energy estimate exceeds WARN_LIMIT (1 %)."""
-    nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
-           "error_estimate_method": "none"}
+    nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan, "error_estimate_method": "none"}
     if not sim.options.error_estimate or sim.status != Status.OK or sim.period is None:
         return nan
     n = int(sim.out.counters[C_STEPS])
@@ -214,11 +221,18 @@ def estimate(sim) -> dict:
         other = twin(sim, "quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
         how = "step doubling: quasi-static twin at half the steps per period"
     elif sim.method.adaptive or opt.rtol is not None:
-        other = twin(sim, "piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
-                     step_ratio=2 * opt.step_ratio, max_step=2 * sim.max_step,
-                     rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2))
-        how = ("step doubling: piecewise-linear twin with twice the step factor and cap" if opt.rtol is None
-               else "step doubling: piecewise-linear twin at 8 rtol (twice the step)")
+        other = twin(
+            sim,
+            "piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
+            step_ratio=2 * opt.step_ratio,
+            max_step=2 * sim.max_step,
+            rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2),
+        )
+        how = (
+            "step doubling: piecewise-linear twin with twice the step factor and cap"
+            if opt.rtol is None
+            else "step doubling: piecewise-linear twin at 8 rtol (twice the step)"
+        )
     elif sim._coarse is not None and sim._coarse[0] == 2 * sim.dt:
         other, how = sim._coarse[1], "step doubling: piecewise-linear twin at 2 dt"
     else:
@@ -226,10 +240,16 @@ def estimate(sim) -> dict:
     if other is None:
         return nan
     ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not sim.method.quasi_static else 2.0
-    out = {"energy_error_estimate": richardson(energy, other[1], ratio),
-           "peak_force_error_estimate": richardson(peak, other[2], ratio), "error_estimate_method": how}
+    out = {
+        "energy_error_estimate": richardson(energy, other[1], ratio),
+        "peak_force_error_estimate": richardson(peak, other[2], ratio),
+        "error_estimate_method": how,
+    }
     if out["energy_error_estimate"] > WARN_LIMIT:
-        warnings.warn(f"the estimated time-discretisation error of the dissipated energy per cycle is "
-                      f"{100 * out['energy_error_estimate']:.2g} % (step doubling): use a smaller step (max_step / "
-                      f"--steps-per-period) or set rtol (--rtol 1e-3)", stacklevel=4)
+        warnings.warn(
+            f"the estimated time-discretisation error of the dissipated energy per cycle is "
+            f"{100 * out['energy_error_estimate']:.2g} % (step doubling): use a smaller step (max_step / "
+            f"--steps-per-period) or set rtol (--rtol 1e-3)",
+            stacklevel=4,
+        )
     return out

@@ -53,16 +53,22 @@ def select_massless(system: System, spec) -> np.ndarray:
     if isinstance(spec, str) and spec == "auto":
         idx = contact_held_dofs(system)
         if idx.size == 0:
-            raise InputError("massless_dofs", "'auto' found no DOF held by contacts only (zero rows of K and C)",
-                             "name the DOFs to treat without inertia, e.g. massless_dofs=('damper.x_G', ...)")
+            raise InputError(
+                "massless_dofs",
+                "'auto' found no DOF held by contacts only (zero rows of K and C)",
+                "name the DOFs to treat without inertia, e.g. massless_dofs=('damper.x_G', ...)",
+            )
     else:
         patterns = [spec] if isinstance(spec, str) else list(spec)
         chosen = set()
         for p in patterns:
             hit = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, str(p))]
             if not hit:
-                raise InputError("massless_dofs", f"{p!r} matches no DOF",
-                                 f"use DOF names or patterns such as {', '.join(names[:4])}")
+                raise InputError(
+                    "massless_dofs",
+                    f"{p!r} matches no DOF",
+                    f"use DOF names or patterns such as {', '.join(names[:4])}",
+                )
             chosen.update(hit)
         idx = np.array(sorted(chosen), dtype=np.int64)
     if idx.size == s.n_dofs:
@@ -71,9 +77,11 @@ def select_massless(system: System, spec) -> np.ndarray:
     for label, A in (("mass", s.mass), ("damping", s.damping)):
         coupled = np.abs(A[np.ix_(idx, rest)]).max(initial=0.0) if label == "mass" else np.abs(A[idx]).max(initial=0.0)
         if coupled > 0:
-            raise InputError("massless_dofs", f"are coupled to the other DOFs by the {label} matrix "
-                             f"({label} entries up to {coupled:.3g})",
-                             "choose DOFs of a body with its own mass block and no viscous damping (a damper)")
+            raise InputError(
+                "massless_dofs",
+                f"are coupled to the other DOFs by the {label} matrix ({label} entries up to {coupled:.3g})",
+                "choose DOFs of a body with its own mass block and no viscous damping (a damper)",
+            )
     return idx
 
 
@@ -122,9 +130,12 @@ def condensed_eigenvalues(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray
     Kmm = Keff[np.ix_(idx, idx)]
     sv = np.linalg.svd(Kmm, compute_uv=False)
     if sv.size and sv.min() <= 1e-12 * max(sv.max(), 1e-300):
-        raise InputError("massless_dofs", "have no quasi-static equilibrium in this contact state "
-                         "(their stiffness K_mm + K_D,mm is singular: held by nothing)",
-                         "treat only DOFs that the contacts hold in full stick")
+        raise InputError(
+            "massless_dofs",
+            "have no quasi-static equilibrium in this contact state "
+            "(their stiffness K_mm + K_D,mm is singular: held by nothing)",
+            "treat only DOFs that the contacts hold in full stick",
+        )
     Ks = Keff[np.ix_(d, d)] - Keff[np.ix_(d, idx)] @ np.linalg.solve(Kmm, Keff[np.ix_(idx, d)])
     return np.linalg.eigvals(np.linalg.solve(cs.M[np.ix_(d, d)], Ks))
 

@@ -40,10 +40,11 @@ def available_memory() -> int:
         try:
             avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
         except (ValueError, OSError, AttributeError):
-            avail = 8 * 1024 ** 3
-    for limit_file, usage_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+            avail = 8 * 1024**3
+    for limit_file, usage_file in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
         try:
             with open(limit_file) as fh:
                 text = fh.read().strip()
@@ -74,20 +75,27 @@ def run_bytes(points: int, n: int, nq: int, nd: int, m: int, workspace: int) -> 
     return PEAK_FACTOR * points * point_bytes(n, nq, nd, m) + workspace
 
 
-def check(points: int, n: int, nq: int, nd: int, m: int, workspace: int, max_memory: float | None,
-          field: str, fixes: str) -> float:
+def check(
+    points: int, n: int, nq: int, nd: int, m: int, workspace: int, max_memory: float | None, field: str, fixes: str
+) -> float:
     """Raise InputError(field) when the estimate exceeds the limit; return the estimate."""
     from slipstep.io import format_bytes
 
     need = run_bytes(points, n, nq, nd, m, workspace)
     limit = memory_limit(max_memory)
     if need > limit:
-        source = "max_memory" if max_memory is not None else \
-            f"{DEFAULT_FRACTION:.0%} of the {format_bytes(available_memory())} available"
-        raise InputError(field, f"needs {points:.3g} output points x {point_bytes(n, nq, nd, m)} B = about "
-                                f"{format_bytes(need)} of memory with the result Dataset, more than the limit "
-                                f"{format_bytes(limit)} ({source})",
-                         f"{fixes}, or raise the limit (max_memory; command line: --max-memory, e.g. 16GB)")
+        source = (
+            "max_memory"
+            if max_memory is not None
+            else f"{DEFAULT_FRACTION:.0%} of the {format_bytes(available_memory())} available"
+        )
+        raise InputError(
+            field,
+            f"needs {points:.3g} output points x {point_bytes(n, nq, nd, m)} B = about "
+            f"{format_bytes(need)} of memory with the result Dataset, more than the limit "
+            f"{format_bytes(limit)} ({source})",
+            f"{fixes}, or raise the limit (max_memory; command line: --max-memory, e.g. 16GB)",
+        )
     return need
 
 

@@ -53,8 +53,11 @@ class Scheme:
 
 def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:
     if not (beta > 0 and gamma >= 0.5):
-        raise InputError("scheme.beta/gamma", f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
-                         "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)")
+        raise InputError(
+            "scheme.beta/gamma",
+            f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
+            "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)",
+        )
     name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
     return Scheme(name, beta, gamma)
 

@@ -36,8 +36,13 @@ from slipstep.system import CompiledSystem, System
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
 
-SOLVER_NAMES = {K.MODIFIED_NEWTON: "modified-newton", K.FULL_NEWTON: "full-newton", K.PIECEWISE_LINEAR: "piecewise-linear",
-                K.MODIFIED_NEWTON_STATE: "modified-newton-state", K.EVENTS: "events"}
+SOLVER_NAMES = {
+    K.MODIFIED_NEWTON: "modified-newton",
+    K.FULL_NEWTON: "full-newton",
+    K.PIECEWISE_LINEAR: "piecewise-linear",
+    K.MODIFIED_NEWTON_STATE: "modified-newton-state",
+    K.EVENTS: "events",
+}
 
 
 @dataclass(frozen=True)
@@ -99,8 +104,11 @@ class RunOptions:
             positive("duration", self.duration)
         r = positive("step_ratio", self.step_ratio)
         if r > 50:
-            raise InputError("step_ratio", f"is {r}: the step would be {r} times the stability/convergence limit",
-                             "use a ratio of about 1 (below 1 for more accuracy)")
+            raise InputError(
+                "step_ratio",
+                f"is {r}: the step would be {r} times the stability/convergence limit",
+                "use a ratio of about 1 (below 1 for more accuracy)",
+            )
         for name in ("steps_per_period", "max_iterations", "max_state_iterations", "preload_increments"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -164,8 +172,9 @@ class Runner:
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
-        status, self.kernel_time = call_kernel(kernel, args, self.out.counters, self.out.t, self.t_end,
-                                               self.out.t.shape[0], self.progress)
+        status, self.kernel_time = call_kernel(
+            kernel, args, self.out.counters, self.out.t, self.t_end, self.out.t.shape[0], self.progress
+        )
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
         self.status = Status(status)
@@ -204,39 +213,44 @@ class Runner:
         failure = self.failure_report()
         message = self.status.message
         if failure:
-            message = (f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
-                       f"t = {failure['failed_at_time_s']:.6g} s")
+            message = (
+                f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
+                f"t = {failure['failed_at_time_s']:.6g} s"
+            )
             if "states_visited" in failure:
                 message += f", states tried {failure['states_visited']}"
             message += self.failure_hint if self.status == Status.NON_FINITE else ""
-        solves = int(self.out.solves[1: n_steps + 1].sum())
+        solves = int(self.out.solves[1 : n_steps + 1].sum())
         method = self.method_attrs()
         attrs = {"title": f"slipstep result: {self.system.name}, {method['method']}", "case": self.system.name}
         attrs.update(method)
-        attrs.update({
-            "status": self.status.name,
-            "status_message": message,
-            "steps": n_steps,
-            "solves": solves,
-            "iterations": solves,
-            "mean_solves_per_step": solves / max(n_steps, 1),
-            "factorisations": int(c[K.C_FACTORISATIONS]),
-            "law_calls": int(c[K.C_LAW_CALLS]),
-            "redone_steps": int(c[K.C_REDOS]),
-            "state_changes": int(c[K.C_STATE_CHANGES]),
-            "dt_s": self.dt,
-            "t_min_s": self.t_min_stick,
-            "t_end_s": self.t_end,
-            "period_s": self.period,
-            "step_ratio": self.options.step_ratio,
-            "max_step_s": self.max_step,
-            "kernel_time_s": self.kernel_time,
-            "length_scale_m": self.compiled.length_scale,
-        })
+        attrs.update(
+            {
+                "status": self.status.name,
+                "status_message": message,
+                "steps": n_steps,
+                "solves": solves,
+                "iterations": solves,
+                "mean_solves_per_step": solves / max(n_steps, 1),
+                "factorisations": int(c[K.C_FACTORISATIONS]),
+                "law_calls": int(c[K.C_LAW_CALLS]),
+                "redone_steps": int(c[K.C_REDOS]),
+                "state_changes": int(c[K.C_STATE_CHANGES]),
+                "dt_s": self.dt,
+                "t_min_s": self.t_min_stick,
+                "t_end_s": self.t_end,
+                "period_s": self.period,
+                "step_ratio": self.options.step_ratio,
+                "max_step_s": self.max_step,
+                "kernel_time_s": self.kernel_time,
+                "length_scale_m": self.compiled.length_scale,
+            }
+        )
         attrs.update(failure)
         attrs.update(self.accuracy_attrs())
-        return build_dataset(self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"],
-                             compiled=self.compiled)
+        return build_dataset(
+            self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"], compiled=self.compiled
+        )
 
 
 class Simulation(Runner):
@@ -247,8 +261,9 @@ class Simulation(Runner):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
         unknown = set(options) - set(RunOptions.__dataclass_fields__)
         if unknown:
-            raise InputError("options", f"unknown option(s) {sorted(unknown)}",
-                             f"use only {sorted(RunOptions.__dataclass_fields__)}")
+            raise InputError(
+                "options", f"unknown option(s) {sorted(unknown)}", f"use only {sorted(RunOptions.__dataclass_fields__)}"
+            )
         self.system = system
         self.method = method if isinstance(method, Method) else get_method(method)
         self.options = RunOptions(**options).validated()
@@ -263,8 +278,11 @@ class Simulation(Runner):
             self.t_min_stick, _ = ML.condensed_t_min(cs, self.stick, self.massless)
         else:
             if self.options.massless_dofs != "auto":
-                raise InputError("massless_dofs", f"is only used by the quasi-static-dofs method, not {self.method.name}",
-                                 "use method quasi-static-dofs or drop the option")
+                raise InputError(
+                    "massless_dofs",
+                    f"is only used by the quasi-static-dofs method, not {self.method.name}",
+                    "use method quasi-static-dofs or drop the option",
+                )
             self.t_min_stick, _ = state_t_min(cs, self.stick)
         period = system.period
         opt = self.options
@@ -273,8 +291,11 @@ class Simulation(Runner):
         elif period is not None:
             t_end = opt.periods * period
         else:
-            raise InputError("duration", "is not set and the excitation has no period (tables only)",
-                             "give duration (seconds) or a harmonic excitation")
+            raise InputError(
+                "duration",
+                "is not set and the excitation has no period (tables only)",
+                "give duration (seconds) or a harmonic excitation",
+            )
         self.period, self.t_end = period, t_end
         scheme = opt.scheme
         self._accuracy = None
@@ -284,15 +305,21 @@ class Simulation(Runner):
         _check_time_scales(t_end, self.dt_limit, self.max_step, opt)
         dt = self._fixed_step(self.dt_limit, self.max_step)
         if opt.dt is not None and opt.dt > self.dt_stability * (1 + 1e-12):
-            raise InputError("dt", f"is {opt.dt:.4g} s, beyond the stability limit {self.dt_stability:.4g} s of the "
-                             f"scheme {scheme.name} (Omega_crit = {scheme.omega_crit:.4g})",
-                             "give a smaller dt or use an unconditionally stable scheme (2 beta >= gamma)")
+            raise InputError(
+                "dt",
+                f"is {opt.dt:.4g} s, beyond the stability limit {self.dt_stability:.4g} s of the "
+                f"scheme {scheme.name} (Omega_crit = {scheme.omega_crit:.4g})",
+                "give a smaller dt or use an unconditionally stable scheme (2 beta >= gamma)",
+            )
         if self._pilot_allowed():
             dt = self._pilot_step(dt)
         if dt > t_end * (1 + 1e-12):
             field_name = "duration" if opt.duration is not None else "periods"
-            raise InputError(field_name, f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
-                             "simulate longer or use a smaller step")
+            raise InputError(
+                field_name,
+                f"gives {t_end:.3g} s, shorter than one time step ({dt:.3g} s)",
+                "simulate longer or use a smaller step",
+            )
         self.dt = dt
         dt_max = self.max_step
         n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
@@ -349,9 +376,12 @@ class Simulation(Runner):
         if opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR and not self.method.quasi_static:
             conv = dt_stability  # nothing iterates within a linear phase: only stability limits the step
         if conv > dt_stability * (1 + 1e-12) and opt.dt is None:
-            warnings.warn(f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
-                          f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
-                          f"is capped at the stability limit", stacklevel=4)
+            warnings.warn(
+                f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
+                f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
+                f"is capped at the stability limit",
+                stacklevel=4,
+            )
             conv = dt_stability
         return conv, dt_stability
 
@@ -363,16 +393,23 @@ class Simulation(Runner):
         if self.method.quasi_static:
             return (period if period is not None else self.t_end) / opt.steps_per_period
         if not math.isfinite(limit) and not math.isfinite(max_step):
-            raise InputError("structure", "has no stiffness at all in full stick (T_min is infinite)",
-                             "add contacts or stiffness")
+            raise InputError(
+                "structure", "has no stiffness at all in full stick (T_min is infinite)", "add contacts or stiffness"
+            )
         if period is not None:
             return period / math.ceil(period / min(limit, max_step) * (1 - 1e-12))
         return min(limit, max_step)
 
     def _pilot_allowed(self) -> bool:
         opt = self.options
-        return (opt.error_estimate and not self.method.quasi_static and self.period is not None and opt.dt is None
-                and opt.max_step is None and opt.rtol is None)
+        return (
+            opt.error_estimate
+            and not self.method.quasi_static
+            and self.period is not None
+            and opt.dt is None
+            and opt.max_step is None
+            and opt.rtol is None
+        )
 
     def _twin(self, method: str, **changes):
         return accuracy.twin(self, method, **changes)
@@ -422,15 +459,20 @@ class Simulation(Runner):
             contact_law(cs, q, ws.w.copy(), f, ws.w, ws.state)
         if status != K.OK:
             states = ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(self.system.direction_names(), ws.state1))
-            raise SolverError(f"static preload failed at increment {ramp.counters[K.C_FAIL_STEP]} of "
-                              f"{self.options.preload_increments}: {Status(status).message} (states: {states})")
+            raise SolverError(
+                f"static preload failed at increment {ramp.counters[K.C_FAIL_STEP]} of "
+                f"{self.options.preload_increments}: {Status(status).message} (states: {states})"
+            )
         # initial point of the march: p(0), f_e(0), consistent acceleration
         p0 = evaluate_compiled(_motion_signal(cs), np.zeros(1))[0]
         fe0 = evaluate_compiled(_force_signal(cs), np.zeros(1))[0] + cs.constant_force
         if np.abs(p0).max(initial=0.0) > 1e-6 * cs.length_scale and not self.method.quasi_static:
-            warnings.warn("the prescribed motion does not start from zero (p(0) != 0): a dynamic run receives it "
-                          "as an impulse and rings at the internal frequencies for as long as nothing damps them. "
-                          "Start motions from zero (sine phase) or set ramp_time.", stacklevel=3)
+            warnings.warn(
+                "the prescribed motion does not start from zero (p(0) != 0): a dynamic run receives it "
+                "as an impulse and rings at the internal frequencies for as long as nothing damps them. "
+                "Start motions from zero (sine phase) or set ramp_time.",
+                stacklevel=3,
+            )
         if self.method.quasi_static and (np.any(p0 != 0) or np.any(fe0 != cs.constant_force)):
             q[:], f[:] = self._static_start(ipar)
         else:
@@ -473,7 +515,7 @@ class Simulation(Runner):
         preload sliders, ``state`` to the law's states at (x, w); ``a`` defaults to the
         consistent acceleration a = M^-1 (f_e - C v - K x - A^T f(x, w)), with the contact
         force in elastic form T = k_t (u - w), N = k_n v for v > 0 (0 in lift-off)."""
-        cs, ws = self.compiled, self.ws
+        cs = self.compiled
         n, nd = cs.M.shape[0], cs.kt.shape[0]
         x = np.array(x, float).reshape(n)
         v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)
@@ -495,8 +537,11 @@ class Simulation(Runner):
         self.q0, self.f0 = q, f
         self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
         # the step-doubling twins march from the preload: no estimate for a continued march
-        self._accuracy = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan,
-                          "error_estimate_method": "none (started from a given state)"}
+        self._accuracy = {
+            "energy_error_estimate": math.nan,
+            "peak_force_error_estimate": math.nan,
+            "error_estimate_method": "none (started from a given state)",
+        }
 
     # -- marching -------------------------------------------------------------------------
     def march(self) -> Status:
@@ -513,8 +558,9 @@ class Simulation(Runner):
         c = self.out.counters
         names = self.system.direction_names()
         visited = self.ws.visited[: max(int(c[K.C_N_VISITED]), 1)]
-        return " -> ".join("(" + ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(names, row)) + ")"
-                           for row in visited)
+        return " -> ".join(
+            "(" + ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(names, row)) + ")" for row in visited
+        )
 
     def method_attrs(self) -> dict:
         return {
@@ -530,23 +576,35 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "linear_solver": "low-rank" if self.low_rank else "direct",
-            **({} if self.massless is None else
-               {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}),
+            **(
+                {}
+                if self.massless is None
+                else {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}
+            ),
         }
 
 
 def check_event_case(system: System, cs: CompiledSystem) -> None:
     """The event-driven method needs phases that are linear in known harmonic functions of time."""
     if cs.force_table_time.size or cs.motion_table_time.size:
-        raise InputError("method", "quasi-static-events needs harmonic loads and motions, the case has tables",
-                         "use method 'quasi-static' for tabulated signals")
+        raise InputError(
+            "method",
+            "quasi-static-events needs harmonic loads and motions, the case has tables",
+            "use method 'quasi-static' for tabulated signals",
+        )
     if cs.force_ramp > 0 or cs.motion_ramp > 0:
-        raise InputError("ramp_time", "is set: quasi-static-events needs unramped harmonic signals",
-                         "remove ramp_time or use method 'quasi-static'")
+        raise InputError(
+            "ramp_time",
+            "is set: quasi-static-events needs unramped harmonic signals",
+            "remove ramp_time or use method 'quasi-static'",
+        )
     circles = [c.name for c in system.contacts if c.law == "3d-circle"]
     if circles:
-        raise InputError("method", f"quasi-static-events needs piecewise-linear contact laws; {circles} use "
-                         "'3d-circle'", "use method 'quasi-static' for friction-circle contacts")
+        raise InputError(
+            "method",
+            f"quasi-static-events needs piecewise-linear contact laws; {circles} use '3d-circle'",
+            "use method 'quasi-static' for friction-circle contacts",
+        )
 
 
 def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunOptions) -> None:
@@ -557,8 +615,11 @@ def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunO
         raise InputError(field_name, f"gives an end time of {t_end} s", "give a finite duration or number of periods")
     limit = min(dt_limit, max_step)
     if not limit > 0 or t_end / limit > 1e15:
-        raise InputError(field_name, f"would need more than 1e15 steps ({t_end:.3g} s with steps of {limit:.3g} s)",
-                         "check the units of the masses and stiffnesses, or simulate a shorter time")
+        raise InputError(
+            field_name,
+            f"would need more than 1e15 steps ({t_end:.3g} s with steps of {limit:.3g} s)",
+            "check the units of the masses and stiffnesses, or simulate a shorter time",
+        )
 
 
 def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -592,13 +653,15 @@ def compiled_entry(dispatcher, args):
 
 
 def _motion_signal(cs: CompiledSystem) -> CompiledSignal:
-    return CompiledSignal(cs.motion_frequency, cs.motion_sin, cs.motion_cos, cs.motion_table_time,
-                          cs.motion_table_value, cs.motion_ramp)
+    return CompiledSignal(
+        cs.motion_frequency, cs.motion_sin, cs.motion_cos, cs.motion_table_time, cs.motion_table_value, cs.motion_ramp
+    )
 
 
 def _force_signal(cs: CompiledSystem) -> CompiledSignal:
-    return CompiledSignal(cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time,
-                          cs.force_table_value, cs.force_ramp)
+    return CompiledSignal(
+        cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value, cs.force_ramp
+    )
 
 
 def _reset_cache(ws: K.Workspace) -> None:
@@ -623,11 +686,13 @@ def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_stati
     against the limit before anything is allocated; returns it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
     field_name = "duration" if opt.duration is not None else "periods"
-    fixes = ("simulate fewer periods (or a shorter duration)" +
-             (", use fewer steps_per_period" if quasi_static else ", raise the step ratio"))
+    fixes = "simulate fewer periods (or a shorter duration)" + (
+        ", use fewer steps_per_period" if quasi_static else ", raise the step ratio"
+    )
     limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
-    return memory.check(capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank),
-                        limit, field_name, fixes)
+    return memory.check(
+        capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
+    )
 
 
 def _cache_capacities(n: int, nq: int, low_rank: bool) -> tuple[int, int, int]:
@@ -644,8 +709,17 @@ def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) ->
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     size, cap, capb = _cache_capacities(n, nq, low_rank)
     nb, nqb = (n, nq) if low_rank else (1, 1)
-    return int(8 * ((cap + 2) * size * (size + 1) + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
-                    + 4 * n * n + 20 * (n + nq + nd)) + 2 * cap * nd + nd * (max_state_iter + 1))
+    return int(
+        8
+        * (
+            (cap + 2) * size * (size + 1)
+            + (capb + 1) * (nb * nb + nb + nb * nqb + nqb * nqb)
+            + 4 * n * n
+            + 20 * (n + nq + nd)
+        )
+        + 2 * cap * nd
+        + nd * (max_state_iter + 1)
+    )
 
 
 def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
@@ -655,21 +729,58 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
     lr = LowRank(
-        base_keys=i8(capb, nd), base_used=np.zeros(capb, np.bool_), base_ok=np.zeros(capb + 1, np.bool_),
-        base_lu=z(capb + 1, nb, nb), base_piv=np.zeros((capb + 1, nb), np.int64), Z=z(capb + 1, nb, nqb),
-        AZ=z(capb + 1, nqb, nqb), slot_base=np.zeros(cap + 2, np.int64), slot_identity=np.zeros(cap + 2, np.bool_),
-        Ay=z(nq), t=z(nq), s=z(nq), col=z(n), zc=z(n),
+        base_keys=i8(capb, nd),
+        base_used=np.zeros(capb, np.bool_),
+        base_ok=np.zeros(capb + 1, np.bool_),
+        base_lu=z(capb + 1, nb, nb),
+        base_piv=np.zeros((capb + 1, nb), np.int64),
+        Z=z(capb + 1, nb, nqb),
+        AZ=z(capb + 1, nqb, nqb),
+        slot_base=np.zeros(cap + 2, np.int64),
+        slot_identity=np.zeros(cap + 2, np.bool_),
+        Ay=z(nq),
+        t=z(nq),
+        s=z(nq),
+        col=z(n),
+        zc=z(n),
     )
     return K.Workspace(
-        x=z(n), v=z(n), a=z(n), fe=z(n), gf=z(n), w=z(nd), state=i8(nd),
-        fe1=z(n), gf1=z(n), f1=z(nq), q1=z(nq), w1=z(nd), state1=i8(nd),
-        dx=z(n), delta=z(n), r0=z(n), r=z(n), p=z(m), qbase=z(nq),
-        Lin=z(n, n), J=z(n, n), Minv=ML.inverse_mass(cs.M),
-        key=i8(2 * nd), dt_state=i8(nd), stick=np.full(nd, STICK, np.int8),
-        cache_keys=i8(cap, 2 * nd), cache_used=np.zeros(cap, np.bool_), cache_ok=np.zeros(cap + 2, np.bool_),
-        cache_lu=z(cap + 2, size, size), cache_piv=np.zeros((cap + 2, size), np.int64),
-        tmin_keys=i8(cap, nd), tmin_used=np.zeros(cap, np.bool_), tmin_value=z(cap),
-        lin_dt=np.full(1, np.nan), visited=i8(max_state_iter + 1, nd), lr=lr,
+        x=z(n),
+        v=z(n),
+        a=z(n),
+        fe=z(n),
+        gf=z(n),
+        w=z(nd),
+        state=i8(nd),
+        fe1=z(n),
+        gf1=z(n),
+        f1=z(nq),
+        q1=z(nq),
+        w1=z(nd),
+        state1=i8(nd),
+        dx=z(n),
+        delta=z(n),
+        r0=z(n),
+        r=z(n),
+        p=z(m),
+        qbase=z(nq),
+        Lin=z(n, n),
+        J=z(n, n),
+        Minv=ML.inverse_mass(cs.M),
+        key=i8(2 * nd),
+        dt_state=i8(nd),
+        stick=np.full(nd, STICK, np.int8),
+        cache_keys=i8(cap, 2 * nd),
+        cache_used=np.zeros(cap, np.bool_),
+        cache_ok=np.zeros(cap + 2, np.bool_),
+        cache_lu=z(cap + 2, size, size),
+        cache_piv=np.zeros((cap + 2, size), np.int64),
+        tmin_keys=i8(cap, nd),
+        tmin_used=np.zeros(cap, np.bool_),
+        tmin_value=z(cap),
+        lin_dt=np.full(1, np.nan),
+        visited=i8(max_state_iter + 1, nd),
+        lr=lr,
     )
 
 
@@ -682,9 +793,17 @@ def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | Non
         limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
         memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
     return K.Outputs(
-        t=np.zeros(k), dt=np.zeros(k), x=np.zeros((k, n)), v=np.zeros((k, n)), a=np.zeros((k, n)),
-        q=np.zeros((k, nq)), f=np.zeros((k, nq)), w=np.zeros((k, nd)), state=np.zeros((k, nd), np.int8),
-        solves=np.zeros(k, np.int64), counters=np.zeros(K.N_COUNTERS, np.int64),
+        t=np.zeros(k),
+        dt=np.zeros(k),
+        x=np.zeros((k, n)),
+        v=np.zeros((k, n)),
+        a=np.zeros((k, n)),
+        q=np.zeros((k, nq)),
+        f=np.zeros((k, nq)),
+        w=np.zeros((k, nd)),
+        state=np.zeros((k, nd), np.int8),
+        solves=np.zeros(k, np.int64),
+        counters=np.zeros(K.N_COUNTERS, np.int64),
     )
 
 

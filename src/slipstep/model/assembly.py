@@ -102,8 +102,16 @@ class _Layout:
         return slice(start, len(self.names))
 
 
-def assemble(substructures, dampers=(), contacts=(), forces=(), constant_forces=None, name: str = "assembly",
-             ramp_time: float = 0.0, period: float | None = None) -> System:
+def assemble(
+    substructures,
+    dampers=(),
+    contacts=(),
+    forces=(),
+    constant_forces=None,
+    name: str = "assembly",
+    ramp_time: float = 0.0,
+    period: float | None = None,
+) -> System:
     """The System of substructures + dampers + contacts + harmonic forces (module docstring).
     ``constant_forces``: {assembled DOF name: N}, ramped in the static preload."""
     subs = list(substructures)
@@ -128,8 +136,15 @@ def assemble(substructures, dampers=(), contacts=(), forces=(), constant_forces=
     damper_systems = []
     for d in dampers:
         try:
-            dsys = rigid_damper(d.mass, d.inertia, [Platform(p.name, p.angle) for p in d.platforms], list(d.contacts),
-                                d.centrifugal_force, centrifugal_angle=d.centrifugal_angle, name=d.name)
+            dsys = rigid_damper(
+                d.mass,
+                d.inertia,
+                [Platform(p.name, p.angle) for p in d.platforms],
+                list(d.contacts),
+                d.centrifugal_force,
+                centrifugal_angle=d.centrifugal_angle,
+                name=d.name,
+            )
         except InputError as exc:  # name the damper: 'damper.mass' -> 'dampers[d1].mass'
             field = re.sub(r"^(damper\.|(?=contacts))", "", exc.field)
             raise InputError(f"dampers[{d.name}].{field}", exc.problem, exc.fix) from None
@@ -159,7 +174,9 @@ def assemble(substructures, dampers=(), contacts=(), forces=(), constant_forces=
 def _dof(index: dict, dof: str, field_name: str) -> int:
     if dof not in index:
         near = [k for k in index if k.split(".")[0] == dof.split(".")[0]][:6] or list(index)[:6]
-        raise InputError(field_name, f"names unknown DOF {dof!r}", f"use an assembled DOF name such as {', '.join(near)}")
+        raise InputError(
+            field_name, f"names unknown DOF {dof!r}", f"use an assembled DOF name such as {', '.join(near)}"
+        )
     return index[dof]
 
 
@@ -171,24 +188,35 @@ def _damper_contacts(d: DamperLink, dsys: System, sl: slice, subs: dict, index: 
         link = links[c.platform]
         where = f"dampers[{d.name}].platforms[{link.name}]"
         if link.substructure not in subs:
-            raise InputError(f"{where}.substructure", f"names unknown substructure {link.substructure!r}",
-                             f"use one of {list(subs)}")
+            raise InputError(
+                f"{where}.substructure", f"names unknown substructure {link.substructure!r}", f"use one of {list(subs)}"
+            )
         sub = subs[link.substructure]
         if link.point not in sub.points:
-            raise InputError(f"{where}.point", f"names unknown point {link.point!r} of {sub.name}",
-                             f"use one of {list(sub.points) or ['(none defined: add points)']}")
+            raise InputError(
+                f"{where}.point",
+                f"names unknown point {link.point!r} of {sub.name}",
+                f"use one of {list(sub.points) or ['(none defined: add points)']}",
+            )
         pt = sub.points[link.point]
         lx = finite(f"{where}.offset", link.offset[0]) + c.position[0]
         ly = finite(f"{where}.offset", link.offset[1]) + c.position[1]
         H = {"x": np.array([1.0, 0.0]), "y": np.array([0.0, 1.0]), "rz": np.array([-ly, lx])}
         j = dsys.motion_names.index(f"{link.name}.x")
-        Bc = el.motion_gather[:, j:j + 2]
+        Bc = el.motion_gather[:, j : j + 2]
         A = np.zeros((el.dof_gather.shape[0], n))
         A[:, sl] = el.dof_gather
         for comp, dof in pt.dofs.items():
             A[:, index[f"{sub.name}.{dof}"]] -= Bc @ H[comp]
-        out.append(ContactElement(name=f"{d.name}.{c.name}", dof_gather=A, tangential_stiffness=el.tangential_stiffness,
-                                  normal_stiffness=el.normal_stiffness, friction_coefficient=el.friction_coefficient))
+        out.append(
+            ContactElement(
+                name=f"{d.name}.{c.name}",
+                dof_gather=A,
+                tangential_stiffness=el.tangential_stiffness,
+                normal_stiffness=el.normal_stiffness,
+                friction_coefficient=el.friction_coefficient,
+            )
+        )
     return out
 
 
@@ -196,14 +224,22 @@ def _link_contact(c: LinkContact, index: dict, n: int) -> ContactElement:
     where = f"contacts[{c.name}]"
     G = np.asarray(c.dof_gather, dtype=float)
     if G.ndim != 2 or G.shape[1] != len(c.dofs):
-        raise InputError(f"{where}.dof_gather", f"has shape {G.shape} for {len(c.dofs)} DOFs",
-                         "give one row per local coordinate and one column per name in dofs")
+        raise InputError(
+            f"{where}.dof_gather",
+            f"has shape {G.shape} for {len(c.dofs)} DOFs",
+            "give one row per local coordinate and one column per name in dofs",
+        )
     A = np.zeros((G.shape[0], n))
     for col, dof in enumerate(c.dofs):
         A[:, _dof(index, dof, f"{where}.dofs")] += G[:, col]
-    return ContactElement(name=c.name, dof_gather=A, tangential_stiffness=c.tangential_stiffness,
-                          normal_stiffness=c.normal_stiffness, friction_coefficient=c.friction_coefficient,
-                          normal_offset=c.normal_offset)
+    return ContactElement(
+        name=c.name,
+        dof_gather=A,
+        tangential_stiffness=c.tangential_stiffness,
+        normal_stiffness=c.normal_stiffness,
+        friction_coefficient=c.friction_coefficient,
+        normal_offset=c.normal_offset,
+    )
 
 
 def _force_signal(forces, index: dict, names: tuple, ramp_time: float) -> Signal | None:
@@ -217,24 +253,38 @@ def _force_signal(forces, index: dict, names: tuple, ramp_time: float) -> Signal
         freq = positive(f"forces[{k}].frequency", f.frequency)
         amp, ph = groups.setdefault(freq, (np.zeros(len(names)), np.zeros(len(names))))
         if amp[i] != 0:
-            raise InputError(f"forces[{k}].dof", f"{f.dof!r} has two forces at {freq:g} Hz", "give one per DOF and frequency")
+            raise InputError(
+                f"forces[{k}].dof", f"{f.dof!r} has two forces at {freq:g} Hz", "give one per DOF and frequency"
+            )
         amp[i], ph[i] = finite(f"forces[{k}].amplitude", f.amplitude), finite(f"forces[{k}].phase", f.phase)
     return Signal(names, tuple(Harmonic(fr, a, p) for fr, (a, p) in sorted(groups.items())), (), ramp_time)
 
 
-def engine_order_forces(blades: list[str], dof: str, amplitude: float, frequency: float, engine_order: int,
-                        phase: float = 0.0) -> list[HarmonicForce]:
+def engine_order_forces(
+    blades: list[str], dof: str, amplitude: float, frequency: float, engine_order: int, phase: float = 0.0
+) -> list[HarmonicForce]:
     """One force per blade on '<blade>.<dof>': blade j lags by 2 pi EO j / N (module docstring)."""
     N = len(blades)
     if isinstance(engine_order, bool) or not isinstance(engine_order, (int, np.integer)):
         raise InputError("engine_order", f"is {engine_order!r}", "give a whole number")
-    return [HarmonicForce(f"{b}.{dof}", amplitude, frequency, phase - 2 * math.pi * engine_order * j / N)
-            for j, b in enumerate(blades)]
+    return [
+        HarmonicForce(f"{b}.{dof}", amplitude, frequency, phase - 2 * math.pi * engine_order * j / N)
+        for j, b in enumerate(blades)
+    ]
 
 
-def blade_chain(blade: Substructure, n_blades: int, damper: DamperLink, closed: bool = False,
-                force_dof: str | None = None, force_amplitude: float = 0.0, frequency: float | None = None,
-                engine_order: int = 0, name: str = "chain", ramp_time: float = 0.0) -> System:
+def blade_chain(
+    blade: Substructure,
+    n_blades: int,
+    damper: DamperLink,
+    closed: bool = False,
+    force_dof: str | None = None,
+    force_amplitude: float = 0.0,
+    frequency: float | None = None,
+    engine_order: int = 0,
+    name: str = "chain",
+    ramp_time: float = 0.0,
+) -> System:
     """N copies of ``blade`` named 'blade1'..'bladeN' with a copy of ``damper`` between each
     neighbouring pair ('damper<j>' between blade j and j + 1; ``closed``: also between
     blade N and blade 1, a ring). ``damper.platforms``: the first follows the left blade,
@@ -243,19 +293,45 @@ def blade_chain(blade: Substructure, n_blades: int, damper: DamperLink, closed: 
     if isinstance(n_blades, bool) or not isinstance(n_blades, (int, np.integer)) or n_blades < (3 if closed else 2):
         raise InputError("blades", f"is {n_blades!r}", f"give a whole number >= {3 if closed else 2}")
     if len(damper.platforms) != 2:
-        raise InputError(f"dampers[{damper.name}].platforms", f"has {len(damper.platforms)} platforms",
-                         "give two: the first follows the left blade, the second the right blade")
+        raise InputError(
+            f"dampers[{damper.name}].platforms",
+            f"has {len(damper.platforms)} platforms",
+            "give two: the first follows the left blade, the second the right blade",
+        )
     names = [f"blade{j + 1}" for j in range(n_blades)]
-    subs = [Substructure(nm, blade.mass, blade.stiffness, blade.dof_names, blade.dof_units, blade.damping,
-                         blade.rayleigh, blade.modal_damping_ratio, blade.points) for nm in names]
+    subs = [
+        Substructure(
+            nm,
+            blade.mass,
+            blade.stiffness,
+            blade.dof_names,
+            blade.dof_units,
+            blade.damping,
+            blade.rayleigh,
+            blade.modal_damping_ratio,
+            blade.points,
+        )
+        for nm in names
+    ]
     pairs = [(j, j + 1) for j in range(n_blades - 1)] + ([(n_blades - 1, 0)] if closed else [])
     dampers = []
     for k, (jl, jr) in enumerate(pairs):
         left, right = damper.platforms
-        plats = (PlatformLink(left.name, left.angle, names[jl], left.point, left.offset),
-                 PlatformLink(right.name, right.angle, names[jr], right.point, right.offset))
-        dampers.append(DamperLink(f"damper{k + 1}", damper.mass, damper.inertia, damper.centrifugal_force, plats,
-                                  damper.contacts, damper.centrifugal_angle))
+        plats = (
+            PlatformLink(left.name, left.angle, names[jl], left.point, left.offset),
+            PlatformLink(right.name, right.angle, names[jr], right.point, right.offset),
+        )
+        dampers.append(
+            DamperLink(
+                f"damper{k + 1}",
+                damper.mass,
+                damper.inertia,
+                damper.centrifugal_force,
+                plats,
+                damper.contacts,
+                damper.centrifugal_angle,
+            )
+        )
     forces = []
     if force_dof is not None and force_amplitude:
         if frequency is None:

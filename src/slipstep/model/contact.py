@@ -34,19 +34,41 @@ class ContactLaw:
     description: str
 
 
-CONTACT_LAWS: dict[str, ContactLaw] = {law.name: law for law in (
-    ContactLaw("2d", LAW_UNCOUPLED, (2,), "abs(T) <= mu N",
-               "the paper's 2D spring-slider with variable normal load N = k_n v and lift-off (default, 2 rows)"),
-    ContactLaw("quasi-3d-uncoupled", LAW_UNCOUPLED, (3,),
-               "abs(T1) <= mu N and abs(T2) <= mu N separately: the vector T can reach sqrt(2) mu N",
-               "the paper's quasi-3D law: one independent spring-slider per tangential direction (default, 3 rows)"),
-    ContactLaw("jenkins", LAW_UNCOUPLED, (2, 3), "abs(T_i) <= mu N0 per direction, N0 = k_n normal_offset constant",
-               "Jenkins element: constant normal load (all-zero normal row, normal_offset > 0), never lifts off "
-               "(default when the normal row is all zero)"),
-    ContactLaw("3d-circle", LAW_CIRCLE, (3,), "norm(T1, T2) <= mu N: the friction circle",
-               "coupled 3D friction: one slider in the tangent plane, radial return, variable normal load and "
-               "lift-off; one tangential stiffness for both directions"),
-)}
+CONTACT_LAWS: dict[str, ContactLaw] = {
+    law.name: law
+    for law in (
+        ContactLaw(
+            "2d",
+            LAW_UNCOUPLED,
+            (2,),
+            "abs(T) <= mu N",
+            "the paper's 2D spring-slider with variable normal load N = k_n v and lift-off (default, 2 rows)",
+        ),
+        ContactLaw(
+            "quasi-3d-uncoupled",
+            LAW_UNCOUPLED,
+            (3,),
+            "abs(T1) <= mu N and abs(T2) <= mu N separately: the vector T can reach sqrt(2) mu N",
+            "the paper's quasi-3D law: one independent spring-slider per tangential direction (default, 3 rows)",
+        ),
+        ContactLaw(
+            "jenkins",
+            LAW_UNCOUPLED,
+            (2, 3),
+            "abs(T_i) <= mu N0 per direction, N0 = k_n normal_offset constant",
+            "Jenkins element: constant normal load (all-zero normal row, normal_offset > 0), never lifts off "
+            "(default when the normal row is all zero)",
+        ),
+        ContactLaw(
+            "3d-circle",
+            LAW_CIRCLE,
+            (3,),
+            "norm(T1, T2) <= mu N: the friction circle",
+            "coupled 3D friction: one slider in the tangent plane, radial return, variable normal load and "
+            "lift-off; one tangential stiffness for both directions",
+        ),
+    )
+}
 
 
 @dataclass(frozen=True)
@@ -72,15 +94,21 @@ class ContactElement:
         where = f"contacts[{self.name}]"
         A = float_array(f"{where}.dof_gather", self.dof_gather, ndim=2)
         if A.shape[0] not in (2, 3):
-            raise InputError(f"{where}.dof_gather", f"has {A.shape[0]} rows",
-                             "give 2 rows (u, v) for a 2D contact or 3 rows (u1, u2, v) for quasi-3D")
+            raise InputError(
+                f"{where}.dof_gather",
+                f"has {A.shape[0]} rows",
+                "give 2 rows (u, v) for a 2D contact or 3 rows (u1, u2, v) for quasi-3D",
+            )
         n_tangential = A.shape[0] - 1
         kt = np.atleast_1d(float_array(f"{where}.tangential_stiffness", self.tangential_stiffness))
         if kt.size == 1 and n_tangential == 2:
             kt = np.repeat(kt, 2)
         if kt.ndim != 1 or kt.size != n_tangential:
-            raise InputError(f"{where}.tangential_stiffness", f"has {kt.size} values for {n_tangential} tangential direction(s)",
-                             f"give {n_tangential} value(s)")
+            raise InputError(
+                f"{where}.tangential_stiffness",
+                f"has {kt.size} values for {n_tangential} tangential direction(s)",
+                f"give {n_tangential} value(s)",
+            )
         for k in kt:
             positive(f"{where}.tangential_stiffness", k)
         kn = positive(f"{where}.normal_stiffness", self.normal_stiffness)
@@ -91,10 +119,12 @@ class ContactElement:
         offset = finite(f"{where}.normal_offset", self.normal_offset)
         fixed_normal = np.all(A[-1] == 0) and (B is None or np.all(B[-1] == 0))
         if fixed_normal and offset <= 0:
-            raise InputError(f"{where}.dof_gather", "has an all-zero normal row, no motion and no interference: "
-                             "the contact can never close",
-                             "put the normal direction in the last row, or give normal_offset > 0 for a constant "
-                             "normal load N = k_n * normal_offset (a Jenkins element)")
+            raise InputError(
+                f"{where}.dof_gather",
+                "has an all-zero normal row, no motion and no interference: the contact can never close",
+                "put the normal direction in the last row, or give normal_offset > 0 for a constant "
+                "normal load N = k_n * normal_offset (a Jenkins element)",
+            )
         law = self._resolve_law(A.shape[0], fixed_normal, kt)
         object.__setattr__(self, "law", law)
         object.__setattr__(self, "dof_gather", A)
@@ -113,17 +143,23 @@ class ContactElement:
             raise InputError(f"{where}.law", f"is {self.law!r}", f"use one of {', '.join(map(repr, CONTACT_LAWS))}")
         law = CONTACT_LAWS[self.law]
         if rows not in law.rows:
-            raise InputError(f"{where}.law", f"is {law.name!r}, which needs {' or '.join(map(str, law.rows))} rows "
-                             f"of dof_gather, not {rows}",
-                             "use '2d' for a 2-row contact, 'quasi-3d-uncoupled' or '3d-circle' for 3 rows")
+            raise InputError(
+                f"{where}.law",
+                f"is {law.name!r}, which needs {' or '.join(map(str, law.rows))} rows of dof_gather, not {rows}",
+                "use '2d' for a 2-row contact, 'quasi-3d-uncoupled' or '3d-circle' for 3 rows",
+            )
         if law.name == "jenkins" and not fixed_normal:
-            raise InputError(f"{where}.law", "is 'jenkins' (constant normal load) but the normal row of dof_gather "
-                             "or motion_gather is not all zero",
-                             "zero the normal rows and set normal_offset > 0, or use the paper's law")
+            raise InputError(
+                f"{where}.law",
+                "is 'jenkins' (constant normal load) but the normal row of dof_gather or motion_gather is not all zero",
+                "zero the normal rows and set normal_offset > 0, or use the paper's law",
+            )
         if law.code == LAW_CIRCLE and kt[0] != kt[1]:
-            raise InputError(f"{where}.tangential_stiffness", f"is {list(kt)}: the friction circle ('3d-circle') "
-                             "needs one tangential stiffness for both directions",
-                             "give a single value, or use law = 'quasi-3d-uncoupled'")
+            raise InputError(
+                f"{where}.tangential_stiffness",
+                f"is {list(kt)}: the friction circle ('3d-circle') needs one tangential stiffness for both directions",
+                "give a single value, or use law = 'quasi-3d-uncoupled'",
+            )
         return law.name
 
     @property

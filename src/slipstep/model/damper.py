@@ -73,14 +73,18 @@ def rigid_damper(
     if motion is not None:
         unknown = set(motion.components) - set(motion_names)
         if unknown:
-            raise InputError("motion.component", f"unknown platform motion(s) {sorted(unknown)}",
-                             f"use one of {list(motion_names)}")
+            raise InputError(
+                "motion.component", f"unknown platform motion(s) {sorted(unknown)}", f"use one of {list(motion_names)}"
+            )
         motion = _reorder(motion, motion_names)
     elements = []
     for c in contacts:
         if c.platform not in by_name:
-            raise InputError(f"damper.contacts[{c.name}].platform", f"names unknown platform {c.platform!r}",
-                             f"use one of {list(by_name)}")
+            raise InputError(
+                f"damper.contacts[{c.name}].platform",
+                f"names unknown platform {c.platform!r}",
+                f"use one of {list(by_name)}",
+            )
         a, b = float_array(f"damper.contacts[{c.name}].position", c.position, shape=(2,))
         theta = by_name[c.platform]
         t = np.array([math.cos(theta), math.sin(theta)])
@@ -88,15 +92,26 @@ def rigid_damper(
         G = np.array([[1.0, 0.0, -b], [0.0, 1.0, a]])
         B = np.zeros((2, len(motion_names)))
         j = motion_names.index(f"{c.platform}.x")
-        B[:, j:j + 2] = np.vstack([t, nrm])
-        elements.append(ContactElement(
-            name=c.name, dof_gather=np.vstack([t @ G, nrm @ G]), motion_gather=B,
-            tangential_stiffness=c.tangential_stiffness, normal_stiffness=c.normal_stiffness,
-            friction_coefficient=c.friction_coefficient))
+        B[:, j : j + 2] = np.vstack([t, nrm])
+        elements.append(
+            ContactElement(
+                name=c.name,
+                dof_gather=np.vstack([t @ G, nrm @ G]),
+                motion_gather=B,
+                tangential_stiffness=c.tangential_stiffness,
+                normal_stiffness=c.normal_stiffness,
+                friction_coefficient=c.friction_coefficient,
+            )
+        )
     structure = Structure(mass=np.diag([m, m, J]), dof_names=("x_G", "y_G", "phi"), dof_units=("m", "m", "rad"))
     force = cf * np.array([math.cos(centrifugal_angle), math.sin(centrifugal_angle), 0.0])
-    return System(structure, tuple(elements), Excitation(constant_force=force, motion=motion),
-                  motion_names=motion_names, name=name)
+    return System(
+        structure,
+        tuple(elements),
+        Excitation(constant_force=force, motion=motion),
+        motion_names=motion_names,
+        name=name,
+    )
 
 
 def _reorder(signal: Signal, names: tuple[str, ...]) -> Signal:

@@ -34,8 +34,9 @@ class Harmonic:
         a = np.atleast_1d(float_array("harmonic.amplitude", self.amplitude))
         ph = np.zeros_like(a) if self.phase is None else np.atleast_1d(float_array("harmonic.phase", self.phase))
         if ph.shape != a.shape:
-            raise InputError("harmonic.phase", f"has {ph.size} values for {a.size} amplitudes",
-                             "give one phase per component")
+            raise InputError(
+                "harmonic.phase", f"has {ph.size} values for {a.size} amplitudes", "give one phase per component"
+            )
         object.__setattr__(self, "frequency", f)
         object.__setattr__(self, "amplitude", a)
         object.__setattr__(self, "phase", ph)
@@ -54,11 +55,15 @@ class Tabulated:
         if y.ndim == 1:
             y = y[:, None]
         if y.ndim != 2 or y.shape[0] != t.size:
-            raise InputError("table.values", f"has shape {y.shape} for {t.size} times",
-                             "give one row of component values per time")
+            raise InputError(
+                "table.values", f"has shape {y.shape} for {t.size} times", "give one row of component values per time"
+            )
         if t.size < 2 or np.any(np.diff(t) <= 0):
-            raise InputError("table.times", "must hold at least 2 strictly increasing times",
-                             "sort the table and remove repeated times")
+            raise InputError(
+                "table.times",
+                "must hold at least 2 strictly increasing times",
+                "sort the table and remove repeated times",
+            )
         object.__setattr__(self, "times", t)
         object.__setattr__(self, "values", y)
 
@@ -77,12 +82,16 @@ class Signal:
         nc = len(comps)
         for h in self.harmonics:
             if h.amplitude.size != nc:
-                raise InputError("harmonic.amplitude", f"has {h.amplitude.size} values for {nc} components {comps}",
-                                 f"give {nc} amplitudes")
+                raise InputError(
+                    "harmonic.amplitude",
+                    f"has {h.amplitude.size} values for {nc} components {comps}",
+                    f"give {nc} amplitudes",
+                )
         for tab in self.tables:
             if tab.values.shape[1] != nc:
-                raise InputError("table.values", f"has {tab.values.shape[1]} columns for {nc} components",
-                                 f"give {nc} columns")
+                raise InputError(
+                    "table.values", f"has {tab.values.shape[1]} columns for {nc} components", f"give {nc} columns"
+                )
         object.__setattr__(self, "components", comps)
         object.__setattr__(self, "harmonics", tuple(self.harmonics))
         object.__setattr__(self, "tables", tuple(self.tables))
@@ -134,8 +143,14 @@ class CompiledSignal(NamedTuple):
 def compile_signal(signal: Signal | None, n_components: int = 0) -> CompiledSignal:
     """Turn a :class:`Signal` into arrays: a sin(wt+phi) = a cos(phi) sin(wt) + a sin(phi) cos(wt)."""
     if signal is None:
-        return CompiledSignal(np.zeros(0), np.zeros((n_components, 0)), np.zeros((n_components, 0)),
-                              np.zeros(0), np.zeros((n_components, 0)), 0.0)
+        return CompiledSignal(
+            np.zeros(0),
+            np.zeros((n_components, 0)),
+            np.zeros((n_components, 0)),
+            np.zeros(0),
+            np.zeros((n_components, 0)),
+            0.0,
+        )
     nc = len(signal.components)
     freqs = np.array([h.frequency for h in signal.harmonics], dtype=float)
     sin_c = np.array([h.amplitude * np.cos(h.phase) for h in signal.harmonics], dtype=float).reshape(-1, nc).T.copy()

@@ -51,8 +51,16 @@ class PatchPoints:
     offset: np.ndarray
 
 
-def face_points(length: float, n_points: int, *, width: float = 1.0, centre: float = 0.0,
-                crown_radius: float | None = None, crown_offset: float = 0.0, field: str = "patch") -> PatchPoints:
+def face_points(
+    length: float,
+    n_points: int,
+    *,
+    width: float = 1.0,
+    centre: float = 0.0,
+    crown_radius: float | None = None,
+    crown_offset: float = 0.0,
+    field: str = "patch",
+) -> PatchPoints:
     """Cut a face of ``length`` [m] centred at ``centre`` into ``n_points`` equal segments
     (module docstring); ``width`` [m] is the out-of-plane depth (area = width x length);
     ``crown_radius`` [m] makes the face crowned (gap growing away from the centre), with
@@ -70,16 +78,25 @@ def face_points(length: float, n_points: int, *, width: float = 1.0, centre: flo
     else:
         R = positive(f"{field}.crown_radius", crown_radius)
         if R < L / 2:
-            raise InputError(f"{field}.crown_radius", f"is {R:.3g} m, less than half the face length ({L / 2:.3g} m)",
-                             "give a radius of at least half the face length (the parabola approximates a circle)")
+            raise InputError(
+                f"{field}.crown_radius",
+                f"is {R:.3g} m, less than half the face length ({L / 2:.3g} m)",
+                "give a radius of at least half the face length (the parabola approximates a circle)",
+            )
         offset = g0 - (s - c) ** 2 / (2 * R)
     return PatchPoints(s=s, area=area, offset=offset)
 
 
-def contact_patch(name: str, points: PatchPoints, dof_gather: Callable[[float], np.ndarray], *,
-                  normal_stiffness_per_area: float, tangential_stiffness_per_area: float | tuple[float, float],
-                  friction_coefficient: float, motion_gather: Callable[[float], np.ndarray] | None = None,
-                  ) -> tuple[ContactElement, ...]:
+def contact_patch(
+    name: str,
+    points: PatchPoints,
+    dof_gather: Callable[[float], np.ndarray],
+    *,
+    normal_stiffness_per_area: float,
+    tangential_stiffness_per_area: float | tuple[float, float],
+    friction_coefficient: float,
+    motion_gather: Callable[[float], np.ndarray] | None = None,
+) -> tuple[ContactElement, ...]:
     """The contact elements of a patch, named ``<name>.<i>``: point i gathers
     ``A_i = dof_gather(s_i)`` (2 rows u, v or 3 rows u1, u2, v, normal last) and
     ``B_i = motion_gather(s_i)``, has k_n = k_n'' A_i and k_t = k_t'' A_i [N/m] and the offset
@@ -91,16 +108,26 @@ def contact_patch(name: str, points: PatchPoints, dof_gather: Callable[[float], 
     elements = []
     for i, (s, area, g) in enumerate(zip(points.s, points.area, points.offset)):
         kt = tuple(float(k * area) for k in kt2)
-        elements.append(ContactElement(
-            name=f"{name}.{i}", dof_gather=np.asarray(dof_gather(float(s)), float),
-            motion_gather=None if motion_gather is None else np.asarray(motion_gather(float(s)), float),
-            tangential_stiffness=kt[0] if len(kt) == 1 else kt, normal_stiffness=kn2 * area,
-            friction_coefficient=friction_coefficient, normal_offset=float(g)))
+        elements.append(
+            ContactElement(
+                name=f"{name}.{i}",
+                dof_gather=np.asarray(dof_gather(float(s)), float),
+                motion_gather=None if motion_gather is None else np.asarray(motion_gather(float(s)), float),
+                tangential_stiffness=kt[0] if len(kt) == 1 else kt,
+                normal_stiffness=kn2 * area,
+                friction_coefficient=friction_coefficient,
+                normal_offset=float(g),
+            )
+        )
     return tuple(elements)
 
 
-def rigid_face_gather(angle: float, origin: tuple[float, float], dof_index: tuple[int, int, int], n_dofs: int,
-                      ) -> Callable[[float], np.ndarray]:
+def rigid_face_gather(
+    angle: float,
+    origin: tuple[float, float],
+    dof_index: tuple[int, int, int],
+    n_dofs: int,
+) -> Callable[[float], np.ndarray]:
     """The gather map of a point of a rigid 2D body on a face through ``origin`` = (a0, b0) [m]
     (from the body's reference point) with tangent (cos angle, sin angle): the point at s is
     r = origin + s t and moves by G(r) x_b, G = [[1, 0, -b], [0, 1, a]], with x_b = (x, y, phi)
@@ -121,9 +148,19 @@ def rigid_face_gather(angle: float, origin: tuple[float, float], dof_index: tupl
     return gather
 
 
-def damper_face_contacts(name: str, platform: str, angle: float, centre: tuple[float, float], length: float,
-                         n_points: int, *, normal_stiffness_per_area: float, tangential_stiffness_per_area: float,
-                         friction_coefficient: float, width: float = 1.0) -> list[DamperContact]:
+def damper_face_contacts(
+    name: str,
+    platform: str,
+    angle: float,
+    centre: tuple[float, float],
+    length: float,
+    n_points: int,
+    *,
+    normal_stiffness_per_area: float,
+    tangential_stiffness_per_area: float,
+    friction_coefficient: float,
+    width: float = 1.0,
+) -> list[DamperContact]:
     """A flat damper face on ``platform`` (tangent angle ``angle`` [rad]) centred at ``centre``
     (a, b) [m] from the damper's centre of mass, cut into ``n_points`` contact points for
     :func:`slipstep.model.damper.rigid_damper` (names ``<name>.<i>``, stiffnesses k'' A_i)."""
@@ -132,5 +169,9 @@ def damper_face_contacts(name: str, platform: str, angle: float, centre: tuple[f
     kn2 = positive(f"{name}.normal_stiffness_per_area", normal_stiffness_per_area)
     kt2 = positive(f"{name}.tangential_stiffness_per_area", tangential_stiffness_per_area)
     t = (math.cos(angle), math.sin(angle))
-    return [DamperContact(f"{name}.{i}", platform, (a0 + s * t[0], b0 + s * t[1]), kn2 * area, kt2 * area,
-                          friction_coefficient) for i, (s, area) in enumerate(zip(pts.s, pts.area))]
+    return [
+        DamperContact(
+            f"{name}.{i}", platform, (a0 + s * t[0], b0 + s * t[1]), kn2 * area, kt2 * area, friction_coefficient
+        )
+        for i, (s, area) in enumerate(zip(pts.s, pts.area))
+    ]

@@ -39,14 +39,19 @@ class Structure:
             if np.abs(A - A.T).max() > 1e-9 * scale:
                 raise InputError(name, "is not symmetric", "give a symmetric matrix (A == A.T)")
         if not _positive_definite(M, shift=0.0):
-            raise InputError("structure.mass",
-                             f"is not positive definite (smallest eigenvalue {_smallest_eigenvalue(M):.3g}); "
-                             "a negative or zero mass or inertia",
-                             "give every DOF a positive mass/inertia")
+            raise InputError(
+                "structure.mass",
+                f"is not positive definite (smallest eigenvalue {_smallest_eigenvalue(M):.3g}); "
+                "a negative or zero mass or inertia",
+                "give every DOF a positive mass/inertia",
+            )
         for name, A in (("structure.damping", C), ("structure.stiffness", K)):
             if not _positive_definite(A, shift=PSD_RTOL):
-                raise InputError(name, f"has a negative eigenvalue ({_smallest_eigenvalue(A):.3g})",
-                                 "give a positive semi-definite matrix (no negative stiffness/damping)")
+                raise InputError(
+                    name,
+                    f"has a negative eigenvalue ({_smallest_eigenvalue(A):.3g})",
+                    "give a positive semi-definite matrix (no negative stiffness/damping)",
+                )
         names = tuple(self.dof_names) or tuple(f"x{i}" for i in range(n))
         if len(names) != n:
             raise InputError("structure.dof_names", f"has {len(names)} names for {n} DOFs", f"give {n} names")
@@ -93,8 +98,12 @@ def _positive_definite(A: np.ndarray, shift: float) -> bool:
         from scipy.sparse.linalg import splu
 
         try:
-            lu = splu(sp.csc_matrix(shifted), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options={"SymmetricMode": True})
+            lu = splu(
+                sp.csc_matrix(shifted),
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
         except RuntimeError:  # exactly singular
             return False
         if not np.array_equal(lu.perm_r, lu.perm_c):  # an off-diagonal pivot: a zero on the diagonal

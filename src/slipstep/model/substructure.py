@@ -79,10 +79,15 @@ class Substructure:
         n = M.shape[0]
         K = _matrix(f"{where}.stiffness", self.stiffness, n)
         C = None if self.damping is None else _matrix(f"{where}.damping", self.damping, n)
-        given = [k for k, v in (("damping", C), ("rayleigh", self.rayleigh),
-                                ("modal_damping_ratio", self.modal_damping_ratio)) if v is not None]
+        given = [
+            k
+            for k, v in (("damping", C), ("rayleigh", self.rayleigh), ("modal_damping_ratio", self.modal_damping_ratio))
+            if v is not None
+        ]
         if len(given) > 1:
-            raise InputError(f"{where}.{given[1]}", f"is given together with {given[0]}", "give one damping description")
+            raise InputError(
+                f"{where}.{given[1]}", f"is given together with {given[0]}", "give one damping description"
+            )
         if self.rayleigh is not None:
             ab = np.asarray(self.rayleigh, float)
             if ab.shape != (2,) or not np.all(np.isfinite(ab)) or np.any(ab < 0):
@@ -107,12 +112,16 @@ class Substructure:
             pt = pt if isinstance(pt, Point) else Point(**pt)
             bad = set(pt.dofs) - set(COMPONENTS)
             if bad:
-                raise InputError(f"{where}.points[{pname}]", f"has unknown component(s) {sorted(bad)}",
-                                 f"use {list(COMPONENTS)}")
+                raise InputError(
+                    f"{where}.points[{pname}]", f"has unknown component(s) {sorted(bad)}", f"use {list(COMPONENTS)}"
+                )
             for comp, dof in pt.dofs.items():
                 if dof not in names:
-                    raise InputError(f"{where}.points[{pname}].{comp}", f"names unknown DOF {dof!r}",
-                                     f"use one of the substructure's DOFs ({', '.join(names[:6])}, ...)")
+                    raise InputError(
+                        f"{where}.points[{pname}].{comp}",
+                        f"names unknown DOF {dof!r}",
+                        f"use one of the substructure's DOFs ({', '.join(names[:6])}, ...)",
+                    )
             points[pname] = Point(dict(pt.dofs), tuple(float(c) for c in pt.position))
         object.__setattr__(self, "mass", M)
         object.__setattr__(self, "stiffness", K)
@@ -131,8 +140,11 @@ class Substructure:
 
     def index(self, dof: str, field_name: str = "dof") -> int:
         if dof not in self.dof_names:
-            raise InputError(field_name, f"names unknown DOF {dof!r} of {self.name}",
-                             f"use one of {', '.join(self.dof_names[:8])}{', ...' if self.n_dofs > 8 else ''}")
+            raise InputError(
+                field_name,
+                f"names unknown DOF {dof!r} of {self.name}",
+                f"use one of {', '.join(self.dof_names[:8])}{', ...' if self.n_dofs > 8 else ''}",
+            )
         return self.dof_names.index(dof)
 
     def damping_matrix(self) -> np.ndarray:
@@ -151,7 +163,9 @@ class Substructure:
 
     def to_structure(self) -> Structure:
         """The dense :class:`Structure` (validated: M SPD, C and K symmetric PSD)."""
-        return Structure(_dense(self.mass), self.damping_matrix(), _dense(self.stiffness), self.dof_names, self.dof_units)
+        return Structure(
+            _dense(self.mass), self.damping_matrix(), _dense(self.stiffness), self.dof_names, self.dof_units
+        )
 
     def frequencies(self, k: int | None = None) -> np.ndarray:
         """Undamped natural frequencies [Hz] of the substructure alone, ascending (the lowest k)."""
@@ -176,7 +190,9 @@ def _matrix(field_name: str, value, n: int | None = None):
     if A.shape[0] != A.shape[1] or A.shape[0] == 0:
         raise InputError(field_name, f"is {A.shape[0]}x{A.shape[1]}", "give a non-empty square matrix")
     if n is not None and A.shape[0] != n:
-        raise InputError(field_name, f"is {A.shape[0]}x{A.shape[1]} but the mass matrix is {n}x{n}", f"give a {n}x{n} matrix")
+        raise InputError(
+            field_name, f"is {A.shape[0]}x{A.shape[1]} but the mass matrix is {n}x{n}", f"give a {n}x{n} matrix"
+        )
     if not np.all(np.isfinite(data)):
         raise InputError(field_name, "contains NaN or infinite values", "give finite numbers")
     scale = max(float(np.abs(data).max(initial=0.0)), 1e-300)
@@ -209,27 +225,54 @@ def frame_element(E: float, rho: float, area: float, inertia: float, length: flo
     """(k, m): 6x6 global stiffness [N/m, N, N m] and consistent mass of a 2D Euler-Bernoulli
     frame element on DOFs (x1, y1, rz1, x2, y2, rz2), axis at ``angle`` [rad] from X."""
     l = length
-    ea, ei, ml = E * area / l, E * inertia / l ** 3, rho * area * l
+    ea, ei, ml = E * area / l, E * inertia / l**3, rho * area * l
     kl = np.zeros((6, 6))
     ml_ = np.zeros((6, 6))
     ax, bd = [0, 3], [1, 2, 4, 5]
     kl[np.ix_(ax, ax)] = ea * np.array([[1, -1], [-1, 1]])
-    kl[np.ix_(bd, bd)] = ei * np.array([[12, 6 * l, -12, 6 * l], [6 * l, 4 * l * l, -6 * l, 2 * l * l],
-                                        [-12, -6 * l, 12, -6 * l], [6 * l, 2 * l * l, -6 * l, 4 * l * l]])
+    kl[np.ix_(bd, bd)] = ei * np.array(
+        [
+            [12, 6 * l, -12, 6 * l],
+            [6 * l, 4 * l * l, -6 * l, 2 * l * l],
+            [-12, -6 * l, 12, -6 * l],
+            [6 * l, 2 * l * l, -6 * l, 4 * l * l],
+        ]
+    )
     ml_[np.ix_(ax, ax)] = ml / 6 * np.array([[2, 1], [1, 2]])
-    ml_[np.ix_(bd, bd)] = ml / 420 * np.array([[156, 22 * l, 54, -13 * l], [22 * l, 4 * l * l, 13 * l, -3 * l * l],
-                                               [54, 13 * l, 156, -22 * l], [-13 * l, -3 * l * l, -22 * l, 4 * l * l]])
+    ml_[np.ix_(bd, bd)] = (
+        ml
+        / 420
+        * np.array(
+            [
+                [156, 22 * l, 54, -13 * l],
+                [22 * l, 4 * l * l, 13 * l, -3 * l * l],
+                [54, 13 * l, 156, -22 * l],
+                [-13 * l, -3 * l * l, -22 * l, 4 * l * l],
+            ]
+        )
+    )
     c, s = math.cos(angle), math.sin(angle)
     R3 = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # global -> local
     T = np.kron(np.eye(2), R3)
     return T.T @ kl @ T, T.T @ ml_ @ T
 
 
-def frame_blade(name: str, length: float, n_elements: int, youngs_modulus: float, density: float,
-                area: float, second_moment: float, platform_node: int | None = None,
-                root: tuple[float, float] = (0.0, 0.0), angle: float = math.pi / 2,
-                tip_mass: float = 0.0, platform_mass: float = 0.0, sparse: bool | None = None,
-                **damping) -> Substructure:
+def frame_blade(
+    name: str,
+    length: float,
+    n_elements: int,
+    youngs_modulus: float,
+    density: float,
+    area: float,
+    second_moment: float,
+    platform_node: int | None = None,
+    root: tuple[float, float] = (0.0, 0.0),
+    angle: float = math.pi / 2,
+    tip_mass: float = 0.0,
+    platform_mass: float = 0.0,
+    sparse: bool | None = None,
+    **damping,
+) -> Substructure:
     """A cantilever frame blade clamped at ``root`` [m], axis at ``angle`` [rad] (default +Y,
     radial), ``n_elements`` equal elements; nodes 1..n_elements with DOFs '<i>.x', '<i>.y'
     [m] and '<i>.rz' [rad] (i = node number); points 'platform' (node ``platform_node``,
@@ -256,7 +299,7 @@ def frame_blade(name: str, length: float, n_elements: int, youngs_modulus: float
     lumped = np.zeros(n_all)
     for key, node, value in (("tip_mass", ne, tip_mass), ("platform_mass", pnode, platform_mass)):
         if value:
-            lumped[3 * node: 3 * node + 2] += positive(f"{where}.{key}", value)
+            lumped[3 * node : 3 * node + 2] += positive(f"{where}.{key}", value)
     K = sp.coo_matrix((np.tile(k_e.ravel(), ne), (rows, cols)), shape=(n_all, n_all)).tocsr()
     M = (sp.coo_matrix((np.tile(m_e.ravel(), ne), (rows, cols)), shape=(n_all, n_all)) + sp.diags(lumped)).tocsr()
     K, M = K[3:, 3:], M[3:, 3:]  # clamp the root node
@@ -266,27 +309,38 @@ def frame_blade(name: str, length: float, n_elements: int, youngs_modulus: float
     units = ("m", "m", "rad") * ne
     c, s = math.cos(angle), math.sin(angle)
     pos = lambda i: (root[0] + i * le * c, root[1] + i * le * s)
-    points = {p: Point({comp: f"{i}.{comp}" for comp in COMPONENTS}, pos(i)) for p, i in (("platform", pnode), ("tip", ne))}
+    points = {
+        p: Point({comp: f"{i}.{comp}" for comp in COMPONENTS}, pos(i)) for p, i in (("platform", pnode), ("tip", ne))
+    }
     return Substructure(name, M, K, names, units, points=points, **damping)
 
 
-def cantilever_frequencies(length: float, youngs_modulus: float, density: float, area: float, second_moment: float,
-                           n: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def cantilever_frequencies(
+    length: float, youngs_modulus: float, density: float, area: float, second_moment: float, n: int = 3
+) -> tuple[np.ndarray, np.ndarray]:
     """Analytic Euler-Bernoulli cantilever frequencies [Hz]: bending (beta_k L)^2 sqrt(EI /
     (rho A L^4)) / 2 pi with cos(bL) cosh(bL) = -1, and axial (2k - 1) c / 4L, c = sqrt(E/rho)."""
     from scipy.optimize import brentq
 
-    roots = [brentq(lambda b: math.cos(b) * math.cosh(b) + 1, (k - 0.5) * math.pi - 0.5 + (k == 1) * 0.3,
-                    (k - 0.5) * math.pi + 0.5) for k in range(1, n + 1)]
-    bend = np.array([b * b * math.sqrt(youngs_modulus * second_moment / (density * area * length ** 4))
-                     for b in roots]) / (2 * math.pi)
+    roots = [
+        brentq(
+            lambda b: math.cos(b) * math.cosh(b) + 1,
+            (k - 0.5) * math.pi - 0.5 + (k == 1) * 0.3,
+            (k - 0.5) * math.pi + 0.5,
+        )
+        for k in range(1, n + 1)
+    ]
+    bend = np.array(
+        [b * b * math.sqrt(youngs_modulus * second_moment / (density * area * length**4)) for b in roots]
+    ) / (2 * math.pi)
     axial = np.array([(2 * k - 1) / (4 * length) * math.sqrt(youngs_modulus / density) for k in range(1, n + 1)])
     return bend, axial
 
 
 # ---- Craig-Bampton ------------------------------------------------------------------------
-def craig_bampton(sub: Substructure, boundary: list[str], n_modes: int, name: str | None = None,
-                  **damping) -> Substructure:
+def craig_bampton(
+    sub: Substructure, boundary: list[str], n_modes: int, name: str | None = None, **damping
+) -> Substructure:
     """Fixed-interface reduction of ``sub`` onto the DOFs named in ``boundary`` plus its
     ``n_modes`` lowest fixed-interface modes (module docstring). Sparse input is factorised
     and eigen-solved sparse (splu, eigsh); the reduced model is dense. Reduced DOFs: the
@@ -319,8 +373,11 @@ def craig_bampton(sub: Substructure, boundary: list[str], n_modes: int, name: st
         else:
             Psi = -scipy.linalg.solve(Kii, Kib, assume_a="sym")
     except (np.linalg.LinAlgError, RuntimeError, ValueError):
-        raise InputError(f"{where}.boundary_dofs", "leave the interior free to move (K_ii singular)",
-                         "add boundary DOFs so that fixing them holds the substructure") from None
+        raise InputError(
+            f"{where}.boundary_dofs",
+            "leave the interior free to move (K_ii singular)",
+            "add boundary DOFs so that fixing them holds the substructure",
+        ) from None
     T = np.zeros((n, len(b) + n_modes))
     T[b, np.arange(len(b))] = 1.0
     T[inner, : len(b)] = Psi
@@ -331,7 +388,7 @@ def craig_bampton(sub: Substructure, boundary: list[str], n_modes: int, name: st
             ref = phi[trans, k] if trans.any() else phi[:, k]
             j = int(np.argmax(np.abs(ref)))
             phi[:, k] /= ref[j]
-        T[inner, len(b):] = phi
+        T[inner, len(b) :] = phi
     proj = lambda A: (T.T @ (A @ T)) if sparse else T.T @ A @ T
     sym = lambda A: 0.5 * (A + A.T)
     Mr, Kr = sym(np.asarray(proj(M))), sym(np.asarray(proj(K)))
@@ -370,8 +427,14 @@ def save_npz(sub: Substructure, path: str | Path) -> None:
             continue
         if sp.issparse(A):
             A = sp.csr_matrix(A)
-            arrays.update({f"{key}.data": A.data, f"{key}.indices": A.indices, f"{key}.indptr": A.indptr,
-                           f"{key}.shape": np.array(A.shape)})
+            arrays.update(
+                {
+                    f"{key}.data": A.data,
+                    f"{key}.indices": A.indices,
+                    f"{key}.indptr": A.indptr,
+                    f"{key}.shape": np.array(A.shape),
+                }
+            )
         else:
             arrays[key] = np.asarray(A)
     path = Path(path)
@@ -389,7 +452,9 @@ def load_npz(path: str | Path, name: str, field_name: str = "file", **kwargs) ->
     except FileNotFoundError:
         raise InputError(field_name, f"file {str(path)!r} not found", "give the path of an .npz file") from None
     except (OSError, ValueError) as exc:
-        raise InputError(field_name, f"{str(path)!r} is not a readable .npz file ({exc})", "write it with numpy.savez") from None
+        raise InputError(
+            field_name, f"{str(path)!r} is not a readable .npz file ({exc})", "write it with numpy.savez"
+        ) from None
     mats = {}
     for attr, keys in _KEYS.items():
         for key in keys:
@@ -397,15 +462,23 @@ def load_npz(path: str | Path, name: str, field_name: str = "file", **kwargs) ->
                 mats[attr] = content[key]
             elif f"{key}.data" in content:
                 try:
-                    mats[attr] = sp.csr_matrix((content[f"{key}.data"], content[f"{key}.indices"], content[f"{key}.indptr"]),
-                                               shape=tuple(content[f"{key}.shape"]))
+                    mats[attr] = sp.csr_matrix(
+                        (content[f"{key}.data"], content[f"{key}.indices"], content[f"{key}.indptr"]),
+                        shape=tuple(content[f"{key}.shape"]),
+                    )
                 except KeyError as exc:
-                    raise InputError(field_name, f"{path} has {key}.data but no {exc.args[0]}",
-                                     "store all CSR parts: data, indices, indptr, shape") from None
+                    raise InputError(
+                        field_name,
+                        f"{path} has {key}.data but no {exc.args[0]}",
+                        "store all CSR parts: data, indices, indptr, shape",
+                    ) from None
     for attr in ("mass", "stiffness"):
         if attr not in mats:
-            raise InputError(field_name, f"{path} holds no {' or '.join(repr(k) for k in _KEYS[attr])} array",
-                             f"store the {attr} matrix under the key {_KEYS[attr][0]!r}")
+            raise InputError(
+                field_name,
+                f"{path} holds no {' or '.join(repr(k) for k in _KEYS[attr])} array",
+                f"store the {attr} matrix under the key {_KEYS[attr][0]!r}",
+            )
     for key in ("dof_names", "dof_units"):
         if key in content and key not in kwargs:
             kwargs[key] = tuple(str(s) for s in content[key])
@@ -445,8 +518,9 @@ def read_mtx(path: str | Path, field_name: str = "file"):
     except FileNotFoundError:
         raise InputError(field_name, f"file {str(path)!r} not found", "give the path of a .mtx file") from None
     except (OSError, ValueError) as exc:
-        raise InputError(field_name, f"{str(path)!r} is not a Matrix Market file ({exc})",
-                         "write it with scipy.io.mmwrite") from None
+        raise InputError(
+            field_name, f"{str(path)!r} is not a Matrix Market file ({exc})", "write it with scipy.io.mmwrite"
+        ) from None
     return sp.csr_matrix(A) if sp.issparse(A) else np.asarray(A, dtype=np.float64)
 
 
@@ -455,12 +529,20 @@ def read_dof_file(path: str | Path, field_name: str = "dofs_file") -> tuple[tupl
     try:
         lines = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip()]
     except OSError as exc:
-        raise InputError(field_name, f"{str(path)!r} cannot be read ({exc.strerror})", "give a text file, one DOF a line") from None
+        raise InputError(
+            field_name, f"{str(path)!r} cannot be read ({exc.strerror})", "give a text file, one DOF a line"
+        ) from None
     return tuple(ln[0] for ln in lines), tuple(ln[1] if len(ln) > 1 else "m" for ln in lines)
 
 
-def load_mtx(mass: str | Path, stiffness: str | Path, name: str, damping: str | Path | None = None,
-             dofs_file: str | Path | None = None, **kwargs) -> Substructure:
+def load_mtx(
+    mass: str | Path,
+    stiffness: str | Path,
+    name: str,
+    damping: str | Path | None = None,
+    dofs_file: str | Path | None = None,
+    **kwargs,
+) -> Substructure:
     """A substructure from Matrix Market files (M, K, optional C) and an optional DOF file."""
     if dofs_file is not None and "dof_names" not in kwargs:
         kwargs["dof_names"], kwargs["dof_units"] = read_dof_file(dofs_file)

@@ -24,18 +24,27 @@ def float_array(field: str, value, ndim: int | None = None, shape: tuple | None 
             raise InputError(field, "is ragged (rows of different lengths)", "give rows of equal length") from None
         raise InputError(field, f"is not numeric ({' '.join(str(exc).split())[:120]})", "give numbers only") from None
     if ndim is not None and arr.ndim != ndim:
-        raise InputError(field, f"has {arr.ndim} dimension(s), expected {ndim}",
-                         f"give a {'vector' if ndim == 1 else 'matrix' if ndim == 2 else f'{ndim}-d array'}")
+        raise InputError(
+            field,
+            f"has {arr.ndim} dimension(s), expected {ndim}",
+            f"give a {'vector' if ndim == 1 else 'matrix' if ndim == 2 else f'{ndim}-d array'}",
+        )
     if shape is not None:
         for axis, (got, want) in enumerate(zip(arr.shape, shape)):
             if want is not None and got != want:
-                raise InputError(field, f"has shape {arr.shape}, expected {tuple('*' if s is None else s for s in shape)}",
-                                 f"make axis {axis} of length {want}")
+                raise InputError(
+                    field,
+                    f"has shape {arr.shape}, expected {tuple('*' if s is None else s for s in shape)}",
+                    f"make axis {axis} of length {want}",
+                )
     if not np.all(np.isfinite(arr)):
         raise InputError(field, "contains NaN or infinite values", "give finite numbers")
     if arr.size and np.abs(arr).max() > MAX_MAGNITUDE:
-        raise InputError(field, f"holds {np.abs(arr).max():.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
-                         "check the values and their units")
+        raise InputError(
+            field,
+            f"holds {np.abs(arr).max():.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
+            "check the values and their units",
+        )
     return arr
 
 
@@ -77,8 +86,9 @@ def _not_bool(field: str, value) -> None:
 
 def _not_absurd(field: str, x: float) -> float:
     if abs(x) > MAX_MAGNITUDE:
-        raise InputError(field, f"is {x:.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
-                         "check the value and its unit")
+        raise InputError(
+            field, f"is {x:.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})", "check the value and its unit"
+        )
     return x
 
 
@@ -106,6 +116,7 @@ def square_matrix(field: str, value, n: int | None = None) -> np.ndarray:
     if arr.shape[0] != arr.shape[1]:
         raise InputError(field, f"is {arr.shape[0]}x{arr.shape[1]}, not square", "give an n x n matrix")
     if n is not None and arr.shape[0] != n:
-        raise InputError(field, f"is {arr.shape[0]}x{arr.shape[1]} but the structure has {n} DOFs",
-                         f"give a {n}x{n} matrix")
+        raise InputError(
+            field, f"is {arr.shape[0]}x{arr.shape[1]} but the structure has {n} DOFs", f"give a {n}x{n} matrix"
+        )
     return arr

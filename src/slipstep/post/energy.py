@@ -202,5 +202,9 @@ def friction_energy_per_period(ds: xr.Dataset, period: float | None = None) -> x
     owner = ds["direction_contact"].values
     contacts = ds["contact"].values
     values = np.array([per_direction[owner == c].sum() for c in contacts])
-    return xr.DataArray(values, coords={"contact": contacts}, dims=("contact",),
-                        attrs={"units": _UNITS, "long_name": "friction energy dissipated over the last period"})
+    return xr.DataArray(
+        values,
+        coords={"contact": contacts},
+        dims=("contact",),
+        attrs={"units": _UNITS, "long_name": "friction energy dissipated over the last period"},
+    )

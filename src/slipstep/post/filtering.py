@@ -34,8 +34,16 @@ from scipy import signal
 from slipstep.errors import InputError
 from slipstep.post.timeline import is_uniform, resample_uniform
 
-FILTERED_VARIABLES = ("displacement", "velocity", "acceleration", "tangential_displacement", "normal_displacement",
-                      "tangential_force", "normal_force", "slider")
+FILTERED_VARIABLES = (
+    "displacement",
+    "velocity",
+    "acceleration",
+    "tangential_displacement",
+    "normal_displacement",
+    "tangential_force",
+    "normal_force",
+    "slider",
+)
 
 
 class FilterWarning(UserWarning):
@@ -61,7 +69,10 @@ def excitation_frequencies(system) -> np.ndarray:
     """Frequencies [Hz] of the harmonic force and motion components with non-zero amplitude."""
     cs = system.compile()
     out = []
-    for f, s, c in ((cs.force_frequency, cs.force_sin, cs.force_cos), (cs.motion_frequency, cs.motion_sin, cs.motion_cos)):
+    for f, s, c in (
+        (cs.force_frequency, cs.force_sin, cs.force_cos),
+        (cs.motion_frequency, cs.motion_sin, cs.motion_cos),
+    ):
         for k, fk in enumerate(np.atleast_1d(f)):
             if np.any(np.asarray(s)[k] != 0) or np.any(np.asarray(c)[k] != 0):
                 out.append(float(fk))
@@ -110,8 +121,9 @@ def lowest_internal_frequency(system, states) -> float:
     return fmin
 
 
-def choose_cutoff(excitation_Hz: float, internal_Hz: float, max_harmonics: int = 10,
-                  separation: float = 5.0, warn: bool = True) -> CutOff:
+def choose_cutoff(
+    excitation_Hz: float, internal_Hz: float, max_harmonics: int = 10, separation: float = 5.0, warn: bool = True
+) -> CutOff:
     """f_c from the module docstring; warns (:class:`FilterWarning`) when
     internal_Hz < separation * excitation_Hz (paper Remark 3)."""
     if not (excitation_Hz > 0 and math.isfinite(excitation_Hz)):
@@ -128,12 +140,15 @@ def choose_cutoff(excitation_Hz: float, internal_Hz: float, max_harmonics: int =
             f"({excitation_Hz:.4g} Hz), less than {separation:g}: the low-pass filter (cut-off {fc:.4g} Hz) cannot "
             "separate the ringing from the response and distorts the loops (paper Remark 3). Compare the raw and "
             "filtered results, or use the quasi-static method only if inertia is negligible.",
-            FilterWarning, stacklevel=3)
+            FilterWarning,
+            stacklevel=3,
+        )
     return CutOff(fc, excitation_Hz, internal_Hz, h, separated)
 
 
-def lowpass(y: np.ndarray, dt: float, cutoff_Hz: float, order: int = 6, axis: int = 0,
-            period_samples: int | None = None) -> np.ndarray:
+def lowpass(
+    y: np.ndarray, dt: float, cutoff_Hz: float, order: int = 6, axis: int = 0, period_samples: int | None = None
+) -> np.ndarray:
     """Zero-phase Butterworth low-pass of samples ``y`` at uniform step ``dt`` [s]
     (scipy.signal.butter(order, f_c, fs=1/dt, output='sos') + sosfiltfilt).
 
@@ -144,15 +159,18 @@ def lowpass(y: np.ndarray, dt: float, cutoff_Hz: float, order: int = 6, axis: in
     """
     fs = 1.0 / dt
     if not 0 < cutoff_Hz < fs / 2:
-        raise InputError("cutoff_Hz", f"is {cutoff_Hz:.4g} Hz with a Nyquist frequency of {fs / 2:.4g} Hz",
-                         "give a cut-off below half the sampling rate (or resample finer)")
+        raise InputError(
+            "cutoff_Hz",
+            f"is {cutoff_Hz:.4g} Hz with a Nyquist frequency of {fs / 2:.4g} Hz",
+            "give a cut-off below half the sampling rate (or resample finer)",
+        )
     sos = signal.butter(order, cutoff_Hz, btype="low", fs=fs, output="sos")
     y = np.moveaxis(np.asarray(y, float), axis, 0)
     n = y.shape[0]
     if period_samples is not None and 2 <= period_samples < n:
         P = int(period_samples)
         reps = int(math.ceil(max(4 * fs / cutoff_Hz, 3 * (2 * len(sos) + 1)) / P)) + 1
-        ext = np.concatenate([y] + [y[n - P:]] * reps, axis=0)
+        ext = np.concatenate([y] + [y[n - P :]] * reps, axis=0)
         out = signal.sosfiltfilt(sos, ext, axis=0)[:n]
     else:
         out = signal.sosfiltfilt(sos, y, axis=0)
@@ -167,9 +185,16 @@ def samples_per_period(t: np.ndarray, period: float | None) -> int | None:
     return int(round(P)) if abs(P - round(P)) < 1e-6 * P else None
 
 
-def filter_dataset(ds: xr.Dataset, system=None, cutoff_Hz: float | None = None, excitation_Hz: float | None = None,
-                   internal_Hz: float | None = None, order: int = 6, max_harmonics: int = 10,
-                   separation: float = 5.0) -> xr.Dataset:
+def filter_dataset(
+    ds: xr.Dataset,
+    system=None,
+    cutoff_Hz: float | None = None,
+    excitation_Hz: float | None = None,
+    internal_Hz: float | None = None,
+    order: int = 6,
+    max_harmonics: int = 10,
+    separation: float = 5.0,
+) -> xr.Dataset:
     """The zero-phase low-pass filtered result (module docstring).
 
     Non-uniform (adaptive) grids are first resampled onto a uniform one (about the smallest
@@ -204,11 +229,16 @@ def filter_dataset(ds: xr.Dataset, system=None, cutoff_Hz: float | None = None, 
                 excitation_Hz = 1.0 / float(ds.attrs["period_s"])
         if internal_Hz is None:
             if system is None:
-                raise InputError("system", "is needed to find the internal frequencies of the visited states",
-                                 "pass the System, or internal_Hz / cutoff_Hz")
+                raise InputError(
+                    "system",
+                    "is needed to find the internal frequencies of the visited states",
+                    "pass the System, or internal_Hz / cutoff_Hz",
+                )
             internal_Hz = lowest_internal_frequency(system, visited_states(ds))
         if excitation_Hz is None:
-            raise InputError("excitation_Hz", "the result has no excitation frequency", "pass excitation_Hz or cutoff_Hz")
+            raise InputError(
+                "excitation_Hz", "the result has no excitation frequency", "pass excitation_Hz or cutoff_Hz"
+            )
         cut = choose_cutoff(excitation_Hz, internal_Hz, max_harmonics, separation)
         cutoff_Hz = cut.cutoff_Hz
     out = ds.copy(deep=True)
@@ -218,6 +248,10 @@ def filter_dataset(ds: xr.Dataset, system=None, cutoff_Hz: float | None = None, 
             out[name] = var.copy(data=lowpass(var.values, dt, cutoff_Hz, order, period_samples=P))
     out.attrs.update(filter_cutoff_Hz=float(cutoff_Hz), filter_order=order, filtered=1)
     if cut is not None:
-        out.attrs.update(filter_excitation_Hz=cut.excitation_Hz, filter_internal_Hz=cut.internal_Hz,
-                         filter_harmonics=cut.harmonics, filter_separated=int(cut.separated))
+        out.attrs.update(
+            filter_excitation_Hz=cut.excitation_Hz,
+            filter_internal_Hz=cut.internal_Hz,
+            filter_harmonics=cut.harmonics,
+            filter_separated=int(cut.separated),
+        )
     return out

@@ -54,8 +54,16 @@ def loop_properties(u: np.ndarray, T: np.ndarray) -> dict:
     k = dT / du if du > 0 else math.nan
     E_el = 0.5 * k * (du / 2) ** 2 if du > 0 else math.nan
     zeta = E / (4 * math.pi * E_el) if du > 0 and E_el > 0 else math.nan
-    return {"energy_J": E, "k_eq_N_per_m": k, "elastic_energy_J": E_el, "zeta_eq": zeta,
-            "u_min_m": float(u.min()), "u_max_m": float(u.max()), "T_min_N": float(T.min()), "T_max_N": float(T.max())}
+    return {
+        "energy_J": E,
+        "k_eq_N_per_m": k,
+        "elastic_energy_J": E_el,
+        "zeta_eq": zeta,
+        "u_min_m": float(u.min()),
+        "u_max_m": float(u.max()),
+        "T_min_N": float(T.min()),
+        "T_max_N": float(T.max()),
+    }
 
 
 def interfaces_from_system(system) -> dict[str, list[str]]:
@@ -128,11 +136,21 @@ def interface_loops(ds: xr.Dataset, interfaces=None, period: float | None = None
         NI.append(N[:, [contacts.index(m) for m in members]].sum(axis=1))
     dims = ("time", "interface")
     return xr.Dataset(
-        {"tangential_displacement": (dims, np.array(uI).T, {"units": "m", "long_name": "mean tangential displacement u_I"}),
-         "tangential_force": (dims, np.array(TI).T, {"units": "N", "long_name": "total tangential force T_I"}),
-         "normal_force": (dims, np.array(NI).T, {"units": "N", "long_name": "total normal force N_I"})},
-        coords={"time": lp["time"], "interface": list(groups),
-                "members": ("interface", [",".join(m) for m in groups.values()])})
+        {
+            "tangential_displacement": (
+                dims,
+                np.array(uI).T,
+                {"units": "m", "long_name": "mean tangential displacement u_I"},
+            ),
+            "tangential_force": (dims, np.array(TI).T, {"units": "N", "long_name": "total tangential force T_I"}),
+            "normal_force": (dims, np.array(NI).T, {"units": "N", "long_name": "total normal force N_I"}),
+        },
+        coords={
+            "time": lp["time"],
+            "interface": list(groups),
+            "members": ("interface", [",".join(m) for m in groups.values()]),
+        },
+    )
 
 
 def loop_summary(ds: xr.Dataset, interfaces=None, period: float | None = None) -> xr.Dataset:
@@ -152,15 +170,31 @@ def loop_summary(ds: xr.Dataset, interfaces=None, period: float | None = None) -
     for i, members in enumerate(groups.values()):
         props = loop_properties(il["tangential_displacement"].values[:, i], il["tangential_force"].values[:, i])
         e_sum = sum(per_dir[d]["energy_J"] for d in _directions_of(ds, members))
-        props["zeta_eq"] = e_sum / (4 * math.pi * props["elastic_energy_J"]) if props["elastic_energy_J"] > 0 else math.nan
+        props["zeta_eq"] = (
+            e_sum / (4 * math.pi * props["elastic_energy_J"]) if props["elastic_energy_J"] > 0 else math.nan
+        )
         props["energy_J"] = e_sum
         per_if.append(props)
-    units = {"energy_J": "J", "k_eq_N_per_m": "N/m", "elastic_energy_J": "J", "zeta_eq": "1", "u_min_m": "m",
-             "u_max_m": "m", "T_min_N": "N", "T_max_N": "N"}
+    units = {
+        "energy_J": "J",
+        "k_eq_N_per_m": "N/m",
+        "elastic_energy_J": "J",
+        "zeta_eq": "1",
+        "u_min_m": "m",
+        "u_max_m": "m",
+        "T_min_N": "N",
+        "T_max_N": "N",
+    }
     data = {}
     for key, unit in units.items():
         data[f"direction_{key}"] = ("direction", [p[key] for p in per_dir], {"units": unit})
         data[f"interface_{key}"] = ("interface", [p[key] for p in per_if], {"units": unit})
-    return xr.Dataset(data, coords={"direction": ds["direction"].values, "interface": list(groups),
-                                    "members": ("interface", [",".join(m) for m in groups.values()])},
-                      attrs={"period_s": float(lp["time"].values[-1] - lp["time"].values[0])})
+    return xr.Dataset(
+        data,
+        coords={
+            "direction": ds["direction"].values,
+            "interface": list(groups),
+            "members": ("interface", [",".join(m) for m in groups.values()]),
+        },
+        attrs={"period_s": float(lp["time"].values[-1] - lp["time"].values[0])},
+    )

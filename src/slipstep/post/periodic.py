@@ -26,8 +26,9 @@ def period_of(ds: xr.Dataset, period: float | None = None) -> float:
     """The excitation period [s]: ``period`` if given, else the Dataset attribute period_s."""
     T = period if period is not None else ds.attrs.get("period_s")
     if T is None or not np.isfinite(T) or T <= 0:
-        raise InputError("period", "the result has no excitation period (attribute period_s)",
-                         "pass period= in seconds")
+        raise InputError(
+            "period", "the result has no excitation period (attribute period_s)", "pass period= in seconds"
+        )
     return float(T)
 
 
@@ -58,16 +59,24 @@ def last_period(ds: xr.Dataset, period: float | None = None) -> xr.Dataset:
     T = period_of(ds, period)
     t = ds["time"].values
     if t[-1] - t[0] < T * (1 - _REL):
-        raise InputError("period", f"the result lasts {t[-1] - t[0]:.6g} s, shorter than one period {T:.6g} s",
-                         "simulate at least one full period")
+        raise InputError(
+            "period",
+            f"the result lasts {t[-1] - t[0]:.6g} s, shorter than one period {T:.6g} s",
+            "simulate at least one full period",
+        )
     t0 = t[-1] - T
     tol = _REL * T
     j = int(np.argmin(np.abs(t - t0)))
     if abs(t[j] - t0) <= tol + 1e-12 * abs(t0):
         return ds.isel(time=slice(j, None))
     k = int(np.searchsorted(t, t0, side="right"))
-    return xr.concat([_interp_row(ds, t0), ds.isel(time=slice(k, None))], dim="time",
-                     data_vars="minimal", coords="minimal", compat="override")
+    return xr.concat(
+        [_interp_row(ds, t0), ds.isel(time=slice(k, None))],
+        dim="time",
+        data_vars="minimal",
+        coords="minimal",
+        compat="override",
+    )
 
 
 def _phase_compare(t: np.ndarray, y: np.ndarray, a: float, T: float) -> float:
@@ -105,13 +114,16 @@ class Periodicity:
     def text(self) -> str:
         errs = ", ".join(f"{e:.2e}" for e in self.errors) or "none (fewer than 2 periods)"
         if self.periodic:
-            return (f"steady state from period {self.steady_from} of {self.n_periods} (period-to-period "
-                    f"differences {errs}, tolerance {self.rtol:g})")
+            return (
+                f"steady state from period {self.steady_from} of {self.n_periods} (period-to-period "
+                f"differences {errs}, tolerance {self.rtol:g})"
+            )
         return f"not periodic within {self.rtol:g}: period-to-period differences {errs}"
 
 
-def periodicity(ds: xr.Dataset, variable: str = "displacement", rtol: float = 1e-3,
-                period: float | None = None) -> Periodicity:
+def periodicity(
+    ds: xr.Dataset, variable: str = "displacement", rtol: float = 1e-3, period: float | None = None
+) -> Periodicity:
     """Compare consecutive periods of ``variable`` (default the DOF displacement); see the
     module docstring for e_k. ``rtol`` is the relative tolerance of steady state."""
     T = period_of(ds, period)

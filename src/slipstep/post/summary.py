@@ -121,8 +121,10 @@ def _loops(ds, interfaces, period, lp) -> dict:
         out["energy_per_cycle_J"] = math.nan
         return out
     s = loop_summary(ds, interfaces, period)
-    v = {k: s[f"interface_{k}"].values for k in ("energy_J", "k_eq_N_per_m", "zeta_eq", "u_max_m", "u_min_m",
-                                                  "T_max_N", "T_min_N")}
+    v = {
+        k: s[f"interface_{k}"].values
+        for k in ("energy_J", "k_eq_N_per_m", "zeta_eq", "u_max_m", "u_min_m", "T_max_N", "T_min_N")
+    }
     for i, name in enumerate(s["interface"].values):
         out[f"interface_energy_per_cycle_J[{name}]"] = float(v["energy_J"][i])
         out[f"interface_k_eq_N_per_m[{name}]"] = float(v["k_eq_N_per_m"][i])

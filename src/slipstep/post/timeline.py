@@ -96,7 +96,7 @@ def debounce(ds: xr.Dataset, states: np.ndarray, min_duration: float) -> np.ndar
                 while j + 1 < S.shape[0] and S[j + 1, d] == S[i, d]:
                     j += 1
                 if j + 1 < S.shape[0] and t[j] - t[i - 1] < min_duration:
-                    S[i:j + 1, d] = S[i - 1, d]
+                    S[i : j + 1, d] = S[i - 1, d]
                 i = j + 1
             else:
                 i += 1
@@ -120,9 +120,12 @@ def state_shares(ds: xr.Dataset) -> xr.DataArray:
     dt = np.diff(ds["time"].values)
     total = dt.sum()
     shares = np.array([[dt[S[:, d] == s].sum() / total for s in range(len(STATE_NAMES))] for d in range(S.shape[1])])
-    return xr.DataArray(shares, dims=("direction", "state"),
-                        coords={"direction": ds["direction"].values, "state": list(STATE_NAMES)},
-                        attrs={"units": "1", "long_name": "share of time in each contact state"})
+    return xr.DataArray(
+        shares,
+        dims=("direction", "state"),
+        coords={"direction": ds["direction"].values, "state": list(STATE_NAMES)},
+        attrs={"units": "1", "long_name": "share of time in each contact state"},
+    )
 
 
 def is_uniform(t: np.ndarray, rtol: float = 1e-6) -> bool:
@@ -156,8 +159,9 @@ def resample_uniform(ds: xr.Dataset, dt: float | None = None, n: int | None = No
         v = var.transpose("time", ...).values
         flat = v.reshape(t.size, -1)
         if np.issubdtype(v.dtype, np.floating):
-            new = np.column_stack([np.interp(tu, t, flat[:, j]) for j in range(flat.shape[1])] or
-                                  [np.zeros((n, 0))])  # e.g. no prescribed motion component
+            new = np.column_stack(
+                [np.interp(tu, t, flat[:, j]) for j in range(flat.shape[1])] or [np.zeros((n, 0))]
+            )  # e.g. no prescribed motion component
         else:
             new = flat[idx]
         dims = ("time",) + tuple(d for d in var.dims if d != "time")

@@ -35,19 +35,26 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
     T = system.period
     if T is None:
-        raise InputError("excitation", "has no period (tables only): a periodic steady state needs one",
-                         "give a harmonic force or motion, or period_s")
+        raise InputError(
+            "excitation",
+            "has no period (tables only): a periodic steady state needs one",
+            "give a harmonic force or motion, or period_s",
+        )
     for key in ("periods", "duration"):
         if key in run_options:
-            raise InputError(key, "is set by the steady-state solver (one period per march)",
-                             "use max_periods and tolerance instead")
+            raise InputError(
+                key, "is set by the steady-state solver (one period per march)", "use max_periods and tolerance instead"
+            )
     opts = dict(run_options)
     # one-period continued marches: the step is the T_min / max_step / min_steps_per_period rule
     # (the default rule's step-doubling refinement pilots a run from the preload: issue 8)
     opts.setdefault("error_estimate", False)
     if min_steps_per_period is not None:
-        if isinstance(min_steps_per_period, bool) or not isinstance(min_steps_per_period, (int, np.integer)) \
-                or min_steps_per_period < 2:
+        if (
+            isinstance(min_steps_per_period, bool)
+            or not isinstance(min_steps_per_period, (int, np.integer))
+            or min_steps_per_period < 2
+        ):
             raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
     return Simulation(system, method, periods=1.0, **opts)
@@ -105,8 +112,16 @@ def march_periods(sim: Simulation, first_index: int, tolerance: float, max_perio
     return "NOT_STEADY", max_periods, changes, end, kernel
 
 
-def march_to_steady(system: System, method="piecewise-linear", *, tolerance: float = 1e-6, max_periods: int = 200,
-                    initial=None, min_steps_per_period: int | None = None, **run_options) -> SteadyState:
+def march_to_steady(
+    system: System,
+    method="piecewise-linear",
+    *,
+    tolerance: float = 1e-6,
+    max_periods: int = 200,
+    initial=None,
+    min_steps_per_period: int | None = None,
+    **run_options,
+) -> SteadyState:
     """Periodic steady state by marching (see the module docstring).
 
     method: a time-marching method (slipstep.methods.registry); run_options: those of
@@ -123,19 +138,33 @@ def march_to_steady(system: System, method="piecewise-linear", *, tolerance: flo
     return finish(sim, status, periods, changes, end, kernel, wall, "march")
 
 
-def finish(sim: Simulation, status: str, periods: int, changes, end: State, kernel: float, wall: float,
-           solver: str, **extra) -> SteadyState:
+def finish(
+    sim: Simulation, status: str, periods: int, changes, end: State, kernel: float, wall: float, solver: str, **extra
+) -> SteadyState:
     """Wrap the last marched period (in sim.out) as a SteadyState."""
     ds = sim.dataset()
     e = changes[-1] if changes else math.inf
     if status == "OK":
         message = f"steady after {periods} period(s): change over the last period {e:.2e}"
     elif status == "NOT_STEADY":
-        message = (f"not steady after {periods} period(s): change over the last period {e:.2e} above the "
-                   "tolerance; raise max_periods or the tolerance")
+        message = (
+            f"not steady after {periods} period(s): change over the last period {e:.2e} above the "
+            "tolerance; raise max_periods or the tolerance"
+        )
     else:
         message = ds.attrs.get("status_message", status)
     ds.attrs.update(steady_status=status, steady_change=e, periods_to_steady=periods)
-    return SteadyState(period=ds, periods=periods, status=status, message=message, final_state=end, change=e,
-                       solver=solver, method=sim.method.name, changes=list(changes), kernel_time_s=kernel,
-                       wall_time_s=time.perf_counter() - wall, **extra)
+    return SteadyState(
+        period=ds,
+        periods=periods,
+        status=status,
+        message=message,
+        final_state=end,
+        change=e,
+        solver=solver,
+        method=sim.method.name,
+        changes=list(changes),
+        kernel_time_s=kernel,
+        wall_time_s=time.perf_counter() - wall,
+        **extra,
+    )

@@ -56,7 +56,7 @@ def _unknowns(s: State, quasi: bool) -> np.ndarray:
 def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
     if quasi:
         return State(z[:n].copy(), np.zeros(n), np.zeros(n), z[n:].copy(), states)
-    return State(z[:n].copy(), z[n:2 * n].copy(), None, z[2 * n:].copy(), states)
+    return State(z[:n].copy(), z[n : 2 * n].copy(), None, z[2 * n :].copy(), states)
 
 
 def period_jacobian(sim: Simulation) -> np.ndarray:
@@ -68,9 +68,9 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
     Z = np.zeros((3 * n + nd, m))
     iw = n if quasi else 2 * n
     Z[:n, :n] = np.eye(n)
-    Z[3 * n:, iw:] = np.eye(nd)
+    Z[3 * n :, iw:] = np.eye(nd)
     if not quasi:
-        Z[n:2 * n, n:2 * n] = np.eye(n)
+        Z[n : 2 * n, n : 2 * n] = np.eye(n)
         # consistent a0: da = -M^-1 (K dx + C dv + A^T (G dx + H dw)), f elastic at the start
         G = np.zeros((nq, n))
         H = np.zeros((nq, nd))
@@ -83,14 +83,32 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
                 G[tr] = cs.kt[d] * cs.A[tr]
                 H[tr, d] = -cs.kt[d]
         Minv = inverse_mass(cs.M)  # 0 on DOFs without mass (a = 0 there)
-        Z[2 * n:3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
-        Z[2 * n:3 * n, n:2 * n] = -Minv @ cs.C
-        Z[2 * n:3 * n, iw:] = -Minv @ (cs.A.T @ H)
+        Z[2 * n : 3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
+        Z[2 * n : 3 * n, n : 2 * n] = -Minv @ cs.C
+        Z[2 * n : 3 * n, iw:] = -Minv @ (cs.A.T @ H)
     scheme = sim.options.scheme
-    period_sensitivity(cs.M, cs.C, cs.K, cs.A, cs.AT, cs.normal_row, cs.law, cs.law_par, cs.first_direction,
-                       cs.n_directions, cs.tangential_row, cs.kt, scheme.beta, scheme.gamma, not quasi,
-                       sim.out.dt, sim.out.state, int(sim.out.counters[C_STEPS]), Z)
-    rows = np.r_[0:n, 3 * n:3 * n + nd] if quasi else np.r_[0:2 * n, 3 * n:3 * n + nd]
+    period_sensitivity(
+        cs.M,
+        cs.C,
+        cs.K,
+        cs.A,
+        cs.AT,
+        cs.normal_row,
+        cs.law,
+        cs.law_par,
+        cs.first_direction,
+        cs.n_directions,
+        cs.tangential_row,
+        cs.kt,
+        scheme.beta,
+        scheme.gamma,
+        not quasi,
+        sim.out.dt,
+        sim.out.state,
+        int(sim.out.counters[C_STEPS]),
+        Z,
+    )
+    rows = np.r_[0:n, 3 * n : 3 * n + nd] if quasi else np.r_[0 : 2 * n, 3 * n : 3 * n + nd]
     return Z[rows]
 
 
@@ -103,8 +121,7 @@ class JacobianCache:
 
     def __call__(self, sim: Simulation) -> np.ndarray:
         k = int(sim.out.counters[C_STEPS]) + 1
-        key = (sim.out.state[:k].tobytes(), sim.out.dt[:k].tobytes(),
-               (sim.q0[sim.compiled.normal_row] > 0.0).tobytes())
+        key = (sim.out.state[:k].tobytes(), sim.out.dt[:k].tobytes(), (sim.q0[sim.compiled.normal_row] > 0.0).tobytes())
         if key != self.key:
             self.key, self.phi = key, period_jacobian(sim)
             self.built += 1
@@ -141,23 +158,41 @@ def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutra
     return dz
 
 
-def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iterations: int = 60, max_periods: int = 200,
-          method="piecewise-linear", min_steps_per_period: int | None = None, settle_periods: int = 3,
-          max_backtracks: int = 3, warmup_periods: int = 5, **run_options):
+def shoot(
+    system: System,
+    *,
+    tolerance: float = 1e-6,
+    initial=None,
+    max_iterations: int = 60,
+    max_periods: int = 200,
+    method="piecewise-linear",
+    min_steps_per_period: int | None = None,
+    settle_periods: int = 3,
+    max_backtracks: int = 3,
+    warmup_periods: int = 5,
+    **run_options,
+):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
-    for name, value, low in (("max_iterations", max_iterations, 1), ("settle_periods", settle_periods, 0),
-                             ("max_backtracks", max_backtracks, 0), ("warmup_periods", warmup_periods, 0)):
+    for name, value, low in (
+        ("max_iterations", max_iterations, 1),
+        ("settle_periods", settle_periods, 0),
+        ("max_backtracks", max_backtracks, 0),
+        ("warmup_periods", warmup_periods, 0),
+    ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
     sim = period_simulation(system, method, min_steps_per_period, run_options)
     scheme = sim.options.scheme
     if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
-        raise InputError("scheme", f"is {scheme.name}: shooting differentiates the Newmark step",
-                         "use a Newmark scheme (slipstep.newmark(beta, gamma)) or the quasi-static method")
+        raise InputError(
+            "scheme",
+            f"is {scheme.name}: shooting differentiates the Newmark step",
+            "use a Newmark scheme (slipstep.newmark(beta, gamma)) or the quasi-static method",
+        )
     cs = sim.compiled
     n, nd = cs.M.shape[0], cs.kt.shape[0]
     quasi = sim.method.quasi_static
@@ -184,18 +219,39 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
         kernel += sim.kernel_time
         changes.append(e)
         if status != Status.OK:
-            return finish(sim, status.name, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                          jacobians=jacobian.built)
+            return finish(
+                sim,
+                status.name,
+                periods,
+                changes,
+                end,
+                kernel,
+                wall,
+                "shoot",
+                newton_iterations=newton,
+                jacobians=jacobian.built,
+            )
         if e <= tolerance:
             phi = jacobian(sim)
             neutral = neutral_sliders(phi, n_state, nd)
-            return finish(sim, "OK", periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                          jacobians=jacobian.built, floquet_multipliers=floquet(phi, neutral),
-                          neutral_directions=int(neutral.size))
+            return finish(
+                sim,
+                "OK",
+                periods,
+                changes,
+                end,
+                kernel,
+                wall,
+                "shoot",
+                newton_iterations=newton,
+                jacobians=jacobian.built,
+                floquet_multipliers=floquet(phi, neutral),
+                neutral_directions=int(neutral.size),
+            )
         if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
             if backtracks < max_backtracks:
                 backtracks += 1
-                state = _from_unknowns(best[1] + 0.5 ** backtracks * best[2], n, quasi, best[3].states)
+                state = _from_unknowns(best[1] + 0.5**backtracks * best[2], n, quasi, best[3].states)
                 continue
             if settle_periods > 0:  # Newton stalls: let the march settle the state sequence
                 start(sim, best[3], t0)
@@ -203,8 +259,18 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
                 periods, kernel = periods + k, kernel + kt_
                 changes += ch
                 if status not in ("OK", "NOT_STEADY"):  # (steady: the next period confirms it, with Floquet)
-                    return finish(sim, status, periods, changes, end, kernel, wall, "shoot",
-                                  newton_iterations=newton, jacobians=jacobian.built)
+                    return finish(
+                        sim,
+                        status,
+                        periods,
+                        changes,
+                        end,
+                        kernel,
+                        wall,
+                        "shoot",
+                        newton_iterations=newton,
+                        jacobians=jacobian.built,
+                    )
                 state, best, backtracks = end, None, 0
                 continue
         phi = jacobian(sim)
@@ -220,7 +286,8 @@ def shoot(system: System, *, tolerance: float = 1e-6, initial=None, max_iteratio
     status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, max(max_periods - periods, 1))
     periods, kernel = periods + k, kernel + kt_
     changes += ch
-    result = finish(sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton,
-                    jacobians=jacobian.built)
+    result = finish(
+        sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton, jacobians=jacobian.built
+    )
     result.message = f"Newton did not converge in {max_iterations} iterations; fell back to marching: {result.message}"
     return result

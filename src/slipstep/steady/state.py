@@ -90,15 +90,22 @@ def as_state(initial, n: int, nd: int) -> State:
     if isinstance(initial, dict):
         unknown = set(initial) - set(State._fields)
         if unknown or "x" not in initial:
-            raise InputError("initial", f"has keys {sorted(initial)}",
-                             f"give x and optionally {list(State._fields[1:])}")
+            raise InputError(
+                "initial", f"has keys {sorted(initial)}", f"give x and optionally {list(State._fields[1:])}"
+            )
         get = initial.get
-        return State(np.asarray(get("x"), float), None if get("v") is None else np.asarray(get("v"), float),
-                     None if get("a") is None else np.asarray(get("a"), float),
-                     None if get("w") is None else np.asarray(get("w"), float),
-                     None if get("states") is None else np.asarray(get("states"), np.int8))
-    raise InputError("initial", f"is a {type(initial).__name__}",
-                     "give a SteadyState, its final_state, or a dict with x, v, a, w, states")
+        return State(
+            np.asarray(get("x"), float),
+            None if get("v") is None else np.asarray(get("v"), float),
+            None if get("a") is None else np.asarray(get("a"), float),
+            None if get("w") is None else np.asarray(get("w"), float),
+            None if get("states") is None else np.asarray(get("states"), np.int8),
+        )
+    raise InputError(
+        "initial",
+        f"is a {type(initial).__name__}",
+        "give a SteadyState, its final_state, or a dict with x, v, a, w, states",
+    )
 
 
 STILL_GROUP = 1e-3  # a group scale is at least this fraction of the largest one

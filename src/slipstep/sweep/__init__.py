@@ -17,5 +17,19 @@ from slipstep.sweep.run import run_sweep
 from slipstep.sweep.spec import Outputs, Parameter, SweepSpec, load_spec, spec_from_dict
 from slipstep.sweep.store import grid_view, open_sweep
 
-__all__ = ["DaskExecutor", "Outputs", "Parameter", "Plan", "SerialExecutor", "SweepSpec", "grid_view", "load_spec",
-           "make_plan", "open_sweep", "resolve", "run_case", "run_sweep", "spec_from_dict"]
+__all__ = [
+    "DaskExecutor",
+    "Outputs",
+    "Parameter",
+    "Plan",
+    "SerialExecutor",
+    "SweepSpec",
+    "grid_view",
+    "load_spec",
+    "make_plan",
+    "open_sweep",
+    "resolve",
+    "run_case",
+    "run_sweep",
+    "spec_from_dict",
+]

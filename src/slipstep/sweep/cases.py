@@ -41,9 +41,9 @@ Path_ = tuple  # a resolved key path: str keys and int list indices (0-based)
 class ResolvedParameter:
     name: str
     unit: str
-    keys: tuple[str, ...]          # as the user wrote them
-    paths: tuple[Path_, ...]       # every concrete location they set
-    integer: bool                  # the target holds integers (e.g. run.steps_per_period)
+    keys: tuple[str, ...]  # as the user wrote them
+    paths: tuple[Path_, ...]  # every concrete location they set
+    integer: bool  # the target holds integers (e.g. run.steps_per_period)
 
 
 @dataclass(frozen=True)
@@ -53,14 +53,14 @@ class Plan:
 
     spec: SweepSpec
     base: dict
-    kind: str                      # "damper", "structure" or "assembly" (case_kind)
+    kind: str  # "damper", "structure" or "assembly" (case_kind)
     parameters: tuple[ResolvedParameter, ...]
     values: np.ndarray
     grid_shape: tuple[int, ...] | None
     hashes: tuple[str, ...]
     extra_run: dict
     outputs: dict
-    base_dir: str | None = None    # the base case file's folder (an assembly's matrix files)
+    base_dir: str | None = None  # the base case file's folder (an assembly's matrix files)
 
     @property
     def n_cases(self) -> int:
@@ -82,8 +82,11 @@ def base_case(spec: SweepSpec) -> dict:
         if not path.suffix and spec.base in builtin_cases():
             path = CASES_DIR / f"{spec.base}.toml"
         elif not path.suffix:
-            raise InputError("[sweep] base", f"{spec.base!r} is not a built-in case",
-                             f"use one of {', '.join(builtin_cases())} or a TOML case file path")
+            raise InputError(
+                "[sweep] base",
+                f"{spec.base!r} is not a built-in case",
+                f"use one of {', '.join(builtin_cases())} or a TOML case file path",
+            )
         try:
             data = read_toml(path)
         except InputError as exc:
@@ -160,22 +163,32 @@ def _walk(node, segs: list[str], i: int, prefix: Path_, key: str) -> list[Path_]
         if re.fullmatch(r"[+-]?\d+", seg):
             j = int(seg)
             if not 1 <= j <= len(node):
-                raise InputError(key, f"index {j} is out of range: {here} has {len(node)} entr"
-                                 f"{'y' if len(node) == 1 else 'ies'}", f"use 1..{len(node)} (indices count from 1)")
+                raise InputError(
+                    key,
+                    f"index {j} is out of range: {here} has {len(node)} entr{'y' if len(node) == 1 else 'ies'}",
+                    f"use 1..{len(node)} (indices count from 1)",
+                )
             return _walk(node[j - 1], segs, i + 1, prefix + (j - 1,), key)
         for k in range(len(segs), i, -1):  # longest match first: names may contain dots
             label = ".".join(segs[i:k])
-            hits = [j for j, e in enumerate(node)
-                    if isinstance(e, dict) and label in (e.get("name"), e.get("component"))]
+            hits = [
+                j for j, e in enumerate(node) if isinstance(e, dict) and label in (e.get("name"), e.get("component"))
+            ]
             if len(hits) > 1:
-                raise InputError(key, f"{label!r} matches {len(hits)} entries of {here}",
-                                 f"use an index 1..{len(node)} to pick one, or * for all")
+                raise InputError(
+                    key,
+                    f"{label!r} matches {len(hits)} entries of {here}",
+                    f"use an index 1..{len(node)} to pick one, or * for all",
+                )
             if hits:
                 return _walk(node[hits[0]], segs, k, prefix + (hits[0],), key)
         labels = [e.get("name", e.get("component")) for e in node if isinstance(e, dict)]
         labels = [str(x) for x in labels if x is not None]
-        raise InputError(key, f"{here} has no entry {seg!r}",
-                         f"use an index 1..{len(node)}, *, or one of {', '.join(labels) or '(no names)'}")
+        raise InputError(
+            key,
+            f"{here} has no entry {seg!r}",
+            f"use an index 1..{len(node)}, *, or one of {', '.join(labels) or '(no names)'}",
+        )
     raise InputError(key, f"{here} is a value, not a table", f"end the key path at {here}")
 
 
@@ -253,6 +266,7 @@ def apply_values(base: dict, parameters, values) -> dict:
 
 # -- units and names -----------------------------------------------------------------------------
 
+
 def unit_of(key: str, kind: str) -> str:
     """The unit of a case-file key path, read from its last key's name by the case format's own
     rule (slipstep.config_check.unit_of: motion and force amplitudes by their table); "1" for
@@ -329,8 +343,12 @@ def sample_points(spec: SweepSpec) -> tuple[np.ndarray, tuple[int, ...] | None]:
 
 
 def case_hash(case: dict, extra_run: dict, outputs: dict) -> str:
-    text = json.dumps({"case": case, "run_options": extra_run, "outputs": outputs}, sort_keys=True,
-                      separators=(",", ":"), allow_nan=True)
+    text = json.dumps(
+        {"case": case, "run_options": extra_run, "outputs": outputs},
+        sort_keys=True,
+        separators=(",", ":"),
+        allow_nan=True,
+    )
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
@@ -346,8 +364,11 @@ def make_plan(spec: SweepSpec) -> Plan:
         for key in p.keys:
             found = resolve(base, key)
             if not found:
-                raise InputError(f"[[parameter]] {i + 1}: key", f"{key!r} matches no entry of the base case",
-                                 "check the key path against the case file")
+                raise InputError(
+                    f"[[parameter]] {i + 1}: key",
+                    f"{key!r} matches no entry of the base case",
+                    "check the key path against the case file",
+                )
             paths.extend(found)
         if len(set(paths)) != len(paths):
             raise InputError(f"[[parameter]] {i + 1}: key", "sets one location twice", "list each key once")
@@ -357,16 +378,22 @@ def make_plan(spec: SweepSpec) -> Plan:
     for i, rp in enumerate(resolved):
         for q in rp.paths:
             if q in seen:
-                raise InputError(f"[[parameter]] {i + 1}: key", f"sets a location parameter {seen[q] + 1} also sets",
-                                 "sweep each location with one parameter only")
+                raise InputError(
+                    f"[[parameter]] {i + 1}: key",
+                    f"sets a location parameter {seen[q] + 1} also sets",
+                    "sweep each location with one parameter only",
+                )
             seen[q] = i
     values, grid = sample_points(spec)
     for j, rp in enumerate(resolved):
         if rp.integer and spec.sampling not in ("latin-hypercube", "sobol"):
             bad = [v for v in values[:, j] if v != round(v)]
             if bad:
-                raise InputError(f"[[parameter]] {j + 1}: values", f"{rp.keys[0]} takes whole numbers, got {bad[0]}",
-                                 "give whole numbers")
+                raise InputError(
+                    f"[[parameter]] {j + 1}: values",
+                    f"{rp.keys[0]} takes whole numbers, got {bad[0]}",
+                    "give whole numbers",
+                )
         if rp.integer:
             values[:, j] = np.round(values[:, j])
     extra = {k: v for k, v in spec.run.items() if k not in CASE_RUN_KEYS}
@@ -378,6 +405,9 @@ def make_plan(spec: SweepSpec) -> Plan:
     plan_params = tuple(resolved)
     hashes = tuple(case_hash(apply_values(base, plan_params, row), extra, outputs) for row in values)
     if len(set(hashes)) != len(hashes):
-        raise InputError("[[parameter]]", "two cases of the sweep are identical (repeated points)",
-                         "remove the repeated values or samples")
+        raise InputError(
+            "[[parameter]]",
+            "two cases of the sweep are identical (repeated points)",
+            "remove the repeated values or samples",
+        )
     return Plan(spec, base, kind, plan_params, values, grid, hashes, extra, outputs, base_dir_of(spec))

@@ -30,10 +30,10 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError
 
-STATUS_INPUT = "INPUT_ERROR"      # the case's values are not a valid case
+STATUS_INPUT = "INPUT_ERROR"  # the case's values are not a valid case
 STATUS_PRELOAD = "PRELOAD_FAILED"  # the static preload found no equilibrium
-STATUS_ERROR = "ERROR"            # an unexpected exception (a bug): type and message kept
-STATUS_TASK = "TASK_FAILED"       # the dask task failed on every try (workers lost): retried on resume
+STATUS_ERROR = "ERROR"  # an unexpected exception (a bug): type and message kept
+STATUS_TASK = "TASK_FAILED"  # the dask task failed on every try (workers lost): retried on resume
 
 
 @dataclass(frozen=True)
@@ -60,8 +60,15 @@ def run_case(payload: Payload, values) -> dict:
     from slipstep.sweep.cases import apply_values, build_case
 
     start, cpu = time.perf_counter(), time.thread_time()
-    result = {"status": "", "message": "", "warning": "", "summary": {}, "histories": {}, "frf": {},
-              "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan}}
+    result = {
+        "status": "",
+        "message": "",
+        "warning": "",
+        "summary": {},
+        "histories": {},
+        "frf": {},
+        "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan},
+    }
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -122,8 +129,16 @@ def frf_values(system, run, cfg: dict) -> dict:
     from slipstep.frequency import FRF_SCHEMA, frf
 
     method = run.method if run.method and run.method not in ("quasi-static", "4") else "piecewise-linear"
-    ds = frf(system, cfg["frequencies_Hz"], solver=cfg["solver"], direction=cfg["direction"],
-             responses=cfg["responses"], harmonics=cfg["harmonics"], method=method, tolerance=cfg["tolerance"])
+    ds = frf(
+        system,
+        cfg["frequencies_Hz"],
+        solver=cfg["solver"],
+        direction=cfg["direction"],
+        responses=cfg["responses"],
+        harmonics=cfg["harmonics"],
+        method=method,
+        tolerance=cfg["tolerance"],
+    )
     ds = ds.sortby("frequency")
     return {name: np.asarray(ds[name].transpose(*FRF_SCHEMA[name][0]).values) for name in FRF_SCHEMA if name in ds}
 
@@ -164,11 +179,19 @@ def task_failure(row, exc: BaseException) -> dict:
     from slipstep import __version__
 
     index, digest, _ = row
-    return {"index": int(index), "hash": digest, "status": STATUS_TASK, "warning": "", "summary": {},
-            "histories": {}, "frf": {}, "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
-            "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan,
-                       "case_cpu_s": math.nan},
-            "worker": "", "version": __version__}
+    return {
+        "index": int(index),
+        "hash": digest,
+        "status": STATUS_TASK,
+        "warning": "",
+        "summary": {},
+        "histories": {},
+        "frf": {},
+        "message": f"the task failed on every try: {type(exc).__name__}: {exc}",
+        "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan, "case_time_s": math.nan, "case_cpu_s": math.nan},
+        "worker": "",
+        "version": __version__,
+    }
 
 
 def default_batch_size(n_cases: int, slots: int) -> int:
@@ -178,7 +201,7 @@ def default_batch_size(n_cases: int, slots: int) -> int:
 
 
 def batches(rows: list, size: int) -> list[list]:
-    return [rows[k:k + size] for k in range(0, len(rows), size)]
+    return [rows[k : k + size] for k in range(0, len(rows), size)]
 
 
 def machine_cores() -> int:
@@ -219,8 +242,7 @@ class DaskExecutor:
 
     name = "dask"
 
-    def __init__(self, scheduler: str | None = None, workers: int | None = None, threads: int = 1,
-                 retries: int = 3):
+    def __init__(self, scheduler: str | None = None, workers: int | None = None, threads: int = 1, retries: int = 3):
         self.scheduler, self.n_workers, self.threads, self.retries = scheduler, workers, threads, retries
         self.cluster = self.client = None
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -234,26 +256,39 @@ class DaskExecutor:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:  # pragma: no cover
-            raise InputError("scheduler", "dask.distributed is not installed",
-                             "pip install 'dask[distributed]' or run with --serial") from None
+            raise InputError(
+                "scheduler", "dask.distributed is not installed", "pip install 'dask[distributed]' or run with --serial"
+            ) from None
         if self.scheduler is None:
             n = self.n_workers or machine_cores()
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=self.threads, processes=True,
-                                        host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR,
-                                        memory_limit=0)
+            self.cluster = LocalCluster(
+                n_workers=n,
+                threads_per_worker=self.threads,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+                memory_limit=0,
+            )
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(self.scheduler, timeout="10s")
             except (OSError, TimeoutError, ValueError) as exc:
-                raise InputError("scheduler", f"{self.scheduler!r} cannot be reached ({exc})",
-                                 "give the address a running `dask scheduler` prints (tcp://HOST:8786)") from None
+                raise InputError(
+                    "scheduler",
+                    f"{self.scheduler!r} cannot be reached ({exc})",
+                    "give the address a running `dask scheduler` prints (tcp://HOST:8786)",
+                ) from None
             try:
                 self.client.wait_for_workers(1, timeout=30)
             except TimeoutError:
                 self.client.close()
-                raise InputError("scheduler", f"{self.scheduler!r} has no workers (waited 30 s)",
-                                 f"start some: dask worker {self.scheduler}") from None
+                raise InputError(
+                    "scheduler",
+                    f"{self.scheduler!r} has no workers (waited 30 s)",
+                    f"start some: dask worker {self.scheduler}",
+                ) from None
         return self
 
     @property
@@ -286,8 +321,10 @@ class DaskExecutor:
         if not tasks:
             return
         shared = self.client.scatter(payload, broadcast=True)
-        futures = {self.client.submit(run_batch, shared, rows, pure=False, retries=self.retries,
-                                      key=_task_key(rows)): rows for rows in tasks}
+        futures = {
+            self.client.submit(run_batch, shared, rows, pure=False, retries=self.retries, key=_task_key(rows)): rows
+            for rows in tasks
+        }
         try:
             for future in as_completed(list(futures)):
                 try:

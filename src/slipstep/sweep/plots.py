@@ -41,13 +41,17 @@ def quantity(ds, name: str) -> tuple[np.ndarray, str, str]:
     dims = [d for d in var.dims if d != "case"]
     if dims and label is None:
         labels = [str(v) for v in ds[dims[0]].values]
-        raise InputError("quantity", f"{base!r} has one value per {dims[0]}",
-                         f"pick one: {', '.join(f'{base}[{lab}]' for lab in labels)}")
+        raise InputError(
+            "quantity",
+            f"{base!r} has one value per {dims[0]}",
+            f"pick one: {', '.join(f'{base}[{lab}]' for lab in labels)}",
+        )
     if dims:
         labels = [str(v) for v in ds[dims[0]].values]
         if label not in labels:
-            raise InputError("quantity", f"{label!r} is not a {dims[0]} of the store",
-                             f"use one of {', '.join(labels)}")
+            raise InputError(
+                "quantity", f"{label!r} is not a {dims[0]} of the store", f"use one of {', '.join(labels)}"
+            )
         var = var.isel({dims[0]: labels.index(label)})
     elif label is not None:
         raise InputError("quantity", f"{base!r} has no [{label}]", f"write {base}")
@@ -59,8 +63,9 @@ def quantity(ds, name: str) -> tuple[np.ndarray, str, str]:
 
 def _param_label(ds, name: str) -> str:
     if name not in ds.coords:
-        raise InputError("parameter", f"{name!r} is not a parameter of the sweep",
-                         f"use one of {', '.join(ds.attrs['parameters'])}")
+        raise InputError(
+            "parameter", f"{name!r} is not a parameter of the sweep", f"use one of {', '.join(ds.attrs['parameters'])}"
+        )
     attrs = ds[name].attrs
     unit = attrs.get("units", "1")
     return f"{attrs.get('long_name', name)} [{unit if unit != '1' else '-'}]"
@@ -107,12 +112,16 @@ def check_at(ds, at: dict | None) -> None:
         raise InputError("at", "holds parameters of a sampled sweep", "remove it: a sampled map shows every point")
     for p, target in at.items():
         if p not in ds.attrs["parameters"]:
-            raise InputError("at", f"{p!r} is not a parameter of the sweep",
-                             f"use one of {', '.join(ds.attrs['parameters'])}")
+            raise InputError(
+                "at", f"{p!r} is not a parameter of the sweep", f"use one of {', '.join(ds.attrs['parameters'])}"
+            )
         values = np.unique(ds[p].values)
         if not np.isclose(values, target, rtol=1e-9, atol=1e-12).any():
-            raise InputError("at", f"{p} = {target:g} is not a value of the sweep",
-                             f"use one of {', '.join(f'{v:g}' for v in values)}")
+            raise InputError(
+                "at",
+                f"{p} = {target:g} is not a value of the sweep",
+                f"use one of {', '.join(f'{v:g}' for v in values)}",
+            )
 
 
 def _held_text(ds, keep: list[str], mask: np.ndarray) -> str:
@@ -137,10 +146,12 @@ def _scale_axis(ax, which: str, values: np.ndarray) -> None:
 def _triangulation(x: np.ndarray, y: np.ndarray) -> Triangulation:
     """Delaunay triangles of scattered points in the plotted coordinates (log where the axis
     is), each scaled to [0, 1] so that no parameter's unit decides the mesh."""
+
     def unit(v):
         w = np.log(v) if _log_axis(v) else np.asarray(v, float)
         span = np.ptp(w)
         return (w - w.min()) / span if span > 0 else w * 0.0
+
     return Triangulation(x, y, Triangulation(unit(x), unit(y)).triangles)
 
 
@@ -153,8 +164,15 @@ def _log_axis(values: np.ndarray) -> bool:
     return v.size > 2 and v.min() > 0 and v.max() / v.min() >= 20
 
 
-def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
-               at: dict | None = None, minimize: bool = False, ax=None):
+def design_map(
+    ds,
+    name: str = "energy_per_cycle_J",
+    x: str | None = None,
+    y: str | None = None,
+    at: dict | None = None,
+    minimize: bool = False,
+    ax=None,
+):
     """Filled contours of quantity ``name`` over parameters ``x`` and ``y`` (module docstring).
     Returns the matplotlib Figure."""
     params = list(ds.attrs["parameters"])
@@ -187,13 +205,25 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
         ax.contour(ux, uy, Z, levels=filled.levels, colors="k", linewidths=0.4, alpha=0.5)
         ax.plot(xs, ys, ".", color="w", ms=2.5, alpha=0.6)
         spread = np.nanmax(Z) - np.nanmin(Z) if np.isfinite(Z).any() else 0.0
-        ridge = [(ux[j], uy[np.nanargmin(Z[:, j]) if minimize else np.nanargmax(Z[:, j])])
-                 for j in range(ux.size)  # columns that vary (not a flat, all-stuck column)
-                 if np.isfinite(Z[:, j]).sum() > 1 and np.nanmax(Z[:, j]) - np.nanmin(Z[:, j]) > 1e-6 * spread]
+        ridge = [
+            (ux[j], uy[np.nanargmin(Z[:, j]) if minimize else np.nanargmax(Z[:, j])])
+            for j in range(ux.size)  # columns that vary (not a flat, all-stuck column)
+            if np.isfinite(Z[:, j]).sum() > 1 and np.nanmax(Z[:, j]) - np.nanmin(Z[:, j]) > 1e-6 * spread
+        ]
         if ridge:
             rx, ry = zip(*ridge)
-            ax.plot(rx, ry, "--", color="#ff8c00", lw=1.4, marker="o", ms=4, mec="k", mew=0.5,
-                    label=f"best {y} for each {x}")
+            ax.plot(
+                rx,
+                ry,
+                "--",
+                color="#ff8c00",
+                lw=1.4,
+                marker="o",
+                ms=4,
+                mec="k",
+                mew=0.5,
+                label=f"best {y} for each {x}",
+            )
     else:
         if ok.sum() < 3:
             raise InputError("quantity", f"only {ok.sum()} successful cases to map", "run more cases")
@@ -205,8 +235,19 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
     bar.set_label(f"{text} [{unit if unit != '1' else '-'}]")
     if best is not None and mask[best]:
         bx, by, bz = ds[x].values[best], ds[y].values[best], values[best]
-        ax.plot(bx, by, marker="*", ms=18, color="#ff3030", mec="k", mew=1.0, ls="none", clip_on=False, zorder=5,
-                label=f"{'minimum' if minimize else 'optimum'}: {bz:.4g}{_u(unit)} at {x} = {bx:.4g}, {y} = {by:.4g}")
+        ax.plot(
+            bx,
+            by,
+            marker="*",
+            ms=18,
+            color="#ff3030",
+            mec="k",
+            mew=1.0,
+            ls="none",
+            clip_on=False,
+            zorder=5,
+            label=f"{'minimum' if minimize else 'optimum'}: {bz:.4g}{_u(unit)} at {x} = {bx:.4g}, {y} = {by:.4g}",
+        )
     ax.set_xlabel(_param_label(ds, x))
     ax.set_ylabel(_param_label(ds, y))
     _scale_axis(ax, "x", xs)
@@ -220,8 +261,15 @@ def design_map(ds, name: str = "energy_per_cycle_J", x: str | None = None, y: st
     return fig
 
 
-def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, group: str | None = None,
-                  at: dict | None = None, minimize: bool = False, ax=None):
+def design_curves(
+    ds,
+    name: str = "energy_per_cycle_J",
+    x: str | None = None,
+    group: str | None = None,
+    at: dict | None = None,
+    minimize: bool = False,
+    ax=None,
+):
     """Quantity ``name`` against parameter ``x``, one curve per value of ``group`` (grid
     sweeps); returns the Figure."""
     params = list(ds.attrs["parameters"])
@@ -251,10 +299,19 @@ def design_curves(ds, name: str = "energy_per_cycle_J", x: str | None = None, gr
         if (~good).any():
             ax.plot(xs[~good], np.zeros((~good).sum()), "x", color="0.5", ms=6)
     if best is not None and mask[best]:
-        ax.plot(ds[x].values[best], values[best], marker="*", ms=16, color="#ff3030", mec="k", ls="none",
-                clip_on=False, zorder=5,
-                label=f"{'minimum' if minimize else 'optimum'}: {values[best]:.4g}{_u(unit)} at {x} = "
-                      f"{ds[x].values[best]:.4g}" + (f", {group} = {ds[group].values[best]:.4g}" if group else ""))
+        ax.plot(
+            ds[x].values[best],
+            values[best],
+            marker="*",
+            ms=16,
+            color="#ff3030",
+            mec="k",
+            ls="none",
+            clip_on=False,
+            zorder=5,
+            label=f"{'minimum' if minimize else 'optimum'}: {values[best]:.4g}{_u(unit)} at {x} = "
+            f"{ds[x].values[best]:.4g}" + (f", {group} = {ds[group].values[best]:.4g}" if group else ""),
+        )
     ax.set_xlabel(_param_label(ds, x))
     ax.set_ylabel(f"{text} [{unit if unit != '1' else '-'}]")
     _scale_axis(ax, "x", ds[x].values)
@@ -274,8 +331,9 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
     responses = [str(r) for r in ds["response"].values]
     response = response or responses[0]
     if response not in responses:
-        raise InputError("response", f"{response!r} is not a response of the FRFs",
-                         f"use one of {', '.join(responses)}")
+        raise InputError(
+            "response", f"{response!r} is not a response of the FRFs", f"use one of {', '.join(responses)}"
+        )
     check_at(ds, at)
     params = list(ds.attrs["parameters"])
     group = group or params[0]
@@ -292,8 +350,14 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
     for i, color in zip(cases, colors):
         ok = np.asarray(ds["frf_status"].values[i]).astype(str) == "OK"
         y = amp.values[i] * factor
-        ax.plot(f[ok], y[ok], marker="o", ms=3, color=color,
-                label=f"{group} = {ds[group].values[i]:.4g}{_u(ds[group].attrs.get('units', '1'))}")
+        ax.plot(
+            f[ok],
+            y[ok],
+            marker="o",
+            ms=3,
+            color=color,
+            label=f"{group} = {ds[group].values[i]:.4g}{_u(ds[group].attrs.get('units', '1'))}",
+        )
         if (~ok).any():
             ax.plot(f[~ok], np.zeros((~ok).sum()), "x", color="0.5", ms=6)
     ax.set_xlabel("excitation frequency [Hz]")
@@ -305,8 +369,16 @@ def frf_curves(ds, response: str | None = None, group: str | None = None, at: di
     return fig
 
 
-def write_figures(ds, output_dir, name: str = "energy_per_cycle_J", x: str | None = None, y: str | None = None,
-                  group: str | None = None, at: dict | None = None, minimize: bool = False) -> list:
+def write_figures(
+    ds,
+    output_dir,
+    name: str = "energy_per_cycle_J",
+    x: str | None = None,
+    y: str | None = None,
+    group: str | None = None,
+    at: dict | None = None,
+    minimize: bool = False,
+) -> list:
     """design_map.png (two or more parameters), design_curves.png (grid sweeps) and
     frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written atomically
     (slipstep.io.save_figure); returns the paths."""

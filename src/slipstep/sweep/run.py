@@ -45,9 +45,13 @@ def labels_of(plan: Plan) -> dict:
     except InputError as exc:
         raise InputError(exc.field, f"{exc.problem} (base case of the sweep)", exc.fix) from None
     _check_run(run, plan.extra_run)
-    return {"interface": list(interfaces_from_system(system)), "contact": list(system.contact_names),
-            "direction": list(system.direction_names()), "dof": list(system.structure.dof_names),
-            "motion": list(system.motion_names)}
+    return {
+        "interface": list(interfaces_from_system(system)),
+        "contact": list(system.contact_names),
+        "direction": list(system.direction_names()),
+        "dof": list(system.structure.dof_names),
+        "motion": list(system.motion_names),
+    }
 
 
 def _check_run(run, extra: dict) -> None:
@@ -66,9 +70,16 @@ def _check_run(run, extra: dict) -> None:
         raise InputError(f"[run] {exc.field}", exc.problem, exc.fix) from None
 
 
-def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None, batch_size: int | None = None,
-              overwrite: bool = False, progress: Callable[[dict], None] | None = None,
-              flush_seconds: float = 5.0) -> dict:
+def run_sweep(
+    spec: SweepSpec | str | Path,
+    store: str | Path,
+    *,
+    executor=None,
+    batch_size: int | None = None,
+    overwrite: bool = False,
+    progress: Callable[[dict], None] | None = None,
+    flush_seconds: float = 5.0,
+) -> dict:
     """Compute every case of ``spec`` missing from ``store`` (created if needed) and return a
     report: cases, computed, skipped (already stored), missing (still not in the store: lost
     tasks, computed by a rerun), status_counts, failed, elapsed_s (the cases only), startup_s
@@ -83,8 +94,14 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
     sweep_store = SweepStore.open_or_create(store, plan, labels_of(plan), overwrite=overwrite)
     done = sweep_store.done()
     rows = [(int(i), plan.hashes[i], plan.values[i].tolist()) for i in np.flatnonzero(~done)]
-    state = {"total": plan.n_cases, "skipped": int(done.sum()), "computed": 0, "failed": 0, "todo": len(rows),
-             "elapsed_s": 0.0}
+    state = {
+        "total": plan.n_cases,
+        "skipped": int(done.sum()),
+        "computed": 0,
+        "failed": 0,
+        "todo": len(rows),
+        "elapsed_s": 0.0,
+    }
     counts: Counter = Counter()
     times: list[tuple[float, float]] = []
     size, workers, startup, elapsed, name = 0, 0, 0.0, 0.0, getattr(executor, "name", "dask")
@@ -104,20 +121,29 @@ def run_sweep(spec: SweepSpec | str | Path, store: str | Path, *, executor=None,
             elapsed, workers, name = time.perf_counter() - start, ex.workers, ex.name
     k, c, u = (np.array([t[i] for t in times], float) for i in (0, 1, 2))
     return {
-        "store": str(store), "cases": plan.n_cases, "computed": state["computed"], "skipped": state["skipped"],
-        "missing": int((~sweep_store.done()).sum()), "status_counts": dict(counts), "failed": state["failed"],
-        "elapsed_s": elapsed, "startup_s": startup,
+        "store": str(store),
+        "cases": plan.n_cases,
+        "computed": state["computed"],
+        "skipped": state["skipped"],
+        "missing": int((~sweep_store.done()).sum()),
+        "status_counts": dict(counts),
+        "failed": state["failed"],
+        "elapsed_s": elapsed,
+        "startup_s": startup,
         "cases_per_s": state["computed"] / elapsed if elapsed > 0 else float("nan"),
         "mean_kernel_time_s": float(np.nanmean(k)) if np.isfinite(k).any() else float("nan"),
         "mean_case_time_s": float(np.nanmean(c)) if np.isfinite(c).any() else float("nan"),
         "mean_case_cpu_s": float(np.nanmean(u)) if np.isfinite(u).any() else float("nan"),
         "overhead_per_case_s": float(np.nanmean(c - np.nan_to_num(k))) if np.isfinite(c).any() else float("nan"),
-        "batch_size": size, "workers": workers, "executor": name,
+        "batch_size": size,
+        "workers": workers,
+        "executor": name,
     }
 
 
-def _collect(results, store: SweepStore, state: dict, counts: Counter, times: list, start: float,
-             flush_seconds: float, progress) -> None:
+def _collect(
+    results, store: SweepStore, state: dict, counts: Counter, times: list, start: float, flush_seconds: float, progress
+) -> None:
     """Receive the batches as they finish, flush them to the store every ``flush_seconds`` and
     once more at the end, on Ctrl-C or on any error (nothing received is lost)."""
     from slipstep import __version__
@@ -128,8 +154,11 @@ def _collect(results, store: SweepStore, state: dict, counts: Counter, times: li
         for batch in results:
             for r in batch:
                 if r["version"] != __version__:
-                    raise InputError("scheduler", f"a worker runs slipstep {r['version']}, this client "
-                                     f"{__version__}", "install the same slipstep version on every worker")
+                    raise InputError(
+                        "scheduler",
+                        f"a worker runs slipstep {r['version']}, this client {__version__}",
+                        "install the same slipstep version on every worker",
+                    )
                 counts[r["status"]] += 1
                 times.append((r["timing"]["kernel_time_s"], r["timing"]["case_time_s"], r["timing"]["case_cpu_s"]))
             buffer.extend(batch)

@@ -58,11 +58,26 @@ else:  # pragma: no cover
 SAMPLINGS = ("grid", "zip", "latin-hypercube", "sobol")
 SCALES = ("linear", "log")
 # run options beyond a case file's [run] table, passed to slipstep.RunOptions as they are
-EXTRA_RUN_OPTIONS = {"tolerance": float, "state_tolerance": float, "max_iterations": int,
-                     "max_state_iterations": int, "linear_solver": str}
+EXTRA_RUN_OPTIONS = {
+    "tolerance": float,
+    "state_tolerance": float,
+    "max_iterations": int,
+    "max_state_iterations": int,
+    "linear_solver": str,
+}
 CASE_RUN_KEYS = ("method", "periods", "duration_s", "step_ratio", "steps_per_period", "ramp_time_s")
-HISTORY_VARIABLES = ("displacement", "velocity", "acceleration", "prescribed_motion", "tangential_displacement",
-                     "normal_displacement", "tangential_force", "normal_force", "slider", "contact_state")
+HISTORY_VARIABLES = (
+    "displacement",
+    "velocity",
+    "acceleration",
+    "prescribed_motion",
+    "tangential_displacement",
+    "normal_displacement",
+    "tangential_force",
+    "normal_force",
+    "slider",
+    "contact_state",
+)
 
 
 @dataclass(frozen=True)
@@ -121,21 +136,32 @@ class SweepSpec:
         """The spec as plain data (the store keeps it in its attrs)."""
         params = []
         for p in self.parameters:
-            d = {k: getattr(p, k) for k in ("key", "values", "start", "stop", "num", "low", "high", "name", "unit")
-                 if getattr(p, k) is not None}
+            d = {
+                k: getattr(p, k)
+                for k in ("key", "values", "start", "stop", "num", "low", "high", "name", "unit")
+                if getattr(p, k) is not None
+            }
             d["scale"] = p.scale
             if isinstance(d["key"], tuple):
                 d["key"] = list(d["key"])
             if "values" in d:
                 d["values"] = list(d["values"])
             params.append(d)
-        sweep = {"name": self.name, "description": self.description, "base": self.base, "sampling": self.sampling,
-                 "seed": self.seed}
+        sweep = {
+            "name": self.name,
+            "description": self.description,
+            "base": self.base,
+            "sampling": self.sampling,
+            "seed": self.seed,
+        }
         for k in ("samples", "batch_size"):
             if getattr(self, k) is not None:
                 sweep[k] = getattr(self, k)
-        outputs = {"histories": list(self.outputs.histories), "history_points": self.outputs.history_points,
-                   "frf": self.outputs.frf}
+        outputs = {
+            "histories": list(self.outputs.histories),
+            "history_points": self.outputs.history_points,
+            "frf": self.outputs.frf,
+        }
         if self.outputs.frf is None:
             del outputs["frf"]
         return {"sweep": sweep, "run": dict(self.run), "parameter": params, "outputs": outputs}
@@ -165,39 +191,64 @@ def spec_from_dict(data: dict, source: str = "sweep", root: Path | None = None) 
     sweep = _table(data, "sweep", required=True)
     _known(sweep, "[sweep] ", ("name", "description", "base", "sampling", "samples", "seed", "batch_size"), "[sweep]")
     if "base" not in sweep:
-        raise InputError("[sweep] base", f"is required in {source} but missing",
-                         'name the base case: a built-in case ("paper") or a TOML case file')
+        raise InputError(
+            "[sweep] base",
+            f"is required in {source} but missing",
+            'name the base case: a built-in case ("paper") or a TOML case file',
+        )
     base = sweep["base"]
     if isinstance(base, str) and root is not None and Path(base).suffix:
         base = str((root / base).resolve()) if not Path(base).is_absolute() else base
     params = data.get("parameter")
     if not isinstance(params, list) or not params:
-        raise InputError("[[parameter]]", f"no [[parameter]] table in {source}",
-                         'add one per swept quantity: [[parameter]] key = "damper.centrifugal_force_N" values = [...]')
+        raise InputError(
+            "[[parameter]]",
+            f"no [[parameter]] table in {source}",
+            'add one per swept quantity: [[parameter]] key = "damper.centrifugal_force_N" values = [...]',
+        )
     parsed = tuple(_parameter(p, i) for i, p in enumerate(params))
     outputs = _table(data, "outputs")
     _known(outputs, "[outputs] ", ("summary", "histories", "history_points", "frf"), "[outputs]")
     if outputs.get("summary", True) is not True:
-        raise InputError("[outputs] summary", "cannot be switched off",
-                         "remove the key: every case returns its summary")
-    out = Outputs(histories=tuple(_str_list(outputs.get("histories", []), "[outputs] histories")),
-                  history_points=outputs.get("history_points", 64), frf=outputs.get("frf"))
-    return SweepSpec(base=base, parameters=parsed, sampling=sweep.get("sampling", "grid"),
-                     run=dict(_table(data, "run")), outputs=out, samples=sweep.get("samples"),
-                     seed=sweep.get("seed", 0), batch_size=sweep.get("batch_size"),
-                     name=sweep.get("name", Path(source).stem if source != "sweep" else "sweep"),
-                     description=sweep.get("description", ""), source=source)
+        raise InputError(
+            "[outputs] summary", "cannot be switched off", "remove the key: every case returns its summary"
+        )
+    out = Outputs(
+        histories=tuple(_str_list(outputs.get("histories", []), "[outputs] histories")),
+        history_points=outputs.get("history_points", 64),
+        frf=outputs.get("frf"),
+    )
+    return SweepSpec(
+        base=base,
+        parameters=parsed,
+        sampling=sweep.get("sampling", "grid"),
+        run=dict(_table(data, "run")),
+        outputs=out,
+        samples=sweep.get("samples"),
+        seed=sweep.get("seed", 0),
+        batch_size=sweep.get("batch_size"),
+        name=sweep.get("name", Path(source).stem if source != "sweep" else "sweep"),
+        description=sweep.get("description", ""),
+        source=source,
+    )
 
 
 def _parameter(p, i: int) -> Parameter:
     where = f"[[parameter]] {i + 1}"
     if not isinstance(p, dict):
         raise InputError(where, "is not a table", "write each parameter as a [[parameter]] table")
-    _known(p, f"{where}: ", ("key", "values", "start", "stop", "num", "low", "high", "scale", "name", "unit"),
-           "a [[parameter]] table")
+    _known(
+        p,
+        f"{where}: ",
+        ("key", "values", "start", "stop", "num", "low", "high", "scale", "name", "unit"),
+        "a [[parameter]] table",
+    )
     if "key" not in p:
-        raise InputError(f"{where}: key", "is required but missing",
-                         'give the key path of the case file, e.g. key = "damper.centrifugal_force_N"')
+        raise InputError(
+            f"{where}: key",
+            "is required but missing",
+            'give the key path of the case file, e.g. key = "damper.centrifugal_force_N"',
+        )
     key = p["key"]
     if isinstance(key, list):
         key = tuple(_str_list(key, f"{where}: key"))
@@ -206,9 +257,18 @@ def _parameter(p, i: int) -> Parameter:
         if not isinstance(values, list):
             raise InputError(f"{where}: values", f"is {values!r}", "give a list of numbers, e.g. values = [1.0, 2.0]")
         values = tuple(values)
-    return Parameter(key=key, values=values, start=p.get("start"), stop=p.get("stop"), num=p.get("num"),
-                     low=p.get("low"), high=p.get("high"), scale=p.get("scale", "linear"), name=p.get("name"),
-                     unit=p.get("unit"))
+    return Parameter(
+        key=key,
+        values=values,
+        start=p.get("start"),
+        stop=p.get("stop"),
+        num=p.get("num"),
+        low=p.get("low"),
+        high=p.get("high"),
+        scale=p.get("scale", "linear"),
+        name=p.get("name"),
+        unit=p.get("unit"),
+    )
 
 
 # -- validation ----------------------------------------------------------------------------------
@@ -218,8 +278,9 @@ def validate(spec: SweepSpec) -> None:
     """Check the spec's own consistency (the key paths are checked against the base case when
     the plan is made, slipstep.sweep.cases.make_plan)."""
     if not isinstance(spec.base, (str, dict)) or (isinstance(spec.base, str) and not spec.base):
-        raise InputError("[sweep] base", f"is {spec.base!r}",
-                         "give a built-in case name, a TOML case path or a case dict")
+        raise InputError(
+            "[sweep] base", f"is {spec.base!r}", "give a built-in case name, a TOML case path or a case dict"
+        )
     if spec.sampling not in SAMPLINGS:
         raise InputError("[sweep] sampling", f"is {spec.sampling!r}", f"use one of {', '.join(SAMPLINGS)}")
     _integer("[sweep] seed", spec.seed, minimum=0)
@@ -233,18 +294,27 @@ def validate(spec: SweepSpec) -> None:
     if sampled:
         n = _integer("[sweep] samples", spec.samples, minimum=1, hint=f"the number of {spec.sampling} points")
         if spec.sampling == "sobol" and n & (n - 1):
-            raise InputError("[sweep] samples", f"is {n}: Sobol points are balanced only in powers of 2",
-                             f"use {2 ** math.ceil(math.log2(n))} (or {2 ** int(math.log2(n))})")
+            raise InputError(
+                "[sweep] samples",
+                f"is {n}: Sobol points are balanced only in powers of 2",
+                f"use {2 ** math.ceil(math.log2(n))} (or {2 ** int(math.log2(n))})",
+            )
     elif spec.samples is not None:
-        raise InputError("[sweep] samples", f"is set but sampling is {spec.sampling!r}",
-                         "remove it (the lists and ranges give the cases) or use latin-hypercube / sobol")
+        raise InputError(
+            "[sweep] samples",
+            f"is set but sampling is {spec.sampling!r}",
+            "remove it (the lists and ranges give the cases) or use latin-hypercube / sobol",
+        )
     for i, p in enumerate(spec.parameters):
         _check_parameter(p, _param_where(i, p), sampled, spec.sampling)
     if spec.sampling == "zip":
         lengths = {len(parameter_values(p)) for p in spec.parameters}
         if len(lengths) > 1:
-            raise InputError("[[parameter]]", f"zip sampling needs lists of one length, got lengths {sorted(lengths)}",
-                             'give every parameter as many values, or use sampling = "grid"')
+            raise InputError(
+                "[[parameter]]",
+                f"zip sampling needs lists of one length, got lengths {sorted(lengths)}",
+                'give every parameter as many values, or use sampling = "grid"',
+            )
     _check_run(spec.run)
     _check_outputs(spec.outputs)
 
@@ -262,8 +332,11 @@ def _check_parameter(p: Parameter, where: str, sampled: bool, sampling: str) -> 
     given = {k for k in ("values", "start", "stop", "num", "low", "high") if getattr(p, k) is not None}
     if sampled:
         if given != {"low", "high"}:
-            raise InputError(f"{where}", f"has {sorted(given) or 'nothing'} but {sampling} sampling needs low and high",
-                             "give the bounds low = ... and high = ... (and no values or range)")
+            raise InputError(
+                f"{where}",
+                f"has {sorted(given) or 'nothing'} but {sampling} sampling needs low and high",
+                "give the bounds low = ... and high = ... (and no values or range)",
+            )
         low, high = _number(f"{where}: low", p.low), _number(f"{where}: high", p.high)
         if not low < high:
             raise InputError(f"{where}: high", f"is {high}, not above low = {low}", "give low < high")
@@ -284,14 +357,23 @@ def _check_parameter(p: Parameter, where: str, sampled: bool, sampling: str) -> 
         if n > 1 and a == b:
             raise InputError(f"{where}: stop", f"equals start ({a}) with num = {n}", "give different start and stop")
         if p.scale == "log" and (a <= 0 or b <= 0):
-            raise InputError(f"{where}: start" if a <= 0 else f"{where}: stop",
-                             "is not positive: a log range needs positive ends", "give start > 0 and stop > 0")
+            raise InputError(
+                f"{where}: start" if a <= 0 else f"{where}: stop",
+                "is not positive: a log range needs positive ends",
+                "give start > 0 and stop > 0",
+            )
         return
     if {"low", "high"} & given:
-        raise InputError(f"{where}: low", f"is for latin-hypercube / sobol sampling, not {sampling}",
-                         "give values = [...] or start, stop, num")
-    raise InputError(f"{where}", f"has {sorted(given) or 'no values'}",
-                     "give either values = [...] or a range start = ..., stop = ..., num = ...")
+        raise InputError(
+            f"{where}: low",
+            f"is for latin-hypercube / sobol sampling, not {sampling}",
+            "give values = [...] or start, stop, num",
+        )
+    raise InputError(
+        f"{where}",
+        f"has {sorted(given) or 'no values'}",
+        "give either values = [...] or a range start = ..., stop = ..., num = ...",
+    )
 
 
 def _check_run(run: dict) -> None:
@@ -301,11 +383,13 @@ def _check_run(run: dict) -> None:
         if key in CASE_RUN_KEYS:
             continue  # validated with the case ([run] of a case file)
         if key not in EXTRA_RUN_OPTIONS:
-            raise InputError(f"[run] {key}", "is not a known run option",
-                             f"use the case-file [run] keys ({', '.join(CASE_RUN_KEYS)}) or "
-                             f"{', '.join(EXTRA_RUN_OPTIONS)}")
+            raise InputError(
+                f"[run] {key}",
+                "is not a known run option",
+                f"use the case-file [run] keys ({', '.join(CASE_RUN_KEYS)}) or {', '.join(EXTRA_RUN_OPTIONS)}",
+            )
         kind = EXTRA_RUN_OPTIONS[key]
-        ok = isinstance(value, kind) and not isinstance(value, bool) or (kind is float and _is_number(value))
+        ok = (isinstance(value, kind) and not isinstance(value, bool)) or (kind is float and _is_number(value))
         if not ok:
             raise InputError(f"[run] {key}", f"is {value!r}", f"give a {kind.__name__}")
 
@@ -313,15 +397,27 @@ def _check_run(run: dict) -> None:
 def _check_outputs(out: Outputs) -> None:
     for j, name in enumerate(out.histories):
         if name not in HISTORY_VARIABLES:
-            raise InputError(f"[outputs] histories[{j}]", f"is {name!r}, not a time history of the result",
-                             f"use some of {', '.join(HISTORY_VARIABLES)}")
+            raise InputError(
+                f"[outputs] histories[{j}]",
+                f"is {name!r}, not a time history of the result",
+                f"use some of {', '.join(HISTORY_VARIABLES)}",
+            )
     _integer("[outputs] history_points", out.history_points, minimum=2)
     if out.frf is not None:
         frf_config(out.frf)
 
 
-FRF_KEYS = ("frequencies_Hz", "start_Hz", "stop_Hz", "num", "solver", "direction", "harmonics", "responses",
-            "tolerance")
+FRF_KEYS = (
+    "frequencies_Hz",
+    "start_Hz",
+    "stop_Hz",
+    "num",
+    "solver",
+    "direction",
+    "harmonics",
+    "responses",
+    "tolerance",
+)
 
 
 def frf_config(table) -> dict:
@@ -337,8 +433,11 @@ def frf_config(table) -> dict:
     if "frequencies_Hz" in table:
         if {"start_Hz", "stop_Hz", "num"} & set(table):
             raise InputError(f"{where} frequencies_Hz", "is given with a range", "give a list or start/stop/num")
-        freqs = [_number(f"{where} frequencies_Hz[{j}]", v) for j, v in enumerate(table["frequencies_Hz"])] \
-            if isinstance(table["frequencies_Hz"], list) else None
+        freqs = (
+            [_number(f"{where} frequencies_Hz[{j}]", v) for j, v in enumerate(table["frequencies_Hz"])]
+            if isinstance(table["frequencies_Hz"], list)
+            else None
+        )
         if not freqs:
             raise InputError(f"{where} frequencies_Hz", f"is {table['frequencies_Hz']!r}", "give a list of frequencies")
     elif {"start_Hz", "stop_Hz", "num"} <= set(table):
@@ -347,20 +446,31 @@ def frf_config(table) -> dict:
     else:
         raise InputError(where, "has no frequencies", "give frequencies_Hz = [...] or start_Hz, stop_Hz, num")
     if min(freqs) <= 0 or len(set(freqs)) != len(freqs):
-        raise InputError(f"{where} frequencies_Hz", f"is {freqs[:6]}: frequencies must be distinct and positive",
-                         "give distinct positive frequencies [Hz]")
+        raise InputError(
+            f"{where} frequencies_Hz",
+            f"is {freqs[:6]}: frequencies must be distinct and positive",
+            "give distinct positive frequencies [Hz]",
+        )
     solver, direction = table.get("solver", "march"), table.get("direction", "up")
     if solver not in ("march", "shoot"):
         raise InputError(f"{where} solver", f"is {solver!r}", "use march or shoot")
     if direction not in ("up", "down"):
-        raise InputError(f"{where} direction", f"is {direction!r}",
-                         "use up or down (a sweep stores one direction; run a second sweep for the other)")
+        raise InputError(
+            f"{where} direction",
+            f"is {direction!r}",
+            "use up or down (a sweep stores one direction; run a second sweep for the other)",
+        )
     responses = table.get("responses")
     if responses is not None:
         responses = _str_list(responses, f"{where} responses")
-    return {"frequencies_Hz": sorted(freqs), "solver": solver, "direction": direction,
-            "harmonics": _integer(f"{where} harmonics", table.get("harmonics", 3), minimum=0),
-            "responses": responses, "tolerance": _number(f"{where} tolerance", table.get("tolerance", 1e-6))}
+    return {
+        "frequencies_Hz": sorted(freqs),
+        "solver": solver,
+        "direction": direction,
+        "harmonics": _integer(f"{where} harmonics", table.get("harmonics", 3), minimum=0),
+        "responses": responses,
+        "tolerance": _number(f"{where} tolerance", table.get("tolerance", 1e-6)),
+    }
 
 
 def parameter_values(p: Parameter) -> list[float]:

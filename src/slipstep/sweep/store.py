@@ -42,17 +42,41 @@ from slipstep.errors import InputError
 LAYOUT = 1
 RETRY_STATUS = "TASK_FAILED"  # slipstep.sweep.execute.STATUS_TASK
 CASE_CHUNK = 1024
-TIMING_FIELDS = {"kernel_time_s": ("s", "kernel time of the march (varies between runs)"),
-                 "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
-                 "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)"),
-                 "case_cpu_s": ("s", "CPU time of the whole case in its worker thread (varies between runs)")}
-RESERVED = {"frequency", "harmonic", "response", "case", "case_hash", "status", "status_message", "warning", "worker",
-            "run_index", "phase", "interface",
-            "contact", "direction", "dof", "motion", "kernel_time_s", "wall_time_s", "case_time_s", "case_cpu_s"}
+TIMING_FIELDS = {
+    "kernel_time_s": ("s", "kernel time of the march (varies between runs)"),
+    "wall_time_s": ("s", "time of Simulation.run: march and Dataset (varies between runs)"),
+    "case_time_s": ("s", "time of the whole case: build, run, summary (varies between runs)"),
+    "case_cpu_s": ("s", "CPU time of the whole case in its worker thread (varies between runs)"),
+}
+RESERVED = {
+    "frequency",
+    "harmonic",
+    "response",
+    "case",
+    "case_hash",
+    "status",
+    "status_message",
+    "warning",
+    "worker",
+    "run_index",
+    "phase",
+    "interface",
+    "contact",
+    "direction",
+    "dof",
+    "motion",
+    "kernel_time_s",
+    "wall_time_s",
+    "case_time_s",
+    "case_cpu_s",
+}
 # what differs between identical runs: the timings, the worker, the invocation
 VARYING = set(TIMING_FIELDS) | {"worker", "run_index", "frf_point_time"}
-TEXT_FIELDS = {"status": "status of the case (empty: not computed yet)", "status_message": "status message",
-               "warning": "warnings raised by the case"}
+TEXT_FIELDS = {
+    "status": "status of the case (empty: not computed yet)",
+    "status_message": "status message",
+    "warning": "warnings raised by the case",
+}
 
 
 def _zarr():
@@ -81,8 +105,11 @@ class SweepStore:
         path = Path(path)
         if path.exists():
             if not _is_sweep_store(path):
-                raise InputError("output", f"{str(path)!r} exists and is not a slipstep sweep store",
-                                 "give a new path (e.g. results.zarr) or remove it")
+                raise InputError(
+                    "output",
+                    f"{str(path)!r} exists and is not a slipstep sweep store",
+                    "give a new path (e.g. results.zarr) or remove it",
+                )
             if overwrite:
                 shutil.rmtree(path)
             else:
@@ -90,9 +117,12 @@ class SweepStore:
                 store._check_same(plan)
                 written = store.group.attrs.get("slipstep_version")
                 if written != __version__:
-                    raise InputError("output", f"{str(path)!r} was written by slipstep {written}, this is "
-                                     f"{__version__}: its numbers would mix two versions",
-                                     "give a new store path, or --overwrite to start again")
+                    raise InputError(
+                        "output",
+                        f"{str(path)!r} was written by slipstep {written}, this is "
+                        f"{__version__}: its numbers would mix two versions",
+                        "give a new store path, or --overwrite to start again",
+                    )
                 store.group.attrs["runs"] = store.run_index + 1
                 return store
         if not path.parent.exists():
@@ -113,11 +143,17 @@ class SweepStore:
         new = np.asarray(plan.hashes, dtype=str)
         if stored.shape != new.shape or np.any(stored != new):
             differ = int(np.sum(stored != new)) if stored.shape == new.shape else None
-            what = (f"{differ} of its {new.size} cases differ" if differ is not None
-                    else f"it has {stored.size} cases, this sweep {new.size}")
-            raise InputError("output", f"{str(self.path)!r} holds another sweep ({what}: the spec, its base case "
-                             "or the slipstep defaults changed)",
-                             "give a new store path, or --overwrite to start again")
+            what = (
+                f"{differ} of its {new.size} cases differ"
+                if differ is not None
+                else f"it has {stored.size} cases, this sweep {new.size}"
+            )
+            raise InputError(
+                "output",
+                f"{str(self.path)!r} holds another sweep ({what}: the spec, its base case "
+                "or the slipstep defaults changed)",
+                "give a new store path, or --overwrite to start again",
+            )
 
     # -- state -----------------------------------------------------------------------------------
     def done(self) -> np.ndarray:
@@ -180,22 +216,32 @@ class SweepStore:
         attrs = {"units": units, "long_name": long_name}
         if dtype == "i8":
             attrs["missing_value"] = -1
-        arr = self.group.create_array(base, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill,
-                                      dimension_names=dims, attributes=attrs)
+        arr = self.group.create_array(
+            base, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill, dimension_names=dims, attributes=attrs
+        )
         self._arrays[base] = arr
         return arr
 
     def _label_positions(self, dim: str, labels: list[str]) -> np.ndarray:
         if dim not in self._arrays:
-            arr = self.group.create_array(dim, shape=(len(labels),), dtype=str, fill_value="",
-                                          dimension_names=[dim], attributes={"long_name": f"{dim} names"})
+            arr = self.group.create_array(
+                dim,
+                shape=(len(labels),),
+                dtype=str,
+                fill_value="",
+                dimension_names=[dim],
+                attributes={"long_name": f"{dim} names"},
+            )
             arr[:] = np.array(labels, dtype=str)
             self._arrays[dim] = arr
         known = list(_text(self._arrays[dim][:]))
         missing = [lab for lab in labels if lab not in known]
         if missing:
-            raise InputError(dim, f"{missing} appear in a case but not in the store's {dim}s {known}",
-                             "sweep values only: the parameters must not change the model's topology")
+            raise InputError(
+                dim,
+                f"{missing} appear in a case but not in the store's {dim}s {known}",
+                "sweep values only: the parameters must not change the model's topology",
+            )
         return np.array([known.index(lab) for lab in labels], dtype=np.int64)
 
     def _write_frf(self, idx: np.ndarray, results: list[dict]) -> None:
@@ -214,8 +260,9 @@ class SweepStore:
             arr = self._arrays.get(f"history_{name}")
             if arr is None:
                 continue
-            block = np.full((idx.size,) + arr.shape[1:], arr.fill_value if arr.dtype.kind != "f" else np.nan,
-                            dtype=arr.dtype)
+            block = np.full(
+                (idx.size,) + arr.shape[1:], arr.fill_value if arr.dtype.kind != "f" else np.nan, dtype=arr.dtype
+            )
             for i, r in enumerate(results):
                 if name in r["histories"]:
                     block[i] = r["histories"][name]
@@ -283,15 +330,24 @@ def _create(path: Path, plan, labels: dict) -> None:
     chunk = (min(n, CASE_CHUNK),)
 
     def array(name, dtype, fill, attrs, dims=("case",), shape=None, chunks=None):
-        return g.create_array(name, shape=shape or (n,), chunks=chunks or chunk, dtype=dtype, fill_value=fill,
-                              dimension_names=list(dims), attributes=attrs)
+        return g.create_array(
+            name,
+            shape=shape or (n,),
+            chunks=chunks or chunk,
+            dtype=dtype,
+            fill_value=fill,
+            dimension_names=list(dims),
+            attributes=attrs,
+        )
 
     array("case", "i8", -1, {"long_name": "case number (0-based, in the order of the plan)"})[:] = np.arange(n)
-    array("case_hash", str, "", {"long_name": "SHA-256 (24 hex digits) of the resolved case"})[:] = \
-        np.array(plan.hashes, dtype=str)
+    array("case_hash", str, "", {"long_name": "SHA-256 (24 hex digits) of the resolved case"})[:] = np.array(
+        plan.hashes, dtype=str
+    )
     for j, p in enumerate(plan.parameters):
-        array(p.name, "f8", np.nan, {"units": p.unit, "long_name": ", ".join(p.keys), "key": list(p.keys)})[:] = \
+        array(p.name, "f8", np.nan, {"units": p.unit, "long_name": ", ".join(p.keys), "key": list(p.keys)})[:] = (
             plan.values[:, j]
+        )
     for name, long_name in TEXT_FIELDS.items():
         array(name, str, "", {"long_name": long_name})
     for name, (units, long_name) in TIMING_FIELDS.items():
@@ -300,12 +356,24 @@ def _create(path: Path, plan, labels: dict) -> None:
     array("run_index", "i8", -1, {"long_name": "invocation of the sweep that computed the case (0: the first)"})
     for dim in ("interface", "contact", "direction"):
         if dim in labels:
-            g.create_array(dim, shape=(len(labels[dim]),), dtype=str, fill_value="", dimension_names=[dim],
-                           attributes={"long_name": f"{dim} names"})[:] = np.array(labels[dim], dtype=str)
+            g.create_array(
+                dim,
+                shape=(len(labels[dim]),),
+                dtype=str,
+                fill_value="",
+                dimension_names=[dim],
+                attributes={"long_name": f"{dim} names"},
+            )[:] = np.array(labels[dim], dtype=str)
     points = plan.outputs["history_points"]
     if plan.outputs["histories"]:
-        phase = g.create_array("phase", shape=(points,), dtype="f8", fill_value=np.nan, dimension_names=["phase"],
-                               attributes={"units": "1", "long_name": "phase in the last period (t - t_end + T) / T"})
+        phase = g.create_array(
+            "phase",
+            shape=(points,),
+            dtype="f8",
+            fill_value=np.nan,
+            dimension_names=["phase"],
+            attributes={"units": "1", "long_name": "phase in the last period (t - t_end + T) / T"},
+        )
         phase[:] = np.linspace(0.0, 1.0, points)
     for name in plan.outputs["histories"]:
         dims, units, long_name = SCHEMA[name]
@@ -313,24 +381,45 @@ def _create(path: Path, plan, labels: dict) -> None:
         if dim is not None and dim not in labels:
             continue
         if dim is not None and dim not in g:
-            g.create_array(dim, shape=(len(labels[dim]),), dtype=str, fill_value="", dimension_names=[dim],
-                           attributes={"long_name": f"{dim} names"})[:] = np.array(labels[dim], dtype=str)
+            g.create_array(
+                dim,
+                shape=(len(labels[dim]),),
+                dtype=str,
+                fill_value="",
+                dimension_names=[dim],
+                attributes={"long_name": f"{dim} names"},
+            )[:] = np.array(labels[dim], dtype=str)
         width = (len(labels[dim]),) if dim is not None else ()
         integer = name == "contact_state"
-        g.create_array(f"history_{name}", shape=(n, points) + width, chunks=(min(n, 256), points) + width,
-                       dtype="i1" if integer else "f8", fill_value=-1 if integer else np.nan,
-                       dimension_names=["case", "phase"] + ([dim] if dim else []),
-                       attributes={"units": units, "long_name": f"{long_name}, last period"})
+        g.create_array(
+            f"history_{name}",
+            shape=(n, points) + width,
+            chunks=(min(n, 256), points) + width,
+            dtype="i1" if integer else "f8",
+            fill_value=-1 if integer else np.nan,
+            dimension_names=["case", "phase"] + ([dim] if dim else []),
+            attributes={"units": units, "long_name": f"{long_name}, last period"},
+        )
     if plan.outputs.get("frf"):
         _create_frf(g, plan, labels)
     spec = plan.spec
-    g.attrs.update({
-        "slipstep_sweep": LAYOUT, "slipstep_version": __version__, "title": f"slipstep sweep: {spec.name}",
-        "sweep_name": spec.name, "description": spec.description, "sweep_spec": json.dumps(spec.to_dict()),
-        "spec_source": spec.source, "sampling": spec.sampling, "parameters": [p.name for p in plan.parameters],
-        "grid_shape": list(plan.grid_shape) if plan.grid_shape else None, "case_kind": plan.kind, "n_cases": n,
-        "runs": 0,
-    })
+    g.attrs.update(
+        {
+            "slipstep_sweep": LAYOUT,
+            "slipstep_version": __version__,
+            "title": f"slipstep sweep: {spec.name}",
+            "sweep_name": spec.name,
+            "description": spec.description,
+            "sweep_spec": json.dumps(spec.to_dict()),
+            "spec_source": spec.source,
+            "sampling": spec.sampling,
+            "parameters": [p.name for p in plan.parameters],
+            "grid_shape": list(plan.grid_shape) if plan.grid_shape else None,
+            "case_kind": plan.kind,
+            "n_cases": n,
+            "runs": 0,
+        }
+    )
 
 
 def _create_frf(g, plan, labels: dict) -> None:
@@ -339,18 +428,24 @@ def _create_frf(g, plan, labels: dict) -> None:
     from slipstep.frequency import FRF_SCHEMA
 
     cfg = plan.outputs["frf"]
-    coords = {"frequency": np.array(cfg["frequencies_Hz"], float), "harmonic": np.arange(cfg["harmonics"] + 1),
-              "response": np.array(cfg["responses"] or labels["dof"], dtype=str)}
-    attrs = {"frequency": {"units": "Hz", "long_name": "excitation frequency of the FRF points"},
-             "harmonic": {"long_name": "harmonic number of the response (0: mean)"},
-             "response": {"long_name": "response DOFs of the FRF"}}
+    coords = {
+        "frequency": np.array(cfg["frequencies_Hz"], float),
+        "harmonic": np.arange(cfg["harmonics"] + 1),
+        "response": np.array(cfg["responses"] or labels["dof"], dtype=str),
+    }
+    attrs = {
+        "frequency": {"units": "Hz", "long_name": "excitation frequency of the FRF points"},
+        "harmonic": {"long_name": "harmonic number of the response (0: mean)"},
+        "response": {"long_name": "response DOFs of the FRF"},
+    }
     for dim, values in coords.items():
         if values.dtype.kind == "U":
             dtype, fill = str, ""
         else:
             dtype, fill = values.dtype, (-1 if values.dtype.kind == "i" else np.nan)
-        g.create_array(dim, shape=values.shape, dtype=dtype, fill_value=fill, dimension_names=[dim],
-                       attributes=attrs[dim])[:] = values
+        g.create_array(
+            dim, shape=values.shape, dtype=dtype, fill_value=fill, dimension_names=[dim], attributes=attrs[dim]
+        )[:] = values
     sizes = {**{d: v.size for d, v in coords.items()}, "contact": len(labels["contact"])}
     n = plan.n_cases
     for name, (dims, units, long_name) in FRF_SCHEMA.items():
@@ -358,9 +453,15 @@ def _create_frf(g, plan, labels: dict) -> None:
             continue
         shape = (n,) + tuple(sizes[d] for d in dims)
         text = name == "status"
-        g.create_array(f"frf_{name}", shape=shape, chunks=(min(n, 64),) + shape[1:], dtype=str if text else "f8",
-                       fill_value="" if text else np.nan, dimension_names=["case", *dims],
-                       attributes={"units": units, "long_name": f"FRF: {long_name}"})
+        g.create_array(
+            f"frf_{name}",
+            shape=shape,
+            chunks=(min(n, 64),) + shape[1:],
+            dtype=str if text else "f8",
+            fill_value="" if text else np.nan,
+            dimension_names=["case", *dims],
+            attributes={"units": units, "long_name": f"FRF: {long_name}"},
+        )
 
 
 # -- reading -------------------------------------------------------------------------------------
@@ -373,8 +474,9 @@ def open_sweep(path: str | Path, grid: bool = False):
 
     path = Path(path)
     if not _is_sweep_store(path):
-        raise InputError("store", f"{str(path)!r} is not a slipstep sweep store",
-                         "give the .zarr folder written by `slipstep sweep`")
+        raise InputError(
+            "store", f"{str(path)!r} is not a slipstep sweep store", "give the .zarr folder written by `slipstep sweep`"
+        )
     with xr.open_zarr(str(path), consolidated=False, chunks=None) as ds:
         ds = ds.load()
     for name, var in list(ds.variables.items()):
@@ -391,8 +493,11 @@ def grid_view(ds):
 
     shape = ds.attrs.get("grid_shape")
     if not shape:
-        raise InputError("grid", f"the sweep is {ds.attrs.get('sampling')!r} sampled, not a grid",
-                         "use the case dimension (or plot a scatter)")
+        raise InputError(
+            "grid",
+            f"the sweep is {ds.attrs.get('sampling')!r} sampled, not a grid",
+            "use the case dimension (or plot a scatter)",
+        )
     params = list(ds.attrs["parameters"])
     axes = {}
     for j, name in enumerate(params):
@@ -410,5 +515,4 @@ def grid_view(ds):
         if "case" not in c.dims:
             coords[name] = c
     data_names = [n for n in out if n not in ("case_hash",)]
-    return xr.Dataset({n: out[n] for n in data_names}, coords={**coords, "case_hash": out["case_hash"]},
-                      attrs=ds.attrs)
+    return xr.Dataset({n: out[n] for n in data_names}, coords={**coords, "case_hash": out["case_hash"]}, attrs=ds.attrs)
