@@ -21,14 +21,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the state codes)
-    LAW_CIRCLE,
-    LIFT,
-    P_KN,
-    P_MU,
-    SLIP_COUPLED,
-    SLIP_NEG,
-    SLIP_POS,
-    STICK,
+    LAW_CIRCLE, LIFT, P_KN, P_MU, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK,
 )
 from slipstep.kernels.laws import circle, uncoupled
 
@@ -75,9 +68,8 @@ def _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state):
 def _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new):
     """laws/circle.py linear for the contact whose first direction is d0."""
     r1, r2 = trow[d0], trow[d0 + 1]
-    f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(
-        kt[d0], limit, state[d0], q[r1], q[r2], w_old[d0], w_old[d0 + 1]
-    )
+    f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(kt[d0], limit, state[d0], q[r1], q[r2], w_old[d0],
+                                                           w_old[d0 + 1])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -154,9 +146,7 @@ def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, l
             return False
         limit = lpar[c, P_MU] * lpar[c, P_KN] * v
         if lcode[c] == LAW_CIRCLE:
-            if not _circle_compatible(
-                trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)
-            ):
+            if not _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)):
                 return False
             continue
         for d in range(d0, d0 + ndir[c]):
@@ -194,9 +184,8 @@ def _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old):
     mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
     if q.shape[0] == 0:
         return circle.tangent(kt[d0], mu_kn, 0.0, state[d0], False, 0.0, 0.0, 0.0, 0.0)
-    return circle.tangent(
-        kt[d0], mu_kn, mu_kn * q[nrow[c]], state[d0], True, q[trow[d0]], q[trow[d0 + 1]], w_old[d0], w_old[d0 + 1]
-    )
+    return circle.tangent(kt[d0], mu_kn, mu_kn * q[nrow[c]], state[d0], True, q[trow[d0]], q[trow[d0 + 1]],
+                          w_old[d0], w_old[d0 + 1])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -214,7 +203,8 @@ def contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, q, w_ol
         if lcode[c] == LAW_CIRCLE:
             r1, r2 = trow[d0], trow[d0 + 1]
             k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
-            for k, ra, rb in ((k11, r1, r1), (k12, r1, r2), (k21, r2, r1), (k22, r2, r2), (k1v, r1, nr), (k2v, r2, nr)):
+            for k, ra, rb in ((k11, r1, r1), (k12, r1, r2), (k21, r2, r1), (k22, r2, r2), (k1v, r1, nr),
+                              (k2v, r2, nr)):
                 if k != 0.0:
                     _add_outer(out, factor * k, A, ra, rb)
             continue
@@ -268,98 +258,36 @@ def local_displacement(sys, x, p, q):
 @njit(cache=True, nogil=True, error_model="numpy")
 def contact_law(sys, q, w_old, f, w_new, state):
     """The nonlinear law (see :func:`law`)."""
-    law(
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-        q,
-        w_old,
-        f,
-        w_new,
-        state,
-    )
+    law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
+        q, w_old, f, w_new, state)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def linear_law(sys, state, q, w_old, f, w_new):
     """The piecewise-linear law (see :func:`piecewise_law`)."""
-    piecewise_law(
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-        state,
-        q,
-        w_old,
-        f,
-        w_new,
-    )
+    piecewise_law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row,
+                  sys.kt, state, q, w_old, f, w_new)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def is_compatible(sys, state, q, w_old, rtol):
     """The compatibility check (see :func:`compatible`)."""
-    return compatible(
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-        state,
-        q,
-        w_old,
-        rtol,
-        sys.length_scale,
-    )
+    return compatible(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, state, q, w_old, rtol, sys.length_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def add_contact_stiffness(sys, state, factor, out):
     """out += factor * K_D(S) without a point (coupled slip: the stick tangent), for T_min."""
-    contact_stiffness(
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-        sys.A,
-        state,
-        np.empty(0),
-        np.empty(0),
-        factor,
-        out,
-    )
+    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, sys.A, state, np.empty(0), np.empty(0), factor, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def add_tangent_stiffness(sys, state, q, w_old, factor, out):
     """out += factor * A^T K(S; q, w_old) A: the consistent tangent of state S at (q, w_old)."""
-    contact_stiffness(
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-        sys.A,
-        state,
-        q,
-        w_old,
-        factor,
-        out,
-    )
+    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                      sys.tangential_row, sys.kt, sys.A, state, q, w_old, factor, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -34,22 +34,8 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.codes import (
-    C_FACTORISATIONS,
-    C_FAIL_STEP,
-    C_LAW_CALLS,
-    C_SOLVES,
-    C_STATE_CHANGES,
-    C_STEPS,
-    LIFT,
-    NON_FINITE,
-    OK,
-    P_KN,
-    P_MU,
-    SINGULAR,
-    SLIP_NEG,
-    SLIP_POS,
-    STATE_CYCLING,
-    STICK,
+    C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LIFT, NON_FINITE, OK, P_KN,
+    P_MU, SINGULAR, SLIP_NEG, SLIP_POS, STATE_CYCLING, STICK,
 )
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
@@ -139,37 +125,8 @@ def _first_root_1h(c, om, ta, t_end, tol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _phase(
-    sys,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    state,
-    w,
-    Fb,
-    Pb,
-    om,
-    J,
-    keys,
-    used,
-    lus,
-    pivs,
-    Xc,
-    Qc,
-    key,
-    scr,
-    wtmp,
-    MC,
-    kind,
-    owner,
-    scale,
-    singular_rtol,
-    counters,
-):
+def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J, keys, used, lus, pivs,
+           Xc, Qc, key, scr, wtmp, MC, kind, owner, scale, singular_rtol, counters):
     """The basis responses X_j, Q_j of state S and its margins (rows of MC over the basis,
     their kind, owner and scale). J(S) and the harmonic columns (j >= 1, independent of the
     sliders) are cached per state; the constant column (it holds s(S, w)) is solved every
@@ -339,37 +296,9 @@ def event_march(sys, fpar, ipar, ws, out, q0, f0):
     o_t, o_dt, o_x, o_q, o_f, o_w, o_state, o_solves = out.t, out.dt, out.x, out.q, out.f, out.w, out.state, out.solves
     while t < t_end - tiny:
         k_phase = k
-        ok, nm, solves, slot = _phase(
-            sys,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            state,
-            w,
-            Fb,
-            Pb,
-            om,
-            ws.J,
-            keys,
-            used,
-            lus,
-            pivs,
-            Xc,
-            Qc,
-            ws.key,
-            scr,
-            wtmp,
-            MC,
-            kind,
-            owner,
-            scale,
-            fpar[SINGULAR_RTOL],
-            counters,
-        )
+        ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
+                                      keys, used, lus, pivs, Xc, Qc, ws.key, scr, wtmp, MC, kind, owner, scale,
+                                      fpar[SINGULAR_RTOL], counters)
         X = Xc[slot]
         Q = Qc[slot]
         # forces and sliders are affine in q within the phase: their basis columns F_j, W_j

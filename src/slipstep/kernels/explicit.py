@@ -36,20 +36,8 @@ from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
-    C_FACTORISATIONS,
-    C_FAIL_STEP,
-    C_LAW_CALLS,
-    C_REDOS,
-    C_SOLVES,
-    C_STATE_CHANGES,
-    C_STEPS,
-    CAPACITY,
-    NON_FINITE,
-    OK,
-    SINGULAR,
-    _accept_contacts,
-    _state_step_limit,
-    _store,
+    C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
+    CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
 from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.signals import evaluate_signal
@@ -98,60 +86,15 @@ class ExplicitWorkspace(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _accel(
-    sys,
-    A,
-    AT,
-    B,
-    g,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    Kst,
-    Cd,
-    lu,
-    piv,
-    p,
-    fe,
-    gf,
-    rhs,
-    t,
-    x,
-    v,
-    w_old,
-    f,
-    w_new,
-    state,
-    q,
-    out,
-):
+def _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+           t, x, v, w_old, f, w_new, state, q, out):
     """out = M^-1 (f_e(t) - C v - K x - A^T f(q(x, t), w_old)); also fills q, f, w_new, state.
     (lu, piv: the factorised M, or M + dt/2 C for central difference.)"""
     n = x.shape[0]
-    evaluate_signal(
-        t,
-        sys.motion_frequency,
-        sys.motion_sin,
-        sys.motion_cos,
-        sys.motion_table_time,
-        sys.motion_table_value,
-        sys.motion_ramp,
-        p,
-    )
-    evaluate_signal(
-        t,
-        sys.force_frequency,
-        sys.force_sin,
-        sys.force_cos,
-        sys.force_table_time,
-        sys.force_table_value,
-        sys.force_ramp,
-        fe,
-    )
+    evaluate_signal(t, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                    sys.motion_table_value, sys.motion_ramp, p)
+    evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                    sys.force_table_value, sys.force_ramp, fe)
     gather(A, B, g, x, p, q)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
     scatter(AT, f, gf)
@@ -170,15 +113,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     Returns the status; out.counters[C_STEPS] steps done."""
     # ---- unpack once (the loop touches local arrays only) ----
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
-    nrow, lcode, lpar, fdir, ndir, trow, kt = (
-        sys.normal_row,
-        sys.law,
-        sys.law_par,
-        sys.first_direction,
-        sys.n_directions,
-        sys.tangential_row,
-        sys.kt,
-    )
+    nrow, lcode, lpar, fdir, ndir, trow, kt = (sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
+                                         sys.tangential_row, sys.kt)
     x, v, a, w, state = ws.x, ws.v, ws.a, ws.w, ws.state
     x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
     gf, fe, p, rhs, xs, vs, kx, kv = ws.gf, ws.fe, ws.p, ws.rhs, ws.xs, ws.vs, ws.kx, ws.kv
@@ -210,24 +146,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(
-                Kst,
-                Minv,
-                A,
-                nrow,
-                lcode,
-                lpar,
-                fdir,
-                ndir,
-                trow,
-                kt,
-                state,
-                tkeys,
-                tused,
-                tvalue,
-                fpar[STEP_FACTOR],
-                fpar[DT_MAX],
-            )
+            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+                                   fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt = fpar[DT]
         if t + dt > t_end - tiny:
@@ -257,74 +177,16 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                     for i in range(n):
                         xs[i] = x[i] + c * dt * kx[st - 1, i]
                         vs[i] = v[i] + c * dt * kv[st - 1, i]
-                    _accel(
-                        sys,
-                        A,
-                        AT,
-                        B,
-                        g,
-                        nrow,
-                        lcode,
-                        lpar,
-                        fdir,
-                        ndir,
-                        trow,
-                        kt,
-                        Kst,
-                        Cd,
-                        lu,
-                        piv,
-                        p,
-                        fe,
-                        gf,
-                        rhs,
-                        t + c * dt,
-                        xs,
-                        vs,
-                        w,
-                        fs,
-                        w_s,
-                        ss,
-                        q1,
-                        kv[st],
-                    )
+                    _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                           t + c * dt, xs, vs, w, fs, w_s, ss, q1, kv[st])
                     for i in range(n):
                         kx[st, i] = vs[i]
                 for i in range(n):
                     x1[i] = x[i] + dt / 6.0 * (kx[0, i] + 2.0 * kx[1, i] + 2.0 * kx[2, i] + kx[3, i])
                     v1[i] = v[i] + dt / 6.0 * (kv[0, i] + 2.0 * kv[1, i] + 2.0 * kv[2, i] + kv[3, i])
                 # accepted-step law at q_{n+1}: forces, sliders, states and a_{n+1} (k1 of the next step)
-                _accel(
-                    sys,
-                    A,
-                    AT,
-                    B,
-                    g,
-                    nrow,
-                    lcode,
-                    lpar,
-                    fdir,
-                    ndir,
-                    trow,
-                    kt,
-                    Kst,
-                    Cd,
-                    lu,
-                    piv,
-                    p,
-                    fe,
-                    gf,
-                    rhs,
-                    t + dt,
-                    x1,
-                    v1,
-                    w,
-                    f1,
-                    w1,
-                    state1,
-                    q1,
-                    a1,
-                )
+                _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                       t + dt, x1, v1, w, f1, w1, state1, q1, a1)
                 counters[C_LAW_CALLS] += 4
                 solves += 4
             else:
@@ -332,37 +194,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                 for i in range(n):
                     x1[i] = x[i] + dt * v[i] + h * dt * a[i]
                     vs[i] = v[i] + h * a[i]
-                _accel(
-                    sys,
-                    A,
-                    AT,
-                    B,
-                    g,
-                    nrow,
-                    lcode,
-                    lpar,
-                    fdir,
-                    ndir,
-                    trow,
-                    kt,
-                    Kst,
-                    Cd,
-                    lu,
-                    piv,
-                    p,
-                    fe,
-                    gf,
-                    rhs,
-                    t + dt,
-                    x1,
-                    vs,
-                    w,
-                    f1,
-                    w1,
-                    state1,
-                    q1,
-                    a1,
-                )
+                _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
+                       t + dt, x1, vs, w, f1, w1, state1, q1, a1)
                 for i in range(n):
                     v1[i] = vs[i] + h * a1[i]
                 counters[C_LAW_CALLS] += 1
@@ -377,24 +210,8 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(
-                Kst,
-                Minv,
-                A,
-                nrow,
-                lcode,
-                lpar,
-                fdir,
-                ndir,
-                trow,
-                kt,
-                state1,
-                tkeys,
-                tused,
-                tvalue,
-                fpar[STEP_FACTOR],
-                fpar[DT_MAX],
-            )
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
+                                      tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break
             counters[C_REDOS] += 1

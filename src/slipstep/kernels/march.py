@@ -52,32 +52,11 @@ from numba import njit
 
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
-    C_FACTORISATIONS,
-    C_FAIL_STEP,
-    C_FALLBACKS,
-    C_LAW_CALLS,
-    C_N_VISITED,
-    C_REDOS,
-    C_SOLVES,
-    C_STATE_CHANGES,
-    C_STEPS,
-    CAPACITY,
-    N_COUNTERS,
-    NON_FINITE,
-    NOT_CONVERGED,
-    OK,
-    SINGULAR,
-    STATE_CYCLING,
+    C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
+    CAPACITY, N_COUNTERS, NON_FINITE, NOT_CONVERGED, OK, SINGULAR, STATE_CYCLING,
 )
 from slipstep.kernels.codes import (  # noqa: F401
-    C_PROGRESS,
-    C_STOP,
-    EVENTS,
-    FULL_NEWTON,
-    INTERRUPTED,
-    LAW_CIRCLE,
-    MODIFIED_NEWTON,
-    MODIFIED_NEWTON_STATE,
+    C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, LAW_CIRCLE, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE,
     PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
@@ -155,20 +134,13 @@ class Outputs(NamedTuple):
 def newmark_coefficients(beta, gamma, dt):
     """(a0, a1, a2, a3, b1, b2) of the Newmark relations in the module docstring:
     a_{n+1} = a0 dx - a2 v_n - a3 a_n,  v_{n+1} = a1 dx + b1 v_n + b2 a_n."""
-    return (
-        1.0 / (beta * dt * dt),
-        gamma / (beta * dt),
-        1.0 / (beta * dt),
-        1.0 / (2.0 * beta) - 1.0,
-        1.0 - gamma / beta,
-        dt * (1.0 - gamma / (2.0 * beta)),
-    )
+    return (1.0 / (beta * dt * dt), gamma / (beta * dt), 1.0 / (beta * dt), 1.0 / (2.0 * beta) - 1.0,
+            1.0 - gamma / beta, dt * (1.0 - gamma / (2.0 * beta)))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_residual(
-    A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters
-):
+def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
+                     gf1, r, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
     n = dx.shape[0]
     for rr in range(A.shape[0]):
@@ -251,35 +223,8 @@ def _residual_converged(r, r0, gf1, kfac, conv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _modified_newton(
-    lu0,
-    piv0,
-    Lin,
-    kfac,
-    A,
-    AT,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    r0,
-    qbase,
-    w,
-    dx,
-    delta,
-    r,
-    q1,
-    f1,
-    w1,
-    state1,
-    gf1,
-    max_iter,
-    conv,
-    counters,
-):
+def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
+                     dx, delta, r, q1, f1, w1, state1, gf1, max_iter, conv, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
     factorised full-stick Jacobian (lu0, piv0). Converged when BOTH the increment test of
     :func:`_newton_update` (on the contact coordinates and the DOFs) and the force-residual
@@ -291,30 +236,8 @@ def _modified_newton(
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(
-            A,
-            AT,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            Lin,
-            kfac,
-            r0,
-            qbase,
-            w,
-            dx,
-            q1,
-            f1,
-            w1,
-            state1,
-            gf1,
-            r,
-            counters,
-        )
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                         state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
@@ -327,150 +250,35 @@ def _modified_newton(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _full_newton(
-    lowrank,
-    Lin,
-    J,
-    kfac,
-    A,
-    AT,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    r0,
-    qbase,
-    w,
-    dx,
-    delta,
-    r,
-    q1,
-    f1,
-    w1,
-    state1,
-    gf1,
-    stick,
-    dt_state,
-    key,
-    keys,
-    used,
-    ok_flags,
-    lus,
-    pivs,
-    lr,
-    nominal,
-    max_iter,
-    conv,
-    singular_rtol,
-    counters,
-):
+def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
+                 dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
     cached); the full-stick one where J(S) is singular. The same two-part convergence test
     as :func:`_modified_newton` (increment and force residual, both)."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
-    stick_slot, ok = factorise_state(
-        lowrank,
-        Lin,
-        J,
-        kfac,
-        A,
-        nrow,
-        lcode,
-        lpar,
-        fdir,
-        ndir,
-        trow,
-        kt,
-        stick,
-        qbase,
-        w,
-        dt_state,
-        stick,
-        key,
-        keys,
-        used,
-        ok_flags,
-        lus,
-        pivs,
-        lr,
-        nominal,
-        singular_rtol,
-        counters,
-    )
+    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
+                                     stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if not ok:
         return SINGULAR, 0
     prev_norm = 0.0
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(
-            A,
-            AT,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            Lin,
-            kfac,
-            r0,
-            qbase,
-            w,
-            dx,
-            q1,
-            f1,
-            w1,
-            state1,
-            gf1,
-            r,
-            counters,
-        )
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+                         state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
             break
         use, use_state = stick_slot, stick
-        slot, ok = factorise_state(
-            lowrank,
-            Lin,
-            J,
-            kfac,
-            A,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            state1,
-            q1,
-            w,
-            dt_state,
-            stick,
-            key,
-            keys,
-            used,
-            ok_flags,
-            lus,
-            pivs,
-            lr,
-            nominal,
-            singular_rtol,
-            counters,
-        )
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
+                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             use, use_state = slot, state1
         if lowrank:
-            solve_low_rank(
-                use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta
-            )
+            solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
         else:
             lu_solve(lus[use], pivs[use], r, delta)
         status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
@@ -480,66 +288,15 @@ def _full_newton(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_factorisation(
-    lowrank,
-    Lin,
-    J,
-    kfac,
-    A,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    stick,
-    dt_state,
-    key,
-    keys,
-    used,
-    ok_flags,
-    lus,
-    pivs,
-    lr,
-    nominal,
-    singular_rtol,
-    counters,
-):
+def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
+                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
     state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
     in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
     carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
     nowhere = np.empty(0)  # J(stick) needs no linearisation point
-    slot, ok = factorise_state(
-        lowrank,
-        Lin,
-        J,
-        kfac,
-        A,
-        nrow,
-        lcode,
-        lpar,
-        fdir,
-        ndir,
-        trow,
-        kt,
-        stick,
-        nowhere,
-        nowhere,
-        dt_state,
-        stick,
-        key,
-        keys,
-        used,
-        ok_flags,
-        lus,
-        pivs,
-        lr,
-        nominal,
-        singular_rtol,
-        counters,
-    )
+    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
+                               key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if lowrank:
         b = lr.slot_base[slot]
         return ok, lr.base_lu[b], lr.base_piv[b]
@@ -547,37 +304,8 @@ def _stick_factorisation(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _guarded_newton(
-    lu,
-    piv,
-    Lin,
-    kfac,
-    A,
-    AT,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    r0,
-    qbase,
-    w,
-    dx,
-    delta,
-    r,
-    q1,
-    f1,
-    w1,
-    state1,
-    gf1,
-    max_iter,
-    conv,
-    theta_give_up,
-    from_zero,
-    counters,
-):
+def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
+                    gf1, max_iter, conv, theta_give_up, from_zero, counters):
     """:func:`_modified_newton` (the same convergence tests) with the factorised J(S) of a
     state S (solver 3), given up as soon as it stops contracting (the contraction ratio of
     the increment >= theta_give_up): J(S) softer than the tangent of the state the step
@@ -591,30 +319,7 @@ def _guarded_newton(
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(
-            A,
-            AT,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            Lin,
-            kfac,
-            r0,
-            qbase,
-            w,
-            dx,
-            q1,
-            f1,
-            w1,
-            state1,
-            gf1,
-            r,
-            counters,
-        )
+        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
@@ -629,96 +334,20 @@ def _guarded_newton(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_factorisation(
-    lowrank,
-    Lin,
-    J,
-    kfac,
-    A,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    tstate,
-    stick,
-    dt_state,
-    key,
-    keys,
-    used,
-    ok_flags,
-    lus,
-    pivs,
-    lr,
-    nominal,
-    singular_rtol,
-    counters,
-):
+def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
+                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(S) for the modified Newton of solver 3, S the
     contact state whose T_min set the step (cached per state like the stick one). Falls back
     to J(all stick) where S has no constant tangent (coupled slip), in low-rank mode (whose
     J(S) solve is not one LU) and where J(S) is singular."""
     if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
         nowhere = np.empty(0)
-        slot, ok = factorise_state(
-            lowrank,
-            Lin,
-            J,
-            kfac,
-            A,
-            nrow,
-            lcode,
-            lpar,
-            fdir,
-            ndir,
-            trow,
-            kt,
-            tstate,
-            nowhere,
-            nowhere,
-            dt_state,
-            stick,
-            key,
-            keys,
-            used,
-            ok_flags,
-            lus,
-            pivs,
-            lr,
-            nominal,
-            singular_rtol,
-            counters,
-        )
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
+                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             return ok, lus[slot], pivs[slot]
-    return _stick_factorisation(
-        lowrank,
-        Lin,
-        J,
-        kfac,
-        A,
-        nrow,
-        lcode,
-        lpar,
-        fdir,
-        ndir,
-        trow,
-        kt,
-        stick,
-        dt_state,
-        key,
-        keys,
-        used,
-        ok_flags,
-        lus,
-        pivs,
-        lr,
-        nominal,
-        singular_rtol,
-        counters,
-    )
+    return _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
+                                lus, pivs, lr, nominal, singular_rtol, counters)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -796,9 +425,8 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(
-    Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue, step_factor, dt_max
-):
+def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+                      step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
     T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
     slot, found = find_slot(tkeys, tused, state)
@@ -882,18 +510,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
         out.f[0, rr] = f0[rr]
     t = fpar[T_START]
     t_end = fpar[T_END]
-    o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (
-        out.t,
-        out.dt,
-        out.x,
-        out.v,
-        out.a,
-        out.q,
-        out.f,
-        out.w,
-        out.state,
-        out.solves,
-    )
+    o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (out.t, out.dt, out.x, out.v, out.a, out.q, out.f,
+                                                                  out.w, out.state, out.solves)
     _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, 0, t, 0.0, 0)
     for d in range(nd):
         dt_state[d] = 0
@@ -932,24 +550,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(
-                    Kst,
-                    Minv,
-                    A,
-                    nrow,
-                    lcode,
-                    lpar,
-                    fdir,
-                    ndir,
-                    trow,
-                    kt,
-                    state,
-                    tkeys,
-                    tused,
-                    tvalue,
-                    fpar[STEP_FACTOR],
-                    fpar[DT_MAX],
-                )
+                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
+                                                   tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             dt_nominal = dt_state_limit
         else:
             dt_nominal = fpar[DT]
@@ -980,26 +582,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 conv[CV_FLOOR] = fpar[TOL] * length_scale * kdiag
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
             if signals:
-                evaluate_signal(
-                    t1,
-                    sys.force_frequency,
-                    sys.force_sin,
-                    sys.force_cos,
-                    sys.force_table_time,
-                    sys.force_table_value,
-                    sys.force_ramp,
-                    fe1,
-                )
-                evaluate_signal(
-                    t1,
-                    sys.motion_frequency,
-                    sys.motion_sin,
-                    sys.motion_cos,
-                    sys.motion_table_time,
-                    sys.motion_table_value,
-                    sys.motion_ramp,
-                    p,
-                )
+                evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                                sys.force_table_value, sys.force_ramp, fe1)
+                evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                                sys.motion_table_value, sys.motion_ramp, p)
             else:
                 for i in range(n):
                     fe1[i] = 0.0
@@ -1031,49 +617,11 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     for d in range(nd):
                         visited[it, d] = state1[d]
                     counters[C_N_VISITED] = it + 1
-                    if has_circle and coupled(
-                        nrow, lcode, lpar, fdir, ndir, trow, kt, state1
-                    ):  # no linear form: Newton on the consistent tangent
-                        status, more = _full_newton(
-                            lowrank,
-                            Lin,
-                            J,
-                            kfac,
-                            A,
-                            AT,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            r0,
-                            qbase,
-                            w,
-                            dx,
-                            delta,
-                            r,
-                            q1,
-                            f1,
-                            w1,
-                            state1,
-                            gf1,
-                            stick,
-                            dt_state,
-                            key,
-                            keys,
-                            used,
-                            ok_flags,
-                            lus,
-                            pivs,
-                            lr,
-                            nominal,
-                            max_iter,
-                            conv,
-                            singular_rtol,
-                            counters,
-                        )
+                    if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
+                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                    delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
+                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
+                                                    singular_rtol, counters)
                         solves += more
                         break
                     same = nominal and last_slot >= 0
@@ -1085,35 +633,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if same:
                         slot, ok = last_slot, ok_flags[last_slot]
                     else:
-                        slot, ok = factorise_state(
-                            lowrank,
-                            Lin,
-                            J,
-                            kfac,
-                            A,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            state1,
-                            qbase,
-                            w,
-                            dt_state,
-                            stick,
-                            key,
-                            keys,
-                            used,
-                            ok_flags,
-                            lus,
-                            pivs,
-                            lr,
-                            nominal,
-                            singular_rtol,
-                            counters,
-                        )
+                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                                                   state1, qbase, w, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
+                                                   lr, nominal, singular_rtol, counters)
                         last_slot = slot if nominal else -1
                     if not ok:
                         status = SINGULAR
@@ -1123,9 +645,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
                     if lowrank:
-                        solve_low_rank(
-                            slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac, r, dx
-                        )
+                        solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac,
+                                       r, dx)
                     else:
                         lu_solve(lus[slot], pivs[slot], r, dx)
                     solves += 1
@@ -1151,297 +672,60 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    ok0, lu0, piv0 = _stick_factorisation(
-                        lowrank,
-                        Lin,
-                        J,
-                        kfac,
-                        A,
-                        nrow,
-                        lcode,
-                        lpar,
-                        fdir,
-                        ndir,
-                        trow,
-                        kt,
-                        stick,
-                        dt_state,
-                        key,
-                        keys,
-                        used,
-                        ok_flags,
-                        lus,
-                        pivs,
-                        lr,
-                        nominal,
-                        singular_rtol,
-                        counters,
-                    )
+                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                                                          stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
+                                                          nominal, singular_rtol, counters)
                     more = 0
                     if ok0:
-                        status, more = _modified_newton(
-                            lu0,
-                            piv0,
-                            Lin,
-                            kfac,
-                            A,
-                            AT,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            r0,
-                            qbase,
-                            w,
-                            dx,
-                            delta,
-                            r,
-                            q1,
-                            f1,
-                            w1,
-                            state1,
-                            gf1,
-                            max_iter,
-                            conv,
-                            counters,
-                        )
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
+                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
+                                                        max_iter, conv, counters)
                     solves += more
                     if status != OK:
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
                 if solver == FULL_NEWTON:
-                    status, more = _full_newton(
-                        lowrank,
-                        Lin,
-                        J,
-                        kfac,
-                        A,
-                        AT,
-                        nrow,
-                        lcode,
-                        lpar,
-                        fdir,
-                        ndir,
-                        trow,
-                        kt,
-                        r0,
-                        qbase,
-                        w,
-                        dx,
-                        delta,
-                        r,
-                        q1,
-                        f1,
-                        w1,
-                        state1,
-                        gf1,
-                        stick,
-                        dt_state,
-                        key,
-                        keys,
-                        used,
-                        ok_flags,
-                        lus,
-                        pivs,
-                        lr,
-                        nominal,
-                        max_iter,
-                        conv,
-                        singular_rtol,
-                        counters,
-                    )
+                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
+                                                qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
+                                                keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
+                                                singular_rtol, counters)
                 elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
                     tstate = dt_state if adaptive else state
                     if not (nominal and dt == tan_dt and _same(tstate, tan_state)):
-                        okS, luS, pivS = _state_factorisation(
-                            lowrank,
-                            Lin,
-                            J,
-                            kfac,
-                            A,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            tstate,
-                            stick,
-                            dt_state,
-                            key,
-                            keys,
-                            used,
-                            ok_flags,
-                            lus,
-                            pivs,
-                            lr,
-                            nominal,
-                            singular_rtol,
-                            counters,
-                        )
+                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
+                                                              dt_state, key, keys, used, ok_flags, lus, pivs, lr,
+                                                              nominal, singular_rtol, counters)
                         tan_dt = dt if nominal else np.nan
                         for d in range(nd):
                             tan_state[d] = tstate[d]
                     stick_dt = np.nan
                     status, more = SINGULAR, 0
                     if okS:
-                        status, more = _guarded_newton(
-                            luS,
-                            pivS,
-                            Lin,
-                            kfac,
-                            A,
-                            AT,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            r0,
-                            qbase,
-                            w,
-                            dx,
-                            delta,
-                            r,
-                            q1,
-                            f1,
-                            w1,
-                            state1,
-                            gf1,
-                            max_iter,
-                            conv,
-                            THETA_GIVE_UP,
-                            True,
-                            counters,
-                        )
+                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
+                                                       THETA_GIVE_UP, True, counters)
                     if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
                         counters[C_FALLBACKS] += 1
                         restart = status != NOT_CONVERGED  # else go on from the dx reached
                         solves += more
-                        ok0, lu0, piv0 = _stick_factorisation(
-                            lowrank,
-                            Lin,
-                            J,
-                            kfac,
-                            A,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            stick,
-                            dt_state,
-                            key,
-                            keys,
-                            used,
-                            ok_flags,
-                            lus,
-                            pivs,
-                            lr,
-                            nominal,
-                            singular_rtol,
-                            counters,
-                        )
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
+                                                              key, keys, used, ok_flags, lus, pivs, lr, nominal,
+                                                              singular_rtol, counters)
                         status, more = SINGULAR, 0
                         if ok0:
-                            status, more = _guarded_newton(
-                                lu0,
-                                piv0,
-                                Lin,
-                                kfac,
-                                A,
-                                AT,
-                                nrow,
-                                lcode,
-                                lpar,
-                                fdir,
-                                ndir,
-                                trow,
-                                kt,
-                                r0,
-                                qbase,
-                                w,
-                                dx,
-                                delta,
-                                r,
-                                q1,
-                                f1,
-                                w1,
-                                state1,
-                                gf1,
-                                max_iter,
-                                conv,
-                                np.inf,
-                                restart,
-                                counters,
-                            )
+                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
+                                                           np.inf, restart, counters)
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
-                        ok0, lu0, piv0 = _stick_factorisation(
-                            lowrank,
-                            Lin,
-                            J,
-                            kfac,
-                            A,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            stick,
-                            dt_state,
-                            key,
-                            keys,
-                            used,
-                            ok_flags,
-                            lus,
-                            pivs,
-                            lr,
-                            nominal,
-                            singular_rtol,
-                            counters,
-                        )
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,
+                                                              kt, stick, dt_state, key, keys, used, ok_flags, lus,
+                                                              pivs, lr, nominal, singular_rtol, counters)
                         stick_dt = dt if nominal else np.nan
                     if ok0:
-                        status, more = _modified_newton(
-                            lu0,
-                            piv0,
-                            Lin,
-                            kfac,
-                            A,
-                            AT,
-                            nrow,
-                            lcode,
-                            lpar,
-                            fdir,
-                            ndir,
-                            trow,
-                            kt,
-                            r0,
-                            qbase,
-                            w,
-                            dx,
-                            delta,
-                            r,
-                            q1,
-                            f1,
-                            w1,
-                            state1,
-                            gf1,
-                            max_iter,
-                            conv,
-                            counters,
-                        )
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
+                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
+                                                        max_iter, conv, counters)
                     else:
                         status, more = SINGULAR, 0
                 solves += more
@@ -1457,24 +741,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
             if _same(state1, dt_state):
                 break
-            limit = _state_step_limit(
-                Kst,
-                Minv,
-                A,
-                nrow,
-                lcode,
-                lpar,
-                fdir,
-                ndir,
-                trow,
-                kt,
-                state1,
-                tkeys,
-                tused,
-                tvalue,
-                fpar[STEP_FACTOR],
-                fpar[DT_MAX],
-            )
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
+                                      tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break
             counters[C_REDOS] += 1

@@ -66,9 +66,8 @@ def _gather_rows(ptr, col, val, X, out, add):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def period_sensitivity(
-    M, Cd, Kst, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia, dts, states, n_steps, Z
-):
+def period_sensitivity(M, Cd, Kst, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia,
+                       dts, states, n_steps, Z):
     """Propagate Z (rows x | v | a | w: 3 n + nd, columns: the unknowns) through steps
     1..n_steps with step sizes dts[k] and accepted states states[k] (in place)."""
     kn = lpar[:, P_KN]
@@ -106,15 +105,15 @@ def period_sensitivity(
             if dt != prev_dt:
                 G[:, 0:n] = -Kst
                 if inertia:
-                    G[:, n : 2 * n] = a2 * M - b1 * Cd
-                    G[:, 2 * n : 3 * n] = a3 * M - b2 * Cd
+                    G[:, n:2 * n] = a2 * M - b1 * Cd
+                    G[:, 2 * n:3 * n] = a3 * M - b2 * Cd
             contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, np.empty(0), np.empty(0), 1.0, J)
             Jinv = np.ascontiguousarray(np.linalg.inv(J))
             prev_dt = dt
             for d in range(nd):
                 prev_state[d] = S[d]
-        dX = Z[ix : ix + n]
-        dW = Z[iw : iw + nd]
+        dX = Z[ix:ix + n]
+        dW = Z[iw:iw + nd]
         _gather_rows(ptr, col, val, dX, dqb, False)
         dfb[:, :] = 0.0
         for c in range(kn.shape[0]):
@@ -133,7 +132,7 @@ def period_sensitivity(
                         dfb[tr, j] = mu[c] * kn[c] * dqb[nr, j]
                     else:
                         dfb[tr, j] = -mu[c] * kn[c] * dqb[nr, j]
-        dr = G @ Z[0 : 3 * n] if inertia else G @ dX
+        dr = G @ Z[0:3 * n] if inertia else G @ dX
         for r in range(nq):  # dr -= A^T dfb
             for kk in range(ptr[r], ptr[r + 1]):
                 c_, v_ = col[kk], val[kk]
@@ -150,7 +149,7 @@ def period_sensitivity(
                         vi, ai = Z[iv + i, j], Z[ia + i, j]
                         Z[ia + i, j] = a0 * ddx[i, j] - a2 * vi - a3 * ai
                         Z[iv + i, j] = c1 * ddx[i, j] + b1 * vi + b2 * ai
-        Z[ix : ix + n] += ddx
+        Z[ix:ix + n] += ddx
         if nq == 0:
             continue
         dq1[:, :] = dqb

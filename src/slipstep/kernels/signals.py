@@ -1,7 +1,7 @@
 """Compiled evaluation of a signal (see slipstep.model.excitation):
 
-y_c(t) = ramp(t) * [ sum_h (S_ch sin(2 pi f_h t) + C_ch cos(2 pi f_h t)) + interp(t; t_k, Y_ck) ]   (no table: nt = 0)
-ramp(t) = (1 - cos(pi t / t_r)) / 2 for 0 <= t < t_r, else 1
+    y_c(t) = ramp(t) * [ sum_h (S_ch sin(2 pi f_h t) + C_ch cos(2 pi f_h t)) + interp(t; t_k, Y_ck) ]   (no table: nt = 0)
+    ramp(t) = (1 - cos(pi t / t_r)) / 2 for 0 <= t < t_r, else 1
 """
 
 import numpy as np
@@ -42,30 +42,14 @@ def evaluate_signal(t, freq, sin_c, cos_c, tab_t, tab_v, ramp_time, out):
 @njit(cache=True, nogil=True, error_model="numpy")
 def motion_at(sys, t, out):
     """Prescribed motion p(t)."""
-    evaluate_signal(
-        t,
-        sys.motion_frequency,
-        sys.motion_sin,
-        sys.motion_cos,
-        sys.motion_table_time,
-        sys.motion_table_value,
-        sys.motion_ramp,
-        out,
-    )
+    evaluate_signal(t, sys.motion_frequency, sys.motion_sin, sys.motion_cos,
+                    sys.motion_table_time, sys.motion_table_value, sys.motion_ramp, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def force_at(sys, t, load_factor, out):
     """External force f_e(t) = load_factor * f_const + f_var(t)."""
-    evaluate_signal(
-        t,
-        sys.force_frequency,
-        sys.force_sin,
-        sys.force_cos,
-        sys.force_table_time,
-        sys.force_table_value,
-        sys.force_ramp,
-        out,
-    )
+    evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos,
+                    sys.force_table_time, sys.force_table_value, sys.force_ramp, out)
     for i in range(out.shape[0]):
         out[i] += load_factor * sys.constant_force[i]

@@ -47,35 +47,8 @@ class LowRank(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(
-    lowrank,
-    Lin,
-    J,
-    kfac,
-    A,
-    nrow,
-    lcode,
-    lpar,
-    fdir,
-    ndir,
-    trow,
-    kt,
-    kd_state,
-    q,
-    w_old,
-    dt_state,
-    stick,
-    key,
-    keys,
-    used,
-    ok_flags,
-    lus,
-    pivs,
-    lr,
-    nominal,
-    singular_rtol,
-    counters,
-):
+def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
+                    keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
     key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
     slot cap, a state without a piecewise-linear form (coupled slip: its tangent is taken at
