@@ -122,6 +122,18 @@ class CaseSpec(_Strict):
     _data: dict = PrivateAttr(default_factory=dict)  # the TOML data, for messages naming its keys
 
 
+def damper_contact(c: "DamperContactSpec") -> DamperContact:
+    """A ``[[damper.contacts]]`` entry in SI: position mm -> m, stiffnesses N/um -> N/m."""
+    return DamperContact(
+        c.name,
+        c.platform,
+        tuple(np.asarray(c.position_mm) * MM),
+        c.normal_stiffness_N_per_um * N_PER_UM,
+        c.tangential_stiffness_N_per_um * N_PER_UM,
+        c.friction_coefficient,
+    )
+
+
 def _loc(err) -> str:
     """A pydantic error location as a dotted path (slipstep.config_assembly names its fields so)."""
     return ".".join(str(p) for p in err["loc"]) or "case"
@@ -261,17 +273,7 @@ def _build_system(spec: CaseSpec) -> System:
             mass=d.mass_kg,
             inertia=d.inertia_kg_m2,
             platforms=[Platform(p.name, math.radians(p.angle_deg)) for p in d.platforms],
-            contacts=[
-                DamperContact(
-                    c.name,
-                    c.platform,
-                    tuple(np.asarray(c.position_mm) * MM),
-                    c.normal_stiffness_N_per_um * N_PER_UM,
-                    c.tangential_stiffness_N_per_um * N_PER_UM,
-                    c.friction_coefficient,
-                )
-                for c in d.contacts
-            ],
+            contacts=[damper_contact(c) for c in d.contacts],
             centrifugal_force=d.centrifugal_force_N,
             motion=motion,
             centrifugal_angle=math.radians(d.centrifugal_angle_deg),

@@ -21,12 +21,12 @@ from pydantic import ValidationError
 
 from slipstep.config import (
     MM,
-    N_PER_UM,
     DamperContactSpec,
     HarmonicSpec,
     RunSpec,
     _loc,
     _Strict,
+    damper_contact,
 )
 from slipstep.errors import InputError
 from slipstep.model.assembly import (
@@ -37,7 +37,6 @@ from slipstep.model.assembly import (
     assemble,
     engine_order_forces,
 )
-from slipstep.model.damper import DamperContact
 from slipstep.model.substructure import (
     Point,
     Substructure,
@@ -448,16 +447,7 @@ def _damper(d: DamperLinkSpec, name: str, chain_pair: tuple[str, str] | None) ->
                 f"has {len(c.position_mm)} values",
                 "give [a, b] in mm",
             )
-        contacts.append(
-            DamperContact(
-                c.name,
-                c.platform,
-                tuple(np.asarray(c.position_mm) * MM),
-                c.normal_stiffness_N_per_um * N_PER_UM,
-                c.tangential_stiffness_N_per_um * N_PER_UM,
-                c.friction_coefficient,
-            )
-        )
+        contacts.append(damper_contact(c))
     return DamperLink(
         name,
         d.mass_kg,
