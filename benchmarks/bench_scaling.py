@@ -5,7 +5,14 @@ load by interference) spread evenly over the DOFs:
 
 * ``chain``: a fixed-free chain of N masses (tridiagonal K), the contacts grounding masses;
 * ``grid``: a 2D FE-like square grid of masses, springs to the 4 neighbours, clamped on one
-  edge (banded K, bandwidth sqrt(N)), the contacts on the free edge and the interior.
+  edge (banded K, bandwidth sqrt(N)), the contacts on the free edge and the interior;
+* ``strip``: a narrow 2D strip of ``--width`` rows (default 4) of N / width masses, springs
+  to the 4 neighbours, clamped at one end (bandwidth about ``width`` after the RCM order).
+
+The structures are built as scipy.sparse matrices (``--dense`` builds dense ones, the
+pre-issue-10 input); ``--backend`` chooses the linear solver (auto, direct, low-rank,
+banded: RunOptions.linear_solver). ``--contact-kind`` jenkins (constant normal load) or 2d
+(the paper's 2D law, variable normal load: the normal row on the neighbouring DOF).
 
 For each (N, contact points) the script prints: the set-up time (System build +
 Simulation set-up, which includes T_min and the preload), the kernel time of one excitation
@@ -15,9 +22,10 @@ the slope of log(time per step) against log N at fixed contacts, and against log
 points) at fixed N. A case whose set-up or period takes longer than ``--budget`` seconds is
 skipped for the larger sizes of that method (printed as '>budget').
 
-Usage:  python benchmarks/bench_scaling.py [--family chain|grid] [--sizes 100,200,400]
+Usage:  python benchmarks/bench_scaling.py [--family chain|grid|strip] [--sizes 100,200,400]
             [--contacts 20] [--contact-sizes 10,20,40] [--contact-n 200] [--methods 1,3,2+3,4]
-            [--budget 60] [--json FILE]
+            [--backend auto|direct|low-rank|banded] [--contact-kind jenkins|2d] [--dense]
+            [--width 4] [--periods 1] [--budget 60] [--json FILE]
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ import time
 import tracemalloc
 
 import numpy as np
+import scipy.sparse as sp
 
 import slipstep
 
@@ -37,48 +46,70 @@ FREQUENCY_HZ = 40.0
 MASS_KG, SPRING_N_PER_M = 0.02, 4e5
 
 
+OPTIONS = {"backend": "auto", "kind": "jenkins", "dense": False, "width": 4}
+
+
+def _springs(n: int, pairs, grounded) -> sp.csr_matrix:
+    """K of unit springs SPRING_N_PER_M between DOF pairs and from ``grounded`` DOFs to ground."""
+    a, b = np.asarray(pairs).T if len(pairs) else (np.zeros(0, int), np.zeros(0, int))
+    rows = np.concatenate([a, b, a, b, grounded])
+    cols = np.concatenate([a, b, b, a, grounded])
+    vals = np.concatenate([np.ones(2 * a.size), -np.ones(2 * a.size), np.ones(len(grounded))])
+    return sp.csr_matrix((SPRING_N_PER_M * vals, (rows, cols)), shape=(n, n))
+
+
 def chain(n: int, n_contacts: int) -> slipstep.System:
     """Fixed-free chain: K = k tridiag(-1, 2, -1) with the last diagonal entry k (free end)."""
-    K = SPRING_N_PER_M * (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1))
-    K[-1, -1] = SPRING_N_PER_M
-    return _with_contacts(K, np.arange(n), n_contacts, tip=n - 1, name=f"chain-{n}-{n_contacts}")
+    K = _springs(n, [(i, i + 1) for i in range(n - 1)], [0])
+    return _with_contacts(K, np.arange(n - 1), n_contacts, tip=n - 1, name=f"chain-{n}-{n_contacts}")
 
 
 def grid(n: int, n_contacts: int) -> slipstep.System:
     """Square grid side s = round(sqrt(n)) of masses with springs to the 4 neighbours, the
     column j = 0 clamped (springs to ground)."""
     s = max(2, round(math.sqrt(n)))
-    n = s * s
-    K = np.zeros((n, n))
-    idx = np.arange(n).reshape(s, s)
-    for i in range(s):
-        for j in range(s):
-            a = idx[i, j]
-            for di, dj in ((0, 1), (1, 0)):
-                if i + di < s and j + dj < s:
-                    b = idx[i + di, j + dj]
-                    K[a, a] += SPRING_N_PER_M
-                    K[b, b] += SPRING_N_PER_M
-                    K[a, b] -= SPRING_N_PER_M
-                    K[b, a] -= SPRING_N_PER_M
-            if j == 0:
-                K[a, a] += SPRING_N_PER_M
-    return _with_contacts(K, idx[:, 1:].ravel(), n_contacts, tip=int(idx[s // 2, s - 1]), name=f"grid-{n}-{n_contacts}")
+    return _plate(s, s, n_contacts, name="grid")
 
 
-def _with_contacts(K: np.ndarray, candidates: np.ndarray, n_contacts: int, tip: int, name: str) -> slipstep.System:
+def strip(n: int, n_contacts: int) -> slipstep.System:
+    """A strip of ``OPTIONS['width']`` rows and n / width columns, clamped at column 0."""
+    rows = OPTIONS["width"]
+    return _plate(rows, max(2, round(n / rows)), n_contacts, name="strip")
+
+
+def _plate(rows: int, cols: int, n_contacts: int, name: str) -> slipstep.System:
+    n = rows * cols
+    idx = np.arange(n).reshape(rows, cols)
+    pairs = [(idx[i, j], idx[i, j + 1]) for i in range(rows) for j in range(cols - 1)]
+    pairs += [(idx[i, j], idx[i + 1, j]) for i in range(rows - 1) for j in range(cols)]
+    K = _springs(n, pairs, idx[:, 0])
+    return _with_contacts(
+        K, idx[:, 1:-1].ravel(), n_contacts, tip=int(idx[rows // 2, cols - 1]), name=f"{name}-{n}-{n_contacts}"
+    )
+
+
+def _with_contacts(K, candidates: np.ndarray, n_contacts: int, tip: int, name: str) -> slipstep.System:
     n = K.shape[0]
-    M = np.diag(np.full(n, MASS_KG))
+    M = sp.identity(n, format="csr") * MASS_KG
     where = candidates[np.linspace(0, candidates.size - 1, n_contacts).round().astype(int)]
     contacts = []
     for i, dof in enumerate(where):
-        A = np.zeros((2, n))
-        A[0, dof] = 1.0
+        if OPTIONS["kind"] == "2d":  # u on the DOF, the normal approach on its neighbour (variable load)
+            A = sp.csr_matrix(([1.0, 0.5], ([0, 1], [dof, dof + 1])), shape=(2, n))
+        else:
+            A = sp.csr_matrix(([1.0], ([0], [dof])), shape=(2, n))
         contacts.append(slipstep.ContactElement(f"J{i}", A, 5e5, 5e5, 0.3, normal_offset=2e-5 * (1 + i % 5)))
     amplitude = np.zeros(n)
     amplitude[tip] = 20.0
     force = slipstep.Signal(tuple(f"x{i}" for i in range(n)), (slipstep.Harmonic(FREQUENCY_HZ, amplitude),))
-    structure = slipstep.Structure(M, 2e-5 * K + 2.0 * M, K)
+    C = 2e-5 * K + 2.0 * M
+    if OPTIONS["dense"]:
+        M, C, K = M.toarray(), C.toarray(), K.toarray()
+        contacts = [
+            slipstep.ContactElement(c.name, c.dense_gather(), 5e5, 5e5, 0.3, normal_offset=c.normal_offset)
+            for c in contacts
+        ]
+    structure = slipstep.Structure(M, C, K)
     return slipstep.System(structure, tuple(contacts), slipstep.Excitation(force=force), name=name)
 
 
@@ -87,7 +118,7 @@ def measure(build, n: int, n_contacts: int, method: str) -> dict:
     tracemalloc.start()
     start = time.perf_counter()
     system = build(n, n_contacts)
-    sim = slipstep.Simulation(system, method, periods=1)
+    sim = slipstep.Simulation(system, method, periods=OPTIONS["periods"], linear_solver=OPTIONS["backend"])
     setup = time.perf_counter() - start
     sim.march()  # first march: the compiled kernel is loaded (and warm caches)
     kernel = sim.kernel_time
@@ -106,6 +137,8 @@ def measure(build, n: int, n_contacts: int, method: str) -> dict:
         "per_step_us": kernel / max(steps, 1) * 1e6,
         "peak_MB": peak / 1e6,
         "status": sim.status.name,
+        "linear_solver": sim.method_attrs()["linear_solver"],
+        "bandwidth": sim.method_attrs()["bandwidth"],
     }
 
 
@@ -130,7 +163,7 @@ def sweep(build, pairs, methods, budget) -> list[dict]:
             print(
                 f"  N={row['n']:6d} contacts={nc:4d} Method {label:3s}: set-up {row['setup_s']:8.3f} s, period "
                 f"{row['period_s']:8.4f} s, {row['steps']:6d} steps, {row['per_step_us']:9.1f} us/step, "
-                f"peak {row['peak_MB']:8.1f} MB, {row['status']}",
+                f"peak {row['peak_MB']:8.1f} MB, {row['status']}, {row['linear_solver']} (b = {row['bandwidth']})",
                 flush=True,
             )
             if row["setup_s"] + row["period_s"] > budget:
@@ -140,7 +173,12 @@ def sweep(build, pairs, methods, budget) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--family", choices=("chain", "grid"), default="chain")
+    ap.add_argument("--family", choices=("chain", "grid", "strip"), default="chain")
+    ap.add_argument("--backend", choices=("auto", "direct", "low-rank", "banded"), default="auto")
+    ap.add_argument("--contact-kind", choices=("jenkins", "2d"), default="jenkins")
+    ap.add_argument("--dense", action="store_true", help="dense input matrices (the pre-issue-10 input)")
+    ap.add_argument("--width", type=int, default=4, help="rows of the strip family")
+    ap.add_argument("--periods", type=float, default=1.0)
     ap.add_argument("--sizes", default="100,200,400")
     ap.add_argument("--contacts", type=int, default=20, help="contact points for the N sweep")
     ap.add_argument("--contact-sizes", default="10,20,40")
@@ -149,7 +187,10 @@ def main() -> None:
     ap.add_argument("--budget", type=float, default=60.0)
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    build = chain if args.family == "chain" else grid
+    OPTIONS.update(
+        backend=args.backend, kind=args.contact_kind, dense=args.dense, width=args.width, periods=args.periods
+    )
+    build = {"chain": chain, "grid": grid, "strip": strip}[args.family]
     methods = args.methods.split(",")
     sizes = [int(s) for s in args.sizes.split(",")]
     contact_sizes = [int(s) for s in args.contact_sizes.split(",")]

@@ -300,7 +300,7 @@ def advise(
 
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
-    cs = system.compile()
+    cs = system.compile_dense("the advice")
     names = system.direction_names()
     nd = cs.kt.shape[0]
     notes: list[str] = []

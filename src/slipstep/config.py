@@ -67,15 +67,23 @@ class DamperSpec(_Strict):
 class StructureSpec(_Strict):
     dof_names: Optional[list[str]] = None
     dof_units: Optional[list[str]] = None
-    mass_kg: list[list[float]]
+    mass_kg: Optional[list[list[float]]] = None
     damping_N_s_per_m: Optional[list[list[float]]] = None
     stiffness_N_per_m: Optional[list[list[float]]] = None
+    # the matrices from files (issue 10), paths relative to the case file: .npz (scipy.sparse.save_npz),
+    # .mtx (Matrix Market) or .npy (dense); instead of the inline matrix of the same name
+    mass_file_kg: Optional[str] = None
+    damping_file_N_s_per_m: Optional[str] = None
+    stiffness_file_N_per_m: Optional[str] = None
     constant_force_N: Optional[list[float]] = None
 
 
 class ContactSpec(_Strict):
     name: str
-    dof_gather: list[list[float]]
+    dof_gather: Optional[list[list[float]]] = None
+    # the sparse form of dof_gather (issue 10): [row, DOF index, value] triples, dof_gather_rows rows
+    dof_gather_entries: Optional[list[list[float]]] = None
+    dof_gather_rows: int = 2
     motion_gather: Optional[list[list[float]]] = None
     normal_stiffness_N_per_m: float
     tangential_stiffness_N_per_m: float | list[float]
@@ -120,6 +128,7 @@ class CaseSpec(_Strict):
     period_s: Optional[float] = None
     run: RunSpec = RunSpec()
     _data: dict = PrivateAttr(default_factory=dict)  # the TOML data, for messages naming its keys
+    _base: str = PrivateAttr(default=".")  # the case file's directory (matrix files are relative to it)
 
 
 def damper_contact(c: "DamperContactSpec") -> DamperContact:
@@ -280,10 +289,12 @@ def _build_system(spec: CaseSpec) -> System:
             name=spec.name,
         )
     s = spec.structure
+    base = Path(getattr(spec, "_base", "."))
+    mass = _structure_matrix(s, "mass_kg", "mass_file_kg", base, required=True)
     structure = Structure(
-        np.asarray(s.mass_kg),
-        None if s.damping_N_s_per_m is None else np.asarray(s.damping_N_s_per_m),
-        None if s.stiffness_N_per_m is None else np.asarray(s.stiffness_N_per_m),
+        mass,
+        _structure_matrix(s, "damping_N_s_per_m", "damping_file_N_s_per_m", base),
+        _structure_matrix(s, "stiffness_N_per_m", "stiffness_file_N_per_m", base),
         tuple(s.dof_names or ()),
         tuple(s.dof_units or ()),
     )
@@ -291,7 +302,7 @@ def _build_system(spec: CaseSpec) -> System:
     contacts = tuple(
         ContactElement(
             name=c.name,
-            dof_gather=np.asarray(c.dof_gather),
+            dof_gather=_contact_gather(c, i, structure.n_dofs),
             motion_gather=None if c.motion_gather is None else np.asarray(c.motion_gather),
             tangential_stiffness=c.tangential_stiffness_N_per_m,
             normal_stiffness=c.normal_stiffness_N_per_m,
@@ -299,12 +310,112 @@ def _build_system(spec: CaseSpec) -> System:
             normal_offset=c.normal_offset_m,
             law=c.law,
         )
-        for c in spec.contacts or ()
+        for i, c in enumerate(spec.contacts or ())
     )
     motion = _signal(spec.motion, spec.motion_table, motion_names, 1.0, "motion", ramp)
+    for table in ("force", "force_table"):  # components of a matrix file's DOFs (not known to config_check)
+        for i, item in enumerate(getattr(spec, table)):
+            if item.component not in structure.dof_names:
+                raise InputError(
+                    f"[[{table}]] {i + 1}: component",
+                    f"{item.component!r} is not a DOF of the structure ({structure.n_dofs} DOFs)",
+                    f"use a DOF name: {', '.join(structure.dof_names[:3])}, ... (structure.dof_names, default x0, x1, ...)",
+                )
     force = _signal(spec.force, spec.force_table, structure.dof_names, 1.0, "force", ramp)
     exc = Excitation(constant_force=s.constant_force_N, force=force, motion=motion, period=spec.period_s)
     return System(structure, contacts, exc, motion_names=motion_names, name=spec.name)
+
+
+MATRIX_FILE_TYPES = (".npz", ".mtx", ".npy")
+
+
+def _structure_matrix(s: StructureSpec, inline: str, file_key: str, base: Path, required: bool = False):
+    """A structure matrix from its inline key or its file key (exactly one; the mass required)."""
+    value, path = getattr(s, inline), getattr(s, file_key)
+    if value is not None and path is not None:
+        raise InputError(
+            f"[structure] {file_key}", f"and {inline} are both given", f"give the matrix once: {inline} or {file_key}"
+        )
+    if path is not None:
+        return read_matrix_file(f"[structure] {file_key}", base / path)
+    if value is None:
+        if required:
+            raise InputError(
+                "[structure] mass_kg",
+                "is missing",
+                "give mass_kg (a list of rows) or mass_file_kg (an .npz, .mtx or .npy file)",
+            )
+        return None
+    return np.asarray(value)
+
+
+def read_matrix_file(key: str, path: Path):
+    """A matrix file: .npz of scipy.sparse.save_npz (kept sparse), .mtx Matrix Market (sparse
+    when stored as coordinates), .npy a dense array. Errors name ``key`` and the fix."""
+    import scipy.io
+    import scipy.sparse as sp
+
+    suffix = path.suffix.lower()
+    if suffix not in MATRIX_FILE_TYPES:
+        raise InputError(
+            key,
+            f"is {str(path)!r}, not a matrix file type slipstep reads",
+            "give an .npz (scipy.sparse.save_npz), .mtx (scipy.io.mmwrite) or .npy (numpy.save) file",
+        )
+    if not path.is_file():
+        raise InputError(key, f"file {str(path)!r} not found", "give a path relative to the case file")
+    try:
+        if suffix == ".npz":
+            return sp.load_npz(path).tocsr()
+        if suffix == ".mtx":
+            A = scipy.io.mmread(str(path))
+            return sp.csr_matrix(A) if sp.issparse(A) else np.asarray(A, dtype=np.float64)
+        A = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, KeyError) as exc:
+        writer = {".npz": "scipy.sparse.save_npz", ".mtx": "scipy.io.mmwrite", ".npy": "numpy.save"}[suffix]
+        raise InputError(
+            key,
+            f"{str(path)!r} cannot be read as {suffix} ({' '.join(str(exc).split())[:100]})",
+            f"write it with {writer}",
+        ) from None
+    if A.ndim != 2:
+        raise InputError(key, f"{str(path)!r} holds a {A.ndim}-d array", "save a square 2-d matrix")
+    return A
+
+
+def _contact_gather(c: "ContactSpec", i: int, n: int):
+    """A contact's gather map A: dof_gather (rows of n numbers) or dof_gather_entries
+    ([row, DOF index, value] triples of a sparse A with dof_gather_rows rows)."""
+    import scipy.sparse as sp
+
+    where = f"[[contacts]] {i + 1} ({c.name})"
+    if (c.dof_gather is None) == (c.dof_gather_entries is None):
+        raise InputError(
+            f"{where}: dof_gather",
+            "and dof_gather_entries are both given" if c.dof_gather is not None else "is missing",
+            "give dof_gather (rows of one number per DOF) or dof_gather_entries ([row, DOF index, value] triples)",
+        )
+    if c.dof_gather is not None:
+        return np.asarray(c.dof_gather)
+    key = f"{where}: dof_gather_entries"
+    rows = c.dof_gather_rows
+    entries = c.dof_gather_entries
+    if any(len(e) != 3 for e in entries):
+        raise InputError(
+            key, "has an entry that is not [row, DOF index, value]", "give triples [row, DOF index, value]"
+        )
+    r = np.array([e[0] for e in entries], dtype=float)
+    j = np.array([e[1] for e in entries], dtype=float)
+    for name, idx, bound in (("row", r, rows), ("DOF index", j, n)):
+        bad = (idx != np.round(idx)) | (idx < 0) | (idx >= bound)
+        if bad.any():
+            raise InputError(
+                key,
+                f"has {name} {idx[bad][0]:g}, not a whole number in 0..{bound - 1}",
+                f"give {name}s from 0 to {bound - 1}" + (" (or set dof_gather_rows)" if name == "row" else ""),
+            )
+    vals = np.array([e[2] for e in entries], dtype=float)
+    return sp.csr_matrix((vals, (r.astype(int), j.astype(int))), shape=(rows, n))
 
 
 def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
@@ -320,6 +431,7 @@ def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
 
         return load_assembly_case(data, path)
     spec = parse_case(data, source=str(path))
+    spec._base = str(Path(path).parent)
     return build_system(spec), spec.run
 
 

@@ -348,7 +348,7 @@ def _check_damper(c: _Checker, data: dict) -> None:
 def _check_structure(c: _Checker, data: dict) -> None:
     s = data.get("structure", {})
     n = c.matrix(("structure", "mass_kg"), None, None, "a square n x n mass matrix")
-    if n is None:
+    if n is None:  # the matrices come from files (mass_file_kg): checked when read (slipstep.config)
         return
     c.matrix(("structure", "mass_kg"), n, n, f"a square {n} x {n} matrix (one row per DOF)")
     for key in ("mass_kg", "damping_N_s_per_m", "stiffness_N_per_m"):
@@ -392,12 +392,14 @@ def _check_structure(c: _Checker, data: dict) -> None:
         c.number(("contacts", i, "normal_offset_m"))
 
 
-def _components(data: dict, kind: str, table: str) -> list[str]:
+def _components(data: dict, kind: str, table: str) -> list[str] | None:
     if kind == "damper":
         return [f"{p['name']}.{ax}" for p in data["damper"].get("platforms", []) for ax in ("x", "y")]
     if table.startswith("force"):
         s = data.get("structure", {})
         names = s.get("dof_names")
+        if not names and "mass_kg" not in s and "mass_file_kg" in s:
+            return None  # the DOFs of a matrix file: checked when it is read (slipstep.config)
         n = len(s.get("mass_kg") or [])
         return list(names) if names else [f"x{i}" for i in range(n)]
     return list(data.get("motion_names") or [])
@@ -417,7 +419,7 @@ def _check_excitation(c: _Checker, data: dict, kind: str) -> None:
         for i, item in enumerate(items):
             comp = item.get("component")
             check_name(c.path(table, i, "component"), comp)
-            if comp not in components:
+            if components is not None and comp not in components:
                 if not components and table.startswith("motion"):
                     raise InputError(
                         c.path(table, i, "component"),

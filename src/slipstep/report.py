@@ -135,7 +135,7 @@ def write_report(
             [label, count_state_changes(states), 100 * full_slip_share(lp, states), periodicity(ds).text()]
         )
     advice = advise(system, rotor_speed_rpm, radius_m, displacement_amplitude_m)
-    cs = system.compile()
+    cs = system.compile_dense("the report")
     f0 = np.asarray(cs.constant_force, float)
     dof_names = list(system.structure.dof_names) or [f"dof {i}" for i in range(system.n_dofs)]
     load_rows = [

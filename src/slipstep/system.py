@@ -6,6 +6,19 @@ state), and the signals of :mod:`slipstep.model.excitation` in compiled form.
 
 Legend: n DOFs, m motion components, nq local coordinates (all contacts stacked),
 nc contacts, nd tangential directions (= sliders = state entries).
+
+Two backends (``CompiledSystem.banded``):
+
+* dense: M, C, K (n, n) and A (nq, n) as dense arrays, DOFs in the user's order;
+* banded (issue 10; sparse structures of at least BANDED_MIN_N DOFs, or on request): the DOFs
+  reordered by reverse Cuthill-McKee of the pattern of M + C + K + sum_c A_c^T A_c (each
+  contact's rows together, so that the normal-tangential cross terms of a slip tangent stay
+  in the band), M, C, K in band storage (kernels/banded.py; kl = ku = the bandwidth) and
+  A as CSR; the dense fields are empty placeholders of shape (n, 0) / (nq, 0) (their first
+  axis still gives n and nq). Kernel arrays are in the kernel order ``dof_order``
+  (kernel DOF k is the user's DOF dof_order[k]); :func:`kernel_dofs` maps user DOF indices
+  to kernel ones, :func:`to_user_order` undoes the order of DOF-indexed results (the one place
+  results are put back: methods.simulation.Runner.dataset).
 """
 
 from __future__ import annotations
@@ -14,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from slipstep.errors import InputError
 from slipstep.kernels.codes import N_LAW_PAR, P_KN, P_MU
@@ -21,6 +35,9 @@ from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, compile_signal
 from slipstep.model.structure import Structure
 from slipstep.model.validate import check_name, float_array
+
+#: sparse structures of at least this many DOFs compile to the banded backend ("auto")
+BANDED_MIN_N = 300
 
 
 class CompiledSystem(NamedTuple):
@@ -55,6 +72,19 @@ class CompiledSystem(NamedTuple):
     length_scale: float  # m, for tolerances
     law: np.ndarray  # (nc,) int64 contact-law code (kernels/codes.py LAW_*, names in model.contact.CONTACT_LAWS)
     law_par: np.ndarray  # (nc, N_LAW_PAR) the law parameter table: P_KN k_n [N/m], P_MU mu (kernels read these)
+    banded: bool  # the banded backend (module docstring): M, C, K in Mb, Cb, Kb; A in the CSR arrays
+    kl: int  # sub- and superdiagonals of the band (0 for the dense backend)
+    ku: int
+    Mb: np.ndarray  # (n, kl + ku + 1) band storage of M (kernels/banded.py), (0, 1) placeholder when dense
+    Cb: np.ndarray
+    Kb: np.ndarray
+    A_ptr: np.ndarray  # int64 (nq + 1) CSR of A (both backends)
+    A_idx: np.ndarray  # int64 (nnz)
+    A_val: np.ndarray  # (nnz)
+    AT_ptr: np.ndarray  # int64 (n + 1) CSR of A^T
+    AT_idx: np.ndarray
+    AT_val: np.ndarray
+    dof_order: np.ndarray  # int64 (n): kernel DOF k is the user's DOF dof_order[k] (identity when dense)
 
 
 @dataclass(frozen=True)
@@ -152,7 +182,16 @@ class System:
         f = self.excitation.fundamental_frequency
         return None if f is None else 1.0 / f
 
-    def compile(self) -> CompiledSystem:
+    def compile_dense(self, feature: str) -> CompiledSystem:
+        """The dense backend for a feature that needs dense n x n matrices (``feature`` names it
+        in the refusal: a sparse structure above model.structure.DENSE_MAX_N DOFs)."""
+        if self.structure.sparse:
+            self.structure.dense_matrices("structure", feature)  # refuses a large sparse model
+        return self.compile("dense")
+
+    def compile(self, backend: str = "auto") -> CompiledSystem:
+        """The kernel arrays; ``backend`` 'auto' (banded for a sparse structure of at least
+        BANDED_MIN_N DOFs whose band is narrow, else dense), 'dense' or 'banded'."""
         s = self.structure
         n, m = s.n_dofs, len(self.motion_names)
         A_rows, B_rows, g = [], [], []
@@ -174,20 +213,41 @@ class System:
             kn.append(c.normal_stiffness)
             mu.append(c.friction_coefficient)
             row += nrow
-        A = np.vstack(A_rows) if A_rows else np.zeros((0, n))
+        if any(sp.issparse(X) for X in A_rows):
+            A = sp.vstack([sp.csr_matrix(X) for X in A_rows], format="csr")
+        else:
+            A = np.vstack(A_rows) if A_rows else np.zeros((0, n))
         exc = self.excitation
         f0 = np.zeros(n) if exc.constant_force is None else np.asarray(exc.constant_force, float)
         fs = compile_signal(exc.force, n)
         ms = compile_signal(exc.motion, m)
-        scale = _length_scale(f0, fs, ms, np.concatenate([np.array(kn, float), np.diag(s.stiffness)]))
-        as_i = lambda v: np.asarray(v, dtype=np.int64)
+        scale = _length_scale(f0, fs, ms, np.concatenate([np.array(kn, float), s.diagonal("stiffness")]))
+        banded, order, bw = _choose_backend(s, self.contacts, A, backend)
+        as_i = lambda v: np.ascontiguousarray(np.asarray(v, dtype=np.int64))
         as_f = lambda v: np.ascontiguousarray(np.asarray(v, dtype=np.float64))
+        if banded:
+            A = sp.csr_matrix(A)[:, order].tocsr()
+            f0 = f0[order]
+            fs = fs._replace(
+                sin_coefficient=fs.sin_coefficient[order],
+                cos_coefficient=fs.cos_coefficient[order],
+                table_value=np.ascontiguousarray(fs.table_value[order]),
+            )
+            dense = (np.zeros((n, 0)),) * 3
+            Ad, ATd = np.zeros((row, 0)), np.zeros((n, 0))
+            bands = tuple(_band_storage(X, order, bw) for X in (s.mass, s.damping, s.stiffness))
+        else:
+            dense = tuple(X.toarray() if sp.issparse(X) else X for X in (s.mass, s.damping, s.stiffness))
+            Ad = A.toarray() if sp.issparse(A) else A
+            ATd = Ad.T
+            bands = (np.zeros((0, 1)),) * 3
+        A, AT = _csr_pair(A)
         return CompiledSystem(
-            as_f(s.mass),
-            as_f(s.damping),
-            as_f(s.stiffness),
-            as_f(A),
-            as_f(A.T),
+            as_f(dense[0]),
+            as_f(dense[1]),
+            as_f(dense[2]),
+            as_f(Ad),
+            as_f(ATd),
             as_f(np.vstack(B_rows) if B_rows else np.zeros((0, m))).reshape(row, m),
             as_f(g),
             as_i(normal_row),
@@ -214,7 +274,134 @@ class System:
             scale,
             as_i([c.law_code for c in self.contacts]),
             _law_table(kn, mu),
+            bool(banded),
+            int(bw),
+            int(bw),
+            as_f(bands[0]),
+            as_f(bands[1]),
+            as_f(bands[2]),
+            as_i(A.indptr),
+            as_i(A.indices),
+            as_f(A.data),
+            as_i(AT.indptr),
+            as_i(AT.indices),
+            as_f(AT.data),
+            as_i(order),
         )
+
+
+def structure_matrix(cs: CompiledSystem, which: str):
+    """M, C or K (``which`` 'M', 'C', 'K') in the kernel DOF order: the dense array, or for the
+    banded backend a scipy.sparse CSR matrix built from its band storage (for products only)."""
+    if not cs.banded:
+        return getattr(cs, which)
+    ab = getattr(cs, which + "b")
+    n, ku = ab.shape[0], cs.ku
+    cols, t = np.nonzero(ab)
+    rows = cols + t - ku
+    return sp.csr_matrix((ab[cols, t], (rows, cols)), shape=(n, n))
+
+
+def quadratic_form(A, X: np.ndarray) -> np.ndarray:
+    """x_t^T A x_t per row of X (nt, n), A dense or sparse."""
+    if not sp.issparse(A):
+        return np.einsum("ti,ij,tj->t", X, A, X)
+    return np.einsum("ti,ti->t", X, np.asarray((A @ np.ascontiguousarray(X.T)).T))
+
+
+def kernel_dofs(cs: CompiledSystem, user_dofs) -> np.ndarray:
+    """The kernel indices of user DOF indices (the banded backend reorders the DOFs; identity
+    for the dense backend): kernel arrays hold user DOF i at position kernel_dofs(cs, i)."""
+    order = np.asarray(cs.dof_order)
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(order.size)
+    return inverse[np.asarray(user_dofs, dtype=np.int64)]
+
+
+def to_user_order(cs: CompiledSystem, values: np.ndarray, axis: int = -1) -> np.ndarray:
+    """DOF-indexed kernel values (DOFs along ``axis``) in the user's DOF order (itself when the
+    backend keeps the order)."""
+    if not cs.banded:
+        return values
+    return np.take(values, kernel_dofs(cs, np.arange(len(cs.dof_order))), axis=axis)
+
+
+def _csr_pair(A) -> tuple:
+    """(A, A^T) as sorted CSR matrices (a dense A converted by its non-zeros)."""
+    if not sp.issparse(A):
+        rows, cols = np.nonzero(A)
+        indptr = np.zeros(A.shape[0] + 1, np.int64)
+        np.cumsum(np.bincount(rows, minlength=A.shape[0]), out=indptr[1:])
+        A = sp.csr_matrix((A[rows, cols], cols, indptr), shape=A.shape)
+    A = sp.csr_matrix(A)
+    A.sort_indices()
+    AT = A.T.tocsr()
+    AT.sort_indices()
+    return A, AT
+
+
+def _pattern(structure: Structure, contacts, A) -> sp.csr_matrix:
+    """The sparsity pattern of M + C + K + sum_c S_c^T S_c, S_c the union of contact c's rows
+    (every product of two of its rows can enter J(S): a slip tangent couples u and v)."""
+    P = sp.csr_matrix((structure.n_dofs, structure.n_dofs))
+    for X in (structure.mass, structure.damping, structure.stiffness):
+        P = P + abs(sp.csr_matrix(X))
+    if A.shape[0]:
+        rows = np.repeat(np.arange(len(contacts)), [c.dof_gather.shape[0] for c in contacts])
+        G = sp.csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))), shape=(len(contacts), rows.size))
+        S = (G @ abs(sp.csr_matrix(A))).tocsr()
+        S.data[:] = 1.0
+        P = P + S.T @ S
+    P = P.tocsr()
+    P.data[:] = 1.0
+    return P
+
+
+def _bandwidth(P: sp.csr_matrix, order: np.ndarray) -> int:
+    """max |i - j| over the pattern's non-zeros in the order ``order``."""
+    coo = P.tocoo()
+    if coo.nnz == 0:
+        return 0
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(order.size)
+    return int(np.abs(inverse[coo.row] - inverse[coo.col]).max())
+
+
+_ORDER_CACHE: dict = {}
+
+
+def _choose_backend(structure: Structure, contacts, A, backend: str) -> tuple[bool, np.ndarray, int]:
+    """(banded, dof_order, bandwidth) for the backend option (see System.compile)."""
+    n = structure.n_dofs
+    identity = np.arange(n, dtype=np.int64)
+    if backend not in ("auto", "dense", "banded"):
+        raise InputError("linear_solver", f"backend {backend!r}", "use 'auto', 'dense' or 'banded'")
+    if backend == "dense" or (backend == "auto" and (not structure.sparse or n < BANDED_MIN_N)):
+        return False, identity, 0
+    key = tuple(id(c.dof_gather) for c in contacts)  # the order of these matrices, computed once
+    cached = _ORDER_CACHE.get(id(structure))
+    if cached is not None and cached[0] is structure and cached[1] == key:
+        order, bw = cached[2], cached[3]
+    else:
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        P = _pattern(structure, contacts, A)
+        order = np.asarray(reverse_cuthill_mckee(P, symmetric_mode=True), dtype=np.int64)
+        bw = _bandwidth(P, order)
+        _ORDER_CACHE.clear()  # one entry: the last structure compiled (the twins of a run share it)
+        _ORDER_CACHE[id(structure)] = (structure, key, order, bw)
+    if backend == "auto" and 3 * bw + 1 > n // 4:  # a wide band: the dense backend is no slower
+        return False, identity, 0
+    return True, order, bw
+
+
+def _band_storage(X, order: np.ndarray, bw: int) -> np.ndarray:
+    """X[order][:, order] in band storage (n, 2 bw + 1): ab[j, bw + i - j] = X[i, j]."""
+    n = order.size
+    Xp = sp.csr_matrix(X)[order][:, order].tocoo()
+    ab = np.zeros((n, 2 * bw + 1))
+    np.add.at(ab, (Xp.col, bw + Xp.row - Xp.col), Xp.data)
+    return ab
 
 
 def _law_table(kn, mu) -> np.ndarray:

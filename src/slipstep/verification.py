@@ -94,7 +94,7 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
     f0 = normals.T @ rng.uniform(0.0, 100.0, nc) + rng.standard_normal(n) * rng.uniform(0, 20)
     # excitation frequency relative to the highest full-stick frequency: 20..400 steps of T_min/pi per period
     system0 = System(Structure(M, C, K), tuple(contacts), Excitation(constant_force=f0), motion_names=motion_names)
-    cs = system0.compile()
+    cs = system0.compile_dense("the verification")
     Keff = cs.K.copy()
     for c in range(cs.kn.shape[0]):
         Keff += cs.kn[c] * np.outer(cs.A[cs.normal_row[c]], cs.A[cs.normal_row[c]])

@@ -45,7 +45,7 @@ def linear_response(system: System, stuck: bool, state: np.ndarray | None = None
     """Phasors X(w) per excitation frequency and the half peak-to-peak amplitude per DOF of
     the linear limit (``stuck``: every contact stuck in ``state``, default :func:`stuck_state`;
     else the contacts removed)."""
-    cs = system.compile()
+    cs = system.compile_dense("the linear frequency response")
     n = cs.M.shape[0]
     K = cs.K.copy()
     forces = _phasors(system.excitation.force, n)

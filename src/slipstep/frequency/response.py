@@ -107,7 +107,7 @@ def period_energies(ds: xr.Dataset, cs) -> tuple[float, float, np.ndarray]:
 def point_values(steady: SteadyState, system: System, responses, n_harmonics: int) -> dict:
     """The FRF quantities of one steady state (see the module docstring)."""
     ds = steady.period
-    cs = system.compile()
+    cs = system.compile_dense("the frequency response")
     T = system.period
     y = ds["displacement"].values[:, [list(ds["dof"].values).index(r) for r in responses]]
     A, phase = amplitudes_phases(fourier_coefficients(ds["time"].values, y, T, n_harmonics))

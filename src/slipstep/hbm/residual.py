@@ -93,7 +93,7 @@ class HarmonicBalance:
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
         h = harmonic_set(harmonics)
         self.system = system
-        self.cs = cs = system.compile()
+        self.cs = cs = system.compile_dense("harmonic balance")
         lin0 = LinearPart(system, cs, h)
         if lin0.missing:
             h = np.unique(np.concatenate([h, lin0.missing]))

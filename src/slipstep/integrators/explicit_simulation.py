@@ -86,6 +86,12 @@ class ExplicitSimulation(Runner):
         )
         self.options = pre.options
         self.compiled = cs = pre.compiled
+        if cs.banded:  # issue 10: the explicit kernels use the dense matrices
+            raise InputError(
+                "scheme",
+                f"{integrator.name} needs the dense backend; this sparse structure compiles to the banded one",
+                "use an implicit method (newmark, piecewise-linear, ...), or linear_solver='direct' for a small model",
+            )
         self.preload_state = pre.preload_state
         self.q0, self.f0 = pre.q0, pre.f0
         self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end

@@ -251,8 +251,17 @@ def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kf
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def local_displacement(sys, x, p, q):
-    """q = A x - B p + g."""
-    gather(sys.A, sys.B, sys.g, x, p, q)
+    """q = A x - B p + g (A dense, or in CSR for the banded backend of slipstep.system)."""
+    if not sys.banded:
+        gather(sys.A, sys.B, sys.g, x, p, q)
+        return
+    for r in range(q.shape[0]):
+        s = sys.g[r]
+        for j in range(sys.B.shape[1]):
+            s -= sys.B[r, j] * p[j]
+        for k in range(sys.A_ptr[r], sys.A_ptr[r + 1]):
+            s += sys.A_val[k] * x[sys.A_idx[k]]
+        q[r] = s
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -292,5 +301,12 @@ def add_tangent_stiffness(sys, state, q, w_old, factor, out):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def generalised_force(sys, f, out):
-    """out = A^T f."""
-    scatter(sys.AT, f, out)
+    """out = A^T f (A^T dense, or in CSR for the banded backend)."""
+    if not sys.banded:
+        scatter(sys.AT, f, out)
+        return
+    for j in range(out.shape[0]):
+        s = 0.0
+        for k in range(sys.AT_ptr[j], sys.AT_ptr[j + 1]):
+            s += sys.AT_val[k] * f[sys.AT_idx[k]]
+        out[j] = s

@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.banded import dense_context  # the march's call sites take a BandContext (issue 10)
 from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
@@ -146,7 +147,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+            dt = _state_step_limit(Kst, Minv, A, dense_context(), nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                                    fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt = fpar[DT]
@@ -210,7 +211,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
+            limit = _state_step_limit(Kst, Minv, A, dense_context(), nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
                                       tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

@@ -60,6 +60,10 @@ from slipstep.kernels.codes import (  # noqa: F401
     PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
+from slipstep.kernels.banded import (
+    BandContext, band_combine, band_contact_stiffness, band_lambda_max, band_lu_solve, band_matvec_sub, band_to_lu_storage,
+    csr_abs_max, csr_gather, csr_matvec,
+)
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
@@ -113,6 +117,7 @@ class Workspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
     lin_dt: np.ndarray  # (1,) dt of the current Lin
     visited: np.ndarray  # int8 (max_state_iter + 1, nd): states of the last state iteration
+    mpiv: np.ndarray  # int64 (n) banded backend: pivots of M's banded LU (held in Minv); (0,) when dense
     lr: LowRank  # the low-rank solve's arrays (placeholders in direct mode), see state_solve.py
 
 
@@ -139,23 +144,81 @@ def newmark_coefficients(beta, gamma, dt):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
+def _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
                      gf1, r, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
     n = dx.shape[0]
-    for rr in range(A.shape[0]):
-        s = qbase[rr]
-        for j in range(n):
-            s += A[rr, j] * dx[j]
-        q1[rr] = s
+    _gather_dx(A, bd, qbase, dx, q1)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
     counters[C_LAW_CALLS] += 1
-    scatter(AT, f1, gf1)
+    _scatter(AT, bd, f1, gf1)
+    if bd.banded:  # banded backend (issue 10)
+        for i in range(n):
+            r[i] = r0[i] - kfac * gf1[i]
+        band_matvec_sub(Lin, bd.kl, bd.ku, dx, r)
+        return
     for i in range(n):
         s = r0[i] - kfac * gf1[i]
         for j in range(n):
             s -= Lin[i, j] * dx[j]
         r[i] = s
+
+
+# ---- banded backend (issue 10): the products with A and the solves, dense or banded ----------
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_dx(A, bd, base, y, out):
+    """out = base + A y (q = q_base + A dx)."""
+    if bd.banded:
+        csr_gather(bd.Aptr, bd.Aidx, bd.Aval, base, y, out)
+        return
+    n = y.shape[0]
+    for rr in range(A.shape[0]):
+        s = base[rr]
+        for j in range(n):
+            s += A[rr, j] * y[j]
+        out[rr] = s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_x(A, B, g, bd, x, p, q):
+    """q = A x - B p + g (kernels.contact.gather; A in CSR for the banded backend)."""
+    if not bd.banded:
+        gather(A, B, g, x, p, q)
+        return
+    for r in range(q.shape[0]):
+        s = g[r]
+        for j in range(B.shape[1]):
+            s -= B[r, j] * p[j]
+        q[r] = s
+    csr_gather(bd.Aptr, bd.Aidx, bd.Aval, q, x, q)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _scatter(AT, bd, f, out):
+    """out = A^T f."""
+    if bd.banded:
+        csr_matvec(bd.ATptr, bd.ATidx, bd.ATval, f, out)
+    else:
+        scatter(AT, f, out)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _solve(bd, lu, piv, b, x):
+    """x = J^-1 b with a factorisation of kernels/linalg.py or (banded) kernels/banded.py."""
+    if bd.banded:
+        band_lu_solve(lu, bd.kl, bd.ku, piv, b, x)
+    else:
+        lu_solve(lu, piv, b, x)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _band_is_diagonal(Mb, kl, ku):
+    """True if the band storage holds a diagonal matrix (or is the dense backend's placeholder)."""
+    for j in range(Mb.shape[0]):
+        for t in range(Mb.shape[1]):
+            if t != ku and Mb[j, t] != 0.0:
+                return False
+    return True
 
 
 # convergence parameters of the Newton iterations (the array ``conv``, filled per step by march):
@@ -171,7 +234,7 @@ ROUNDOFF = 1e-14
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _newton_update(A, dx, delta, it, prev_norm, prev_theta, conv):
+def _newton_update(A, bd, dx, delta, it, prev_norm, prev_theta, conv):
     """dx += delta; returns (status, increment_converged, norm, theta).
 
     The scaled increment eta = max(max_r |(A delta)_r| / tol_q, max_j |delta_j| / tol_x,j)
@@ -191,11 +254,14 @@ def _newton_update(A, dx, delta, it, prev_norm, prev_theta, conv):
             return NON_FINITE, False, 0.0, 0.0
     eta = 0.0
     tol_q = conv[CV_TOL_Q]
-    for rr in range(nq):
-        s = 0.0
-        for j in range(n):
-            s += A[rr, j] * delta[j]
-        eta = max(eta, abs(s) / tol_q)
+    if bd.banded:  # banded backend (issue 10)
+        eta = csr_abs_max(bd.Aptr, bd.Aidx, bd.Aval, delta) / tol_q
+    else:
+        for rr in range(nq):
+            s = 0.0
+            for j in range(n):
+                s += A[rr, j] * delta[j]
+            eta = max(eta, abs(s) / tol_q)
     for i in range(n):
         eta = max(eta, abs(delta[i]) / conv[CV_X + i])
     if it == 0:
@@ -223,7 +289,7 @@ def _residual_converged(r, r0, gf1, kfac, conv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
+def _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                      dx, delta, r, q1, f1, w1, state1, gf1, max_iter, conv, counters):
     """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
     factorised full-stick Jacobian (lu0, piv0). Converged when BOTH the increment test of
@@ -236,21 +302,21 @@ def _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir,
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
             break
-        lu_solve(lu0, piv0, r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
+        _solve(bd, lu0, piv0, r, delta)
+        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
     return NOT_CONVERGED, max_iter
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
+def _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
                  dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                  keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
@@ -258,7 +324,7 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
     as :func:`_modified_newton` (increment and force residual, both)."""
     for i in range(dx.shape[0]):
         dx[i] = 0.0
-    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
+    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
                                      stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if not ok:
         return SINGULAR, 0
@@ -266,36 +332,36 @@ def _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
+        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
                          state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
             break
         use, use_state = stick_slot, stick
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
                                    stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             use, use_state = slot, state1
         if lowrank:
             solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
         else:
-            lu_solve(lus[use], pivs[use], r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
+            _solve(bd, lus[use], pivs[use], r, delta)
+        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
     return NOT_CONVERGED, max_iter
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
+def _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
     state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
     in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
     carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
     nowhere = np.empty(0)  # J(stick) needs no linearisation point
-    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
+    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
                                key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
     if lowrank:
         b = lr.slot_base[slot]
@@ -304,7 +370,7 @@ def _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
+def _guarded_newton(lu, piv, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
                     gf1, max_iter, conv, theta_give_up, from_zero, counters):
     """:func:`_modified_newton` (the same convergence tests) with the factorised J(S) of a
     state S (solver 3), given up as soon as it stops contracting (the contraction ratio of
@@ -319,13 +385,13 @@ def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        _newton_residual(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
+        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
         if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
             return OK, it
         if it == max_iter:
             break
-        lu_solve(lu, piv, r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, dx, delta, it, prev_norm, theta, conv)
+        _solve(bd, lu, piv, r, delta)
+        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
         if it > 0 and theta >= theta_give_up:
@@ -334,7 +400,7 @@ def _guarded_newton(lu, piv, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, tr
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
+def _state_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
                          keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """(ok, lu, piv): the factorisation of J(S) for the modified Newton of solver 3, S the
     contact state whose T_min set the step (cached per state like the stick one). Falls back
@@ -342,16 +408,16 @@ def _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir
     J(S) solve is not one LU) and where J(S) is singular."""
     if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
         nowhere = np.empty(0)
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
+        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
                                    stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
         if ok:
             return ok, lus[slot], pivs[slot]
-    return _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
+    return _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
                                 lus, pivs, lr, nominal, singular_rtol, counters)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
+def _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     """Accuracy control: the local displacement error of a Newmark step (Zienkiewicz & Xie
     1991), e_j = dt^2 |beta - 1/6| (a_{n+1} - a_n)_j, a_{n+1} = a0 dx - a2 v_n - a3 a_n; for a
     massless DOF (M_jj = 0, methods/massless.py: a quasi-static path) the error of its linear
@@ -363,7 +429,8 @@ def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     c = dt * dt * max(abs(beta - 1.0 / 6.0), 1.0 / 12.0)
     e = np.empty(n)
     for j in range(n):
-        if M[j, j] != 0.0:
+        mjj = bd.Mb[j, bd.ku] if bd.banded else M[j, j]
+        if mjj != 0.0:
             e[j] = c * (a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j])
         else:
             e[j] = (dx[j] - v[j] * dt) / 8.0
@@ -371,6 +438,8 @@ def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     if A.shape[0] == 0:
         for j in range(n):
             err = max(err, abs(e[j]))
+    elif bd.banded:  # banded backend (issue 10)
+        err = csr_abs_max(bd.Aptr, bd.Aidx, bd.Aval, e)
     else:
         for rr in range(A.shape[0]):
             s = 0.0
@@ -381,8 +450,17 @@ def _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt):
+def _stick_diagonal(A, bd, nrow, kn, fdir, ndir, trow, kt):
     """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF (the residual floor's scale)."""
+    if bd.banded:  # banded backend (issue 10): sum over each row's few entries
+        out = np.zeros(bd.ATptr.shape[0] - 1)
+        for c in range(kn.shape[0]):
+            for k in range(bd.Aptr[nrow[c]], bd.Aptr[nrow[c] + 1]):
+                out[bd.Aidx[k]] += kn[c] * bd.Aval[k] ** 2
+            for d in range(fdir[c], fdir[c] + ndir[c]):
+                for k in range(bd.Aptr[trow[d]], bd.Aptr[trow[d] + 1]):
+                    out[bd.Aidx[k]] += kt[d] * bd.Aval[k] ** 2
+        return out
     n = A.shape[1]
     out = np.zeros(n)
     for c in range(kn.shape[0]):
@@ -395,8 +473,11 @@ def _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sub_matvec(Mat, y, out):
-    """out -= Mat y."""
+def _sub_matvec(Mat, band, bd, y, out):
+    """out -= Mat y (Mat dense, or ``band`` its band storage in the banded backend)."""
+    if bd.banded:
+        band_matvec_sub(band, bd.kl, bd.ku, y, out)
+        return
     for i in range(out.shape[0]):
         s = 0.0
         for j in range(y.shape[0]):
@@ -425,12 +506,20 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
     T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
     slot, found = find_slot(tkeys, tused, state)
-    if not found:
+    if not found and bd.banded:  # banded backend (issue 10): Lanczos on the band (kernels/banded.py)
+        n = bd.Kb.shape[0]
+        Keff = np.zeros((n, 2 * bd.kl + bd.ku + 1))
+        band_to_lu_storage(bd.Kb, bd.kl, bd.ku, Keff)
+        band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, bd.Aptr, bd.Aidx, bd.Aval, state, np.empty(0),
+                               np.empty(0), 1.0, Keff, bd.kl + bd.ku)
+        wmax2 = band_lambda_max(bd.Mb, Keff, bd.kl, bd.ku, Minv, bd.mpiv, bd.m_diagonal)
+        tvalue[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
+    elif not found:
         Keff = Kst.copy()
         contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
         ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
@@ -474,6 +563,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     keys, used, ok_flags, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_ok, ws.cache_lu, ws.cache_piv
     tkeys, tused, tvalue, visited = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.visited
     lr = ws.lr
+    # banded backend (issue 10): every n x n / nq x n product below branches on bd.banded
+    bd = BandContext(sys.banded, sys.kl, sys.ku, sys.A_ptr, sys.A_idx, sys.A_val, sys.AT_ptr, sys.AT_idx, sys.AT_val,
+                     sys.Mb, sys.Cb, sys.Kb, ws.mpiv, _band_is_diagonal(sys.Mb, sys.kl, sys.ku))
     lowrank = ipar[LOWRANK] == 1
     counters = out.counters
     n = x.shape[0]
@@ -483,11 +575,15 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     conv = np.empty(CV_X + n)  # the Newton convergence tolerances (see CV_TOL)
     conv[CV_TOL] = fpar[TOL]
     conv[CV_TOL_Q] = fpar[TOL] * length_scale
-    kd_stick = _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt)
+    kd_stick = _stick_diagonal(A, bd, nrow, kn, fdir, ndir, trow, kt)
     for i in range(n):  # DOF j's length: L over its largest gather entry (a rotation: L / lever arm)
         amax = 0.0
-        for rr in range(nq):
-            amax = max(amax, abs(A[rr, i]))
+        if bd.banded:
+            for kk in range(bd.ATptr[i], bd.ATptr[i + 1]):
+                amax = max(amax, abs(bd.ATval[kk]))
+        else:
+            for rr in range(nq):
+                amax = max(amax, abs(A[rr, i]))
         conv[CV_X + i] = fpar[TOL] * (length_scale / amax if amax > 0.0 else length_scale)
     state_rtol = fpar[STATE_RTOL]
     singular_rtol = fpar[SINGULAR_RTOL]
@@ -498,9 +594,12 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     n_preload = ipar[PRELOAD]
     max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
     kfac = (1.0 - af) if inertia else 1.0
-    has_damping = np.any(Cd != 0.0)
+    has_damping = np.any(sys.Cb != 0.0) if bd.banded else np.any(Cd != 0.0)
     has_circle = np.any(lcode == LAW_CIRCLE)
-    has_stiffness = np.any(Kst != 0.0)
+    has_stiffness = np.any(sys.Kb != 0.0) if bd.banded else np.any(Kst != 0.0)
+    mdiag = np.empty(n)  # diag M (a zero: a massless DOF)
+    for i in range(n):
+        mdiag[i] = sys.Mb[i, sys.ku] if bd.banded else M[i, i]
     acc_pred = np.empty(n)
     vel_pred = np.empty(n)
     cap = out.t.shape[0] - 1
@@ -550,7 +649,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
+                dt_state_limit = _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
                                                    tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             dt_nominal = dt_state_limit
         else:
@@ -569,16 +668,22 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if ws.lin_dt[0] != dt:
                 a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
                 last_slot = -1
-                for i in range(n):
-                    for j in range(n):
-                        if inertia:
-                            Lin[i, j] = (1.0 - am) * a0 * M[i, j] + (1.0 - af) * c1 * Cd[i, j] + (1.0 - af) * Kst[i, j]
-                        else:
-                            Lin[i, j] = Kst[i, j]
+                if bd.banded:  # banded backend (issue 10): Lin in band storage, O(n b)
+                    if inertia:
+                        band_combine((1.0 - am) * a0, bd.Mb, (1.0 - af) * c1, bd.Cb, 1.0 - af, bd.Kb, Lin)
+                    else:
+                        band_combine(0.0, bd.Mb, 0.0, bd.Cb, 1.0, bd.Kb, Lin)
+                else:
+                    for i in range(n):
+                        for j in range(n):
+                            if inertia:
+                                Lin[i, j] = (1.0 - am) * a0 * M[i, j] + (1.0 - af) * c1 * Cd[i, j] + (1.0 - af) * Kst[i, j]
+                            else:
+                                Lin[i, j] = Kst[i, j]
                 ws.lin_dt[0] = dt
                 kdiag = 0.0
                 for i in range(n):
-                    kdiag = max(kdiag, Lin[i, i] + kfac * kd_stick[i])
+                    kdiag = max(kdiag, (Lin[i, bd.ku] if bd.banded else Lin[i, i]) + kfac * kd_stick[i])
                 conv[CV_FLOOR] = fpar[TOL] * length_scale * kdiag
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
             if signals:
@@ -593,7 +698,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     p[i] = 0.0
             for i in range(n):
                 fe1[i] += load_factor * f_const[i]
-            gather(A, B, g, x, p, qbase)
+            _gather_x(A, B, g, bd, x, p, qbase)
             for i in range(n):
                 r0[i] = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i]) if inertia else fe1[i]
             if inertia:
@@ -601,11 +706,11 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 for j in range(n):
                     acc_pred[j] = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
                     vel_pred[j] = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
-                _sub_matvec(M, acc_pred, r0)
+                _sub_matvec(M, bd.Mb, bd, acc_pred, r0)
                 if has_damping:
-                    _sub_matvec(Cd, vel_pred, r0)
+                    _sub_matvec(Cd, bd.Cb, bd, vel_pred, r0)
             if has_stiffness:
-                _sub_matvec(Kst, x, r0)
+                _sub_matvec(Kst, bd.Kb, bd, x, r0)
             # ---- the step solver ----
             status = STATE_CYCLING
             if solver == PIECEWISE_LINEAR:
@@ -618,7 +723,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         visited[it, d] = state1[d]
                     counters[C_N_VISITED] = it + 1
                     if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
-                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
                                                     delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
                                                     used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
                                                     singular_rtol, counters)
@@ -633,7 +738,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if same:
                         slot, ok = last_slot, ok_flags[last_slot]
                     else:
-                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt,
                                                    state1, qbase, w, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
                                                    lr, nominal, singular_rtol, counters)
                         last_slot = slot if nominal else -1
@@ -641,14 +746,14 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status = SINGULAR
                         break
                     piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
-                    scatter(AT, f1, gf1)
+                    _scatter(AT, bd, f1, gf1)
                     for i in range(n):
                         r[i] = r0[i] - kfac * gf1[i]
                     if lowrank:
                         solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac,
                                        r, dx)
                     else:
-                        lu_solve(lus[slot], pivs[slot], r, dx)
+                        _solve(bd, lus[slot], pivs[slot], r, dx)
                     solves += 1
                     finite = True
                     for i in range(n):
@@ -657,14 +762,10 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     if not finite:
                         status = NON_FINITE
                         break
-                    for rr in range(nq):
-                        s = qbase[rr]
-                        for j in range(n):
-                            s += A[rr, j] * dx[j]
-                        q1[rr] = s
+                    _gather_dx(A, bd, qbase, dx, q1)
                     if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
                         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-                        scatter(AT, f1, gf1)
+                        _scatter(AT, bd, f1, gf1)
                         status = OK
                         break
                     law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -672,12 +773,12 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                 if status != OK and status != NON_FINITE and fallback == 1:
                     counters[C_FALLBACKS] += 1
                     pl_status = status
-                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt,
+                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt,
                                                           stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
                                                           nominal, singular_rtol, counters)
                     more = 0
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, conv, counters)
                     solves += more
@@ -685,14 +786,14 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                         status = pl_status  # the more telling reason: singular state or cycling
             else:
                 if solver == FULL_NEWTON:
-                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
+                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
                                                 qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
                                                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
                                                 singular_rtol, counters)
                 elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
                     tstate = dt_state if adaptive else state
                     if not (nominal and dt == tan_dt and _same(tstate, tan_state)):
-                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
+                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
                                                               dt_state, key, keys, used, ok_flags, lus, pivs, lr,
                                                               nominal, singular_rtol, counters)
                         tan_dt = dt if nominal else np.nan
@@ -701,36 +802,36 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
                     stick_dt = np.nan
                     status, more = SINGULAR, 0
                     if okS:
-                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
                                                        delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
                                                        THETA_GIVE_UP, True, counters)
                     if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
                         counters[C_FALLBACKS] += 1
                         restart = status != NOT_CONVERGED  # else go on from the dx reached
                         solves += more
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
                                                               key, keys, used, ok_flags, lus, pivs, lr, nominal,
                                                               singular_rtol, counters)
                         status, more = SINGULAR, 0
                         if ok0:
-                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
+                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
                                                            delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
                                                            np.inf, restart, counters)
                 else:
                     if dt != stick_dt or not nominal:  # the stick factorisation of this step size
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow,
+                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow,
                                                               kt, stick, dt_state, key, keys, used, ok_flags, lus,
                                                               pivs, lr, nominal, singular_rtol, counters)
                         stick_dt = dt if nominal else np.nan
                     if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, nrow, lcode, lpar, fdir, ndir, trow,
+                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow,
                                                         kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
                                                         max_iter, conv, counters)
                     else:
                         status, more = SINGULAR, 0
                 solves += more
             if accuracy and status == OK:
-                err = _local_error(M, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
+                err = _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol)
                 if err > 1.0 and attempt < max_redo:  # reject: redo with the step the estimate asks for
                     counters[C_REDOS] += 1
                     dt = dt * max(0.2, 0.9 * err ** (-1.0 / 3.0))
@@ -741,7 +842,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
             if _same(state1, dt_state):
                 break
-            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
+            limit = _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
                                       tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break
@@ -760,7 +861,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
         for i in range(n):
-            if inertia and M[i, i] != 0.0:
+            if inertia and mdiag[i] != 0.0:
                 a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
                 v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
                 a[i] = a_new

@@ -2,7 +2,12 @@
 
     J(S) = Lin + kfac K_D(S),   K_D(S) = A^T K(S) A
 
-Two ways, chosen once per run (ipar LOWRANK in march.py):
+Three ways, chosen once per run (ipar LOWRANK in march.py, CompiledSystem.banded):
+
+* banded (issue 10, the banded backend of slipstep.system): J(S) assembled in band storage
+  (Lin plus the outer products of each contact's few sparse rows) and factorised by the
+  banded LU of kernels/banded.py, cached per state like the direct LUs: O(n b^2) per state,
+  O(n b) per solve;
 
 * direct: the LU of the n x n J(S) per state tuple (best when the contact coordinates are
   as many as the DOFs, e.g. a rigid damper);
@@ -20,6 +25,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.banded import band_contact_stiffness, band_lu_factor, band_to_lu_storage
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import C_FACTORISATIONS
 from slipstep.kernels.contact import STICK, contact_stiffness, coupled, delta_stiffness
@@ -47,7 +53,7 @@ class LowRank(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
+def factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
                     keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
     key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
@@ -68,6 +74,15 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, tro
     else:
         slot = cap
     n = Lin.shape[0]
+    if bd.banded:  # banded backend (issue 10): J(S) = Lin + kfac A^T K(S) A in band storage, banded LU
+        lu = lus[slot]
+        band_to_lu_storage(Lin, bd.kl, bd.ku, lu)
+        band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, bd.Aptr, bd.Aidx, bd.Aval, kd_state, q, w_old,
+                               kfac, lu, bd.kl + bd.ku)
+        ok = band_lu_factor(lu, bd.kl, bd.ku, pivs[slot], singular_rtol)
+        ok_flags[slot] = ok
+        counters[C_FACTORISATIONS] += 1
+        return slot, ok
     if not lowrank:
         for i in range(n):
             for j in range(n):

@@ -117,7 +117,16 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
     k = n_steps + 1
     x, v = out.x[:k], out.v[:k]
     f = out.f[:k]
-    E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
+    if cs.banded:  # banded backend (issue 10): the quadratic forms on the band
+        from slipstep.kernels.banded import band_quadratic_forms
+
+        E = np.empty(k)
+        ek = np.empty(k)
+        band_quadratic_forms(cs.Mb, cs.kl, cs.ku, np.ascontiguousarray(v), E)
+        band_quadratic_forms(cs.Kb, cs.kl, cs.ku, np.ascontiguousarray(x), ek)
+        E = 0.5 * (E + ek)
+    else:
+        E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
     nrow, trow = np.asarray(cs.normal_row), np.asarray(cs.tangential_row)
     if nrow.size:
         E = E + 0.5 * (f[:, nrow] ** 2 / cs.kn).sum(axis=1) + 0.5 * (f[:, trow] ** 2 / cs.kt).sum(axis=1)

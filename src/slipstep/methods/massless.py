@@ -40,8 +40,9 @@ def contact_held_dofs(system: System) -> np.ndarray:
     s = system.structure
     gathered = np.zeros(s.n_dofs, bool)
     for c in system.contacts:
-        gathered |= np.any(c.dof_gather != 0, axis=0)
-    free = ~np.any(s.stiffness != 0, axis=1) & ~np.any(s.damping != 0, axis=1)
+        gathered |= np.asarray(abs(c.dof_gather).sum(axis=0)).ravel() != 0
+    rows = lambda X: np.asarray(abs(X).sum(axis=1)).ravel() != 0  # dense or sparse  # noqa: E731
+    free = ~rows(s.stiffness) & ~rows(s.damping)
     return np.flatnonzero(free & gathered)
 
 
@@ -74,7 +75,8 @@ def select_massless(system: System, spec) -> np.ndarray:
     if idx.size == s.n_dofs:
         raise InputError("massless_dofs", "selects every DOF", "use the quasi-static method (Method 4) instead")
     rest = np.setdiff1d(np.arange(s.n_dofs), idx)
-    for label, A in (("mass", s.mass), ("damping", s.damping)):
+    Md, Cd, _ = s.dense_matrices("massless_dofs", "the quasi-static-dofs method")
+    for label, A in (("mass", Md), ("damping", Cd)):
         coupled = np.abs(A[np.ix_(idx, rest)]).max(initial=0.0) if label == "mass" else np.abs(A[idx]).max(initial=0.0)
         if coupled > 0:
             raise InputError(

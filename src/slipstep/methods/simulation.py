@@ -19,6 +19,7 @@ import numpy as np
 from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.live import call_kernel
 from slipstep.methods import memory
+from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
 from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
@@ -31,7 +32,10 @@ from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
-from slipstep.system import CompiledSystem, System
+from slipstep.system import CompiledSystem, System, to_user_order
+
+#: the values of RunOptions.linear_solver
+LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded")
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
@@ -62,8 +66,11 @@ class RunOptions:
     max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
-        an nq x nq capacitance matrix per state: kernels/state_solve.py) or 'auto' (low-rank
-        when the contact coordinates are at most half the DOFs).
+        an nq x nq capacitance matrix per state: kernels/state_solve.py), 'banded' (the DOFs
+        reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.system,
+        kernels/banded.py) or 'auto' (banded for a sparse structure of at least
+        slipstep.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
+        coordinates are at most half the DOFs, else direct).
     rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate
         of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is
         within about rtol; it never exceeds the contact-state / convergence rule of Newton
@@ -127,8 +134,10 @@ class RunOptions:
                 raise InputError("rtol", f"is {value}", "give a relative accuracy between 1e-8 and 0.2 (e.g. 1e-3)")
         if self.max_memory is not None:
             memory.parse_size("max_memory", self.max_memory)
-        if self.linear_solver not in ("auto", "direct", "low-rank"):
-            raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise InputError(
+                "linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct', 'low-rank' or 'banded'"
+            )
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
@@ -137,7 +146,12 @@ class RunOptions:
 def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
     """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
     (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
-    quasi-static-dofs method) those are condensed out first (methods/massless.py)."""
+    quasi-static-dofs method) those are condensed out first (methods/massless.py). The banded
+    backend: omega_max^2 by the banded Lanczos of kernels/banded.py (the one the march uses per
+    state), and the eigenvalues array holds that one value."""
+    if cs.banded:
+        wmax2 = banded_lambda_max(cs, state)
+        return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), np.array([wmax2])
     zero = ML.massless_mask(cs.M)
     if zero.any():
         return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
@@ -249,7 +263,13 @@ class Runner:
         attrs.update(failure)
         attrs.update(self.accuracy_attrs())
         return build_dataset(
-            self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"], compiled=self.compiled
+            self.system,
+            user_outputs(self.compiled, self.out, n_steps),
+            n_steps,
+            motion,
+            attrs,
+            dynamic=not method["quasi_static"],
+            compiled=self.compiled,
         )
 
 
@@ -267,7 +287,9 @@ class Simulation(Runner):
         self.system = system
         self.method = method if isinstance(method, Method) else get_method(method)
         self.options = RunOptions(**options).validated()
-        self.compiled = cs = system.compile()
+        self.compiled = cs = system.compile(compile_backend(self.options.linear_solver))
+        if cs.banded:
+            check_banded_method(self.method)
         if self.method.solver == K.EVENTS:
             check_event_case(system, cs)
         nd = cs.kt.shape[0]
@@ -482,7 +504,7 @@ class Simulation(Runner):
             generalised_force(cs, f, ws.gf)
         ws.fe[:] = fe0
         if not self.method.quasi_static:
-            ws.a[:] = ML.initial_acceleration(cs.M, fe0 - cs.K @ ws.x - ws.gf)
+            ws.a[:] = mass_solve(cs, fe0 - structure_product(cs, "K", ws.x) - ws.gf)
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
 
@@ -517,8 +539,11 @@ class Simulation(Runner):
         force in elastic form T = k_t (u - w), N = k_n v for v > 0 (0 in lift-off)."""
         cs = self.compiled
         n, nd = cs.M.shape[0], cs.kt.shape[0]
-        x = np.array(x, float).reshape(n)
-        v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)
+        order = np.asarray(cs.dof_order)  # user order -> kernel order (the banded backend reorders)
+        x = np.array(x, float).reshape(n)[order]
+        v = np.zeros(n) if v is None or self.method.quasi_static else np.array(v, float).reshape(n)[order]
+        if a is not None:
+            a = np.array(a, float).reshape(n)[order]
         w = self.preload_state[5].copy() if w is None else np.array(w, float).reshape(nd)
         p0 = evaluate_compiled(_motion_signal(cs), np.array([t_start]))[0]
         fe0 = evaluate_compiled(_force_signal(cs), np.array([t_start]))[0] + cs.constant_force
@@ -528,11 +553,12 @@ class Simulation(Runner):
         if state is None:
             state = np.empty(nd, np.int8)
             contact_law(cs, q, w.copy(), np.empty_like(q), np.empty(nd), state)
-        gf = cs.A.T @ f
+        gf = np.empty(n)
+        generalised_force(cs, f, gf)
         if self.method.quasi_static:
             a = np.zeros(n)
         elif a is None:
-            a = ML.initial_acceleration(cs.M, fe0 - cs.C @ v - cs.K @ x - gf)
+            a = mass_solve(cs, fe0 - structure_product(cs, "C", v) - structure_product(cs, "K", x) - gf)
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
         self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
@@ -575,13 +601,26 @@ class Simulation(Runner):
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
-            "linear_solver": "low-rank" if self.low_rank else "direct",
+            "linear_solver": "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "direct"),
+            "bandwidth": int(self.compiled.kl) if self.compiled.banded else -1,
             **(
                 {}
                 if self.massless is None
                 else {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}
             ),
         }
+
+
+def check_banded_method(method: Method) -> None:
+    """The banded backend (sparse structures) runs the implicit march's methods; the
+    event-driven march and the partly quasi-static method need the dense matrices."""
+    if method.solver == K.EVENTS or method.massless:
+        raise InputError(
+            "method",
+            f"{method.name} needs the dense backend; this sparse structure compiles to the banded one",
+            "use newmark, piecewise-linear, their adaptive variants or quasi-static, or give dense matrices "
+            "(linear_solver='direct' for a small model)",
+        )
 
 
 def check_event_case(system: System, cs: CompiledSystem) -> None:
@@ -694,9 +733,83 @@ def _reset_cache(ws: K.Workspace) -> None:
     ws.lin_dt[0] = np.nan
 
 
+def banded_lambda_max(cs: CompiledSystem, state: np.ndarray) -> float:
+    """omega_max^2 of a contact state for the banded backend (kernels.banded.band_lambda_max)."""
+    n, kl, ku = cs.Mb.shape[0], cs.kl, cs.ku
+    keff = np.zeros((n, 2 * kl + ku + 1))
+    BD.band_to_lu_storage(cs.Kb, kl, ku, keff)
+    BD.band_contact_stiffness(
+        cs.normal_row,
+        cs.law,
+        cs.law_par,
+        cs.first_direction,
+        cs.n_directions,
+        cs.tangential_row,
+        cs.kt,
+        cs.A_ptr,
+        cs.A_idx,
+        cs.A_val,
+        np.asarray(state, np.int8),
+        np.empty(0),
+        np.empty(0),
+        1.0,
+        keff,
+        kl + ku,
+    )
+    mlu, mpiv = band_mass_lu(cs)
+    return float(BD.band_lambda_max(cs.Mb, keff, kl, ku, mlu, mpiv, bool(K._band_is_diagonal(cs.Mb, kl, ku))))
+
+
+def band_mass_lu(cs: CompiledSystem) -> tuple[np.ndarray, np.ndarray]:
+    """The banded LU of M (banded backend): (lu, piv)."""
+    n, kl, ku = cs.Mb.shape[0], cs.kl, cs.ku
+    lu = np.zeros((n, 2 * kl + ku + 1))
+    piv = np.zeros(n, np.int64)
+    BD.band_to_lu_storage(cs.Mb, kl, ku, lu)
+    if not BD.band_lu_factor(lu, kl, ku, piv, 1e-14):
+        raise InputError("structure.mass", "is singular", "give every DOF a positive mass/inertia")
+    return lu, piv
+
+
+def structure_product(cs: CompiledSystem, which: str, x: np.ndarray) -> np.ndarray:
+    """M x, C x or K x (``which`` 'M', 'C', 'K') in the kernel DOF order, dense or banded."""
+    if not cs.banded:
+        return getattr(cs, which) @ x
+    out = np.empty(cs.Mb.shape[0])
+    BD.band_matvec(getattr(cs, which + "b"), cs.kl, cs.ku, np.ascontiguousarray(x, dtype=float), out)
+    return out
+
+
+def mass_solve(cs: CompiledSystem, rhs: np.ndarray) -> np.ndarray:
+    """a = M^-1 rhs on the DOFs with inertia (methods/massless.py), dense or banded."""
+    if not cs.banded:
+        return ML.initial_acceleration(cs.M, rhs)
+    lu, piv = band_mass_lu(cs)
+    out = np.empty(rhs.shape[0])
+    BD.band_lu_solve(lu, cs.kl, cs.ku, piv, np.ascontiguousarray(rhs, dtype=float), out)
+    return out
+
+
+def user_outputs(cs: CompiledSystem, out: K.Outputs, n_steps: int) -> K.Outputs:
+    """The kernel outputs with the DOF-indexed arrays (x, v, a) in the user's DOF order: the
+    one place the banded backend's DOF order is undone (slipstep.system.to_user_order)."""
+    if not cs.banded:
+        return out
+    k = n_steps + 1
+    return out._replace(**{name: to_user_order(cs, getattr(out, name)[:k], axis=1) for name in ("x", "v", "a")})
+
+
+def compile_backend(linear_solver: str) -> str:
+    """The System.compile backend a linear_solver option asks for."""
+    return {"banded": "banded", "direct": "dense", "low-rank": "dense"}.get(linear_solver, "auto")
+
+
 def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     """The low-rank (Woodbury) state solve pays when the contact coordinates are few against
-    the DOFs (kernels/state_solve.py): 'auto' takes it when 2 nq <= n."""
+    the DOFs (kernels/state_solve.py): 'auto' takes it when 2 nq <= n (never with the banded
+    backend, whose banded LU per state is already O(n b^2))."""
+    if cs.banded:
+        return False
     n, nq = cs.M.shape[0], cs.A.shape[0]
     if linear_solver == "auto":
         return 0 < nq and 2 * nq <= n
@@ -717,19 +830,32 @@ def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_stati
     )
 
 
-def _cache_capacities(n: int, nq: int, low_rank: bool) -> tuple[int, int, int]:
+def _cache_capacities(n: int, nq: int, low_rank: bool, band_width: int = 0) -> tuple[int, int, int]:
     """(matrix size factorised per state, state cache slots, low-rank base slots): at most
-    about 200 MB of factorisations each."""
+    about 200 MB of factorisations each. ``band_width`` > 0 (the banded backend: 2 kl + ku + 1
+    columns per row of a banded LU): the slots of n x band_width LUs."""
+    if band_width > 0:
+        cap = int(min(512, max(8, 2e8 // (8 * n * (band_width + 1) + 1))))
+        return n, cap, 1
     size = nq if low_rank else n  # the matrix factorised per state: C(S) (nq) or J(S) (n)
     cap = int(min(512, max(8, 2e8 // (8 * size * size + 1))))
     capb = int(min(64, max(2, 2e8 // (8 * (n * n + 2 * n * nq) + 1)))) if low_rank else 1
     return size, cap, capb
 
 
+def _lu_width(cs: CompiledSystem) -> int:
+    """Columns of a banded LU (2 kl + ku + 1), 0 for the dense backend."""
+    return 2 * cs.kl + cs.ku + 1 if cs.banded else 0
+
+
 def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> int:
     """Bytes of :func:`_allocate_workspace` (its largest arrays)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
-    size, cap, capb = _cache_capacities(n, nq, low_rank)
+    width = _lu_width(cs)
+    size, cap, capb = _cache_capacities(n, nq, low_rank, width)
+    if width:  # banded: LUs (cap + 2) x n x (width + 1 pivots), Lin, J, M's LU, T_min Lanczos basis
+        lanczos = 2 * min(n, BD.LANCZOS_FULL if n <= BD.LANCZOS_FULL else BD.LANCZOS_STEPS) * n
+        return int(8 * ((cap + 2) * n * (width + 1) + 4 * n * width + lanczos + 20 * (n + nq + nd)) + 2 * cap * nd)
     nb, nqb = (n, nq) if low_rank else (1, 1)
     return int(
         8
@@ -746,10 +872,17 @@ def _workspace_bytes(cs: CompiledSystem, max_state_iter: int, low_rank: bool) ->
 
 def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool) -> K.Workspace:
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
-    size, cap, capb = _cache_capacities(n, nq, low_rank)
+    width = _lu_width(cs)
+    size, cap, capb = _cache_capacities(n, nq, low_rank, width)
     nb, nqb = (n, nq) if low_rank else (1, 1)
     z = lambda *shape: np.zeros(shape)
     i8 = lambda *shape: np.zeros(shape, np.int8)
+    if width:  # banded backend: band storage for Lin (kl + ku + 1) and the LUs (2 kl + ku + 1); M's LU
+        lin, jac, lus = z(n, cs.kl + cs.ku + 1), z(n, width), z(cap + 2, n, width)
+        minv, mpiv = band_mass_lu(cs)
+    else:
+        lin, jac, lus = z(n, n), z(n, n), z(cap + 2, size, size)
+        minv, mpiv = ML.inverse_mass(cs.M), np.zeros(0, np.int64)
     lr = LowRank(
         base_keys=i8(capb, nd),
         base_used=np.zeros(capb, np.bool_),
@@ -786,22 +919,23 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         r=z(n),
         p=z(m),
         qbase=z(nq),
-        Lin=z(n, n),
-        J=z(n, n),
-        Minv=ML.inverse_mass(cs.M),
+        Lin=lin,
+        J=jac,
+        Minv=minv,
         key=i8(2 * nd),
         dt_state=i8(nd),
         stick=np.full(nd, STICK, np.int8),
         cache_keys=i8(cap, 2 * nd),
         cache_used=np.zeros(cap, np.bool_),
         cache_ok=np.zeros(cap + 2, np.bool_),
-        cache_lu=z(cap + 2, size, size),
+        cache_lu=lus,
         cache_piv=np.zeros((cap + 2, size), np.int64),
         tmin_keys=i8(cap, nd),
         tmin_used=np.zeros(cap, np.bool_),
         tmin_value=z(cap),
         lin_dt=np.full(1, np.nan),
         visited=i8(max_state_iter + 1, nd),
+        mpiv=mpiv,
         lr=lr,
     )
 

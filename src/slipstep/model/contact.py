@@ -20,7 +20,7 @@ import numpy as np
 
 from slipstep.errors import InputError
 from slipstep.kernels.codes import LAW_CIRCLE, LAW_UNCOUPLED
-from slipstep.model.validate import finite, float_array, positive
+from slipstep.model.validate import finite, float_array, gather_matrix, positive
 
 
 @dataclass(frozen=True)
@@ -75,8 +75,8 @@ CONTACT_LAWS: dict[str, ContactLaw] = {
 class ContactElement:
     """One contact point: gather maps, stiffnesses [N/m], friction coefficient [-].
 
-    ``dof_gather`` (A) has one row per local coordinate, tangential rows first and the
-    normal row last: 2 rows for a 2D element, 3 for quasi-3D (two uncoupled tangential
+    ``dof_gather`` (A, dense or scipy.sparse) has one row per local coordinate, tangential
+    rows first and the normal row last: 2 rows for a 2D element, 3 for quasi-3D (two uncoupled tangential
     directions). ``motion_gather`` (B) has the same rows and one column per prescribed
     motion component (omit it when the contact sees no prescribed motion).
     """
@@ -92,7 +92,7 @@ class ContactElement:
 
     def __post_init__(self):
         where = f"contacts[{self.name}]"
-        A = float_array(f"{where}.dof_gather", self.dof_gather, ndim=2)
+        A = gather_matrix(f"{where}.dof_gather", self.dof_gather)  # dense, or sparse kept sparse (CSR)
         if A.shape[0] not in (2, 3):
             raise InputError(
                 f"{where}.dof_gather",
@@ -117,7 +117,9 @@ class ContactElement:
         if self.motion_gather is not None:
             B = float_array(f"{where}.motion_gather", self.motion_gather, ndim=2, shape=(A.shape[0], None))
         offset = finite(f"{where}.normal_offset", self.normal_offset)
-        fixed_normal = np.all(A[-1] == 0) and (B is None or np.all(B[-1] == 0))
+        normal_row = A[[A.shape[0] - 1]]
+        normal_zero = normal_row.nnz == 0 if hasattr(normal_row, "nnz") else bool(np.all(normal_row == 0))
+        fixed_normal = normal_zero and (B is None or np.all(B[-1] == 0))
         if fixed_normal and offset <= 0:
             raise InputError(
                 f"{where}.dof_gather",
@@ -165,6 +167,11 @@ class ContactElement:
     @property
     def law_code(self) -> int:
         return CONTACT_LAWS[self.law].code
+
+    def dense_gather(self) -> np.ndarray:
+        """The gather map A as a dense array (rows x DOFs)."""
+        A = self.dof_gather
+        return A.toarray() if hasattr(A, "toarray") else A
 
     @property
     def n_tangential(self) -> int:

@@ -1,6 +1,9 @@
 """The linear structure of paper Eq. 1: ``M a + C v + K x`` with named DOFs (SI units).
 
 A rigid damper has ``K = 0`` and ``C = 0``; the contacts alone hold it in place.
+M, C, K are dense arrays or scipy.sparse matrices (kept sparse, canonical CSR; validated
+without forming a dense n x n matrix: symmetry on the sparse difference, definiteness by a
+sparse LU's pivots). A sparse structure compiles to the banded backend (slipstep.system).
 """
 
 from __future__ import annotations
@@ -10,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.model.validate import square_matrix
+from slipstep.model.validate import square_matrix_or_sparse
 
 
 @dataclass(frozen=True)
@@ -21,35 +24,39 @@ class Structure:
     default to zero and must be symmetric positive semi-definite.
     """
 
-    mass: np.ndarray
-    damping: np.ndarray | None = None
-    stiffness: np.ndarray | None = None
+    mass: object  # np.ndarray or scipy.sparse (CSR)
+    damping: object = None
+    stiffness: object = None
     dof_names: tuple[str, ...] = field(default=())
     dof_units: tuple[str, ...] = field(default=())
 
     def __post_init__(self):
-        M = square_matrix("structure.mass", self.mass)
+        M = square_matrix_or_sparse("structure.mass", self.mass)
         n = M.shape[0]
         if n == 0:
             raise InputError("structure.mass", "is empty", "give at least one DOF")
-        C = np.zeros((n, n)) if self.damping is None else square_matrix("structure.damping", self.damping, n)
-        K = np.zeros((n, n)) if self.stiffness is None else square_matrix("structure.stiffness", self.stiffness, n)
+        sparse = _issparse(M)
+        C = _zeros(n, sparse) if self.damping is None else square_matrix_or_sparse("structure.damping", self.damping, n)
+        K = (
+            _zeros(n, sparse)
+            if self.stiffness is None
+            else square_matrix_or_sparse("structure.stiffness", self.stiffness, n)
+        )
         for name, A in (("structure.mass", M), ("structure.damping", C), ("structure.stiffness", K)):
-            scale = max(np.abs(A).max(), 1e-300)
-            if np.abs(A - A.T).max() > 1e-9 * scale:
+            asym, scale = _asymmetry(A)
+            if asym > 1e-9 * scale:
                 raise InputError(name, "is not symmetric", "give a symmetric matrix (A == A.T)")
         if not _positive_definite(M, shift=0.0):
             raise InputError(
                 "structure.mass",
-                f"is not positive definite (smallest eigenvalue {_smallest_eigenvalue(M):.3g}); "
-                "a negative or zero mass or inertia",
+                f"is not positive definite ({_smallest_eigenvalue(M)}); a negative or zero mass or inertia",
                 "give every DOF a positive mass/inertia",
             )
         for name, A in (("structure.damping", C), ("structure.stiffness", K)):
             if not _positive_definite(A, shift=PSD_RTOL):
                 raise InputError(
                     name,
-                    f"has a negative eigenvalue ({_smallest_eigenvalue(A):.3g})",
+                    f"has a negative eigenvalue ({_smallest_eigenvalue(A)})",
                     "give a positive semi-definite matrix (no negative stiffness/damping)",
                 )
         names = tuple(self.dof_names) or tuple(f"x{i}" for i in range(n))
@@ -70,33 +77,94 @@ class Structure:
     def n_dofs(self) -> int:
         return self.mass.shape[0]
 
+    @property
+    def sparse(self) -> bool:
+        """True when M, C or K is a scipy.sparse matrix (the banded backend's input)."""
+        return any(_issparse(A) for A in (self.mass, self.damping, self.stiffness))
+
+    def dense_matrices(self, field: str = "structure", feature: str = "this feature") -> tuple:
+        """(M, C, K) as dense arrays for the features that need them: refused (InputError
+        naming ``field``) for a sparse structure above DENSE_MAX_N DOFs."""
+        if self.sparse and self.n_dofs > DENSE_MAX_N:
+            refuse_sparse(field, feature, self.n_dofs)
+        return tuple(A.toarray() if _issparse(A) else A for A in (self.mass, self.damping, self.stiffness))
+
+    def diagonal(self, which: str) -> np.ndarray:
+        """diag of 'mass', 'damping' or 'stiffness' (sparse or dense)."""
+        A = getattr(self, which)
+        return A.diagonal() if _issparse(A) else np.diag(A).copy()
+
+
+#: a sparse structure up to this many DOFs may be densified by the features that need dense matrices
+DENSE_MAX_N = 2000
+
+
+def refuse_sparse(field: str, feature: str, n: int):
+    """The InputError of a feature that needs dense n x n matrices, given a large sparse model."""
+    raise InputError(
+        field,
+        f"is a sparse structure of {n} DOFs: {feature} needs dense n x n matrices (at most {DENSE_MAX_N} DOFs)",
+        "use a time march (newmark, piecewise-linear, their adaptive variants or quasi-static), which take "
+        "sparse structures, or reduce the model (slipstep.craig_bampton)",
+    )
+
+
+def _issparse(A) -> bool:
+    import scipy.sparse as sp
+
+    return sp.issparse(A)
+
+
+def _zeros(n: int, sparse: bool):
+    if sparse:
+        import scipy.sparse as sp
+
+        return sp.csr_matrix((n, n))
+    return np.zeros((n, n))
+
+
+def _asymmetry(A) -> tuple[float, float]:
+    """(max |A - A^T|, max(max |A|, 1e-300)), sparse or dense (no dense copy of a sparse A)."""
+    if _issparse(A):
+        d = (A - A.T).tocsr()
+        asym = float(np.abs(d.data).max(initial=0.0))
+        return asym, max(float(np.abs(A.data).max(initial=0.0)), 1e-300)
+    return float(np.abs(A - A.T).max()), max(float(np.abs(A).max()), 1e-300)
+
 
 PSD_RTOL = 1e-9  # a semi-definite matrix may have eigenvalues down to -PSD_RTOL * its largest entry
 PD_RTOL = 1e-12  # a definite one needs every pivot above PD_RTOL * the largest
 SPARSE_CHECK_MIN_N, SPARSE_CHECK_DENSITY = 200, 0.05  # the sparse check for larger matrices with < 5 % non-zeros
 
 
-def _positive_definite(A: np.ndarray, shift: float) -> bool:
+def _positive_definite(A, shift: float) -> bool:
     """True if A + shift * max|A_ij| * I is positive definite, by Sylvester's criterion on the
     pivots of a symmetric (diagonal-pivot) factorisation P A P^T = L D U, never by an
     eigen-decomposition: a dense Cholesky (n^3/3 flops) for dense matrices, a sparse LU with a
     symmetric fill-reducing ordering and diagonal pivots (SuperLU, threshold 0) for sparse ones
     (a lumped or banded FE mass or stiffness: about linear in n). A definite matrix has every
     pivot > 0; with shift = 0 also every pivot above PD_RTOL times the largest (a zero mass)."""
+    import scipy.sparse as sp
+
     n = A.shape[0]
-    scale = float(np.abs(A).max(initial=0.0))
+    if _issparse(A):
+        scale = float(np.abs(A.data).max(initial=0.0))
+        dense_small = False
+    else:
+        scale = float(np.abs(A).max(initial=0.0))
+        dense_small = n <= SPARSE_CHECK_MIN_N or np.count_nonzero(A) > SPARSE_CHECK_DENSITY * n * n
     if scale == 0.0:
         return shift > 0.0
-    shifted = A + (shift * scale) * np.eye(n) if shift > 0.0 else A
-    if n <= SPARSE_CHECK_MIN_N or np.count_nonzero(A) > SPARSE_CHECK_DENSITY * n * n:
+    if dense_small:
+        shifted = A + (shift * scale) * np.eye(n) if shift > 0.0 else A
         try:
             pivots = np.diag(np.linalg.cholesky(shifted)) ** 2
         except np.linalg.LinAlgError:
             return False
     else:
-        import scipy.sparse as sp
         from scipy.sparse.linalg import splu
 
+        shifted = sp.csc_matrix(A) + (shift * scale) * sp.identity(n, format="csc") if shift > 0.0 else sp.csc_matrix(A)
         try:
             lu = splu(
                 sp.csc_matrix(shifted),
@@ -112,6 +180,15 @@ def _positive_definite(A: np.ndarray, shift: float) -> bool:
     return bool(pivots.min() > 0.0 and (shift > 0.0 or pivots.min() > PD_RTOL * pivots.max()))
 
 
-def _smallest_eigenvalue(A: np.ndarray) -> float:
-    """For the error message only (the matrix was refused): its smallest eigenvalue."""
-    return float(np.linalg.eigvalsh(A).min())
+def _smallest_eigenvalue(A) -> str:
+    """For the error message only (the matrix was refused): its smallest eigenvalue (dense, or
+    sparse Lanczos for a large sparse matrix), as text."""
+    if _issparse(A) and A.shape[0] > SPARSE_CHECK_MIN_N:
+        from scipy.sparse.linalg import ArpackError, eigsh
+
+        try:
+            return f"smallest eigenvalue about {float(eigsh(A, k=1, which='SA', return_eigenvectors=False)[0]):.3g}"
+        except (ArpackError, ValueError):
+            return "a non-positive pivot"
+    dense = A.toarray() if _issparse(A) else A
+    return f"smallest eigenvalue {float(np.linalg.eigvalsh(dense).min()):.3g}"

@@ -53,6 +53,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.model.excitation import compile_signal, evaluate_compiled
+from slipstep.system import quadratic_form
 
 _UNITS = "J"
 
@@ -88,9 +89,9 @@ def _local_forces(ds: xr.Dataset, cs) -> np.ndarray:
 
 def external_force(system, t: np.ndarray) -> np.ndarray:
     """f_e(t) [N] on the DOFs, shape (nt, n): constant loads + the varying force signal."""
-    cs = system.compile()
     n = system.n_dofs
-    fe = np.tile(np.asarray(cs.constant_force, float), (t.size, 1))
+    f0 = system.excitation.constant_force
+    fe = np.tile(np.zeros(n) if f0 is None else np.asarray(f0, float), (t.size, 1))
     if system.excitation.force is not None:
         fe += evaluate_compiled(compile_signal(system.excitation.force, n), t)
     return fe
@@ -126,10 +127,11 @@ def energy_balance(ds: xr.Dataset, system) -> xr.Dataset:
     v = ds["velocity"].values if dynamic else np.zeros_like(x)
     p = ds["prescribed_motion"].values
     f = _local_forces(ds, cs)
-    M, C, K, B = cs.M, cs.C, cs.K, cs.B
+    s = system.structure  # M, C, K in the user's DOF order (the results' order), dense or sparse
+    M, C, K, B = s.mass, s.damping, s.stiffness, cs.B
 
-    kinetic = 0.5 * np.einsum("ti,ij,tj->t", v, M, v)
-    elastic = 0.5 * np.einsum("ti,ij,tj->t", x, K, x)
+    kinetic = 0.5 * quadratic_form(M, v)
+    elastic = 0.5 * quadratic_form(K, x)
 
     u = ds["tangential_displacement"].values
     w = ds["slider"].values
@@ -146,7 +148,7 @@ def energy_balance(ds: xr.Dataset, system) -> xr.Dataset:
     dw = np.diff(w, axis=0)
     fric_dir = np.vstack([np.zeros((1, w.shape[1])), np.cumsum(0.5 * (T[1:] + T[:-1]) * dw, axis=0)])
     friction = fric_dir.sum(axis=1)
-    damping = _cumtrapz(v @ C.T, x) if dynamic else np.zeros(t.size)
+    damping = _cumtrapz(np.asarray((C @ v.T).T), x) if dynamic else np.zeros(t.size)
     external = _cumtrapz(external_force(system, t), x)
     motion = -_cumtrapz(f @ B, p) if B.shape[1] else np.zeros(t.size)
 

@@ -67,7 +67,7 @@ class CutOff:
 
 def excitation_frequencies(system) -> np.ndarray:
     """Frequencies [Hz] of the harmonic force and motion components with non-zero amplitude."""
-    cs = system.compile()
+    cs = system.compile_dense("the filtered contact-state analysis")
     out = []
     for f, s, c in (
         (cs.force_frequency, cs.force_sin, cs.force_cos),
@@ -90,7 +90,7 @@ def state_frequencies(system, state) -> np.ndarray:
     from slipstep.methods.massless import contact_held_dofs
     from slipstep.methods.simulation import state_t_min
 
-    cs = system.compile()
+    cs = system.compile_dense("the filtered contact-state analysis")
     held = contact_held_dofs(system)
     if 0 < held.size < cs.M.shape[0]:
         from slipstep.kernels.contact import add_contact_stiffness

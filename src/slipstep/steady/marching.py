@@ -57,7 +57,14 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
         ):
             raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
-    return Simulation(system, method, periods=1.0, **opts)
+    sim = Simulation(system, method, periods=1.0, **opts)
+    if sim.compiled.banded:  # issue 10: the steady-state search carries states in the user's DOF order
+        raise InputError(
+            "structure",
+            "is a sparse structure on the banded backend: the steady-state search needs the dense one",
+            "march enough periods with slipstep.run instead, or give linear_solver='direct' for a small model",
+        )
+    return sim
 
 
 def check_tolerance(tolerance: float, max_periods: int) -> None:
