@@ -103,6 +103,13 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
         "N/m (SI per DOF unit)",
         "stiffness matrix K, symmetric positive semi-definite",
     ),
+    "StructureSpec.mass_file_kg": (
+        "kg",
+        "M from a file instead of mass_kg, relative to the case file: .npz (scipy.sparse.save_npz, kept sparse), "
+        ".mtx (Matrix Market) or .npy (dense); a sparse model runs on the banded backend",
+    ),
+    "StructureSpec.damping_file_N_s_per_m": ("N s/m", "C from a file instead of damping_N_s_per_m (as mass_file_kg)"),
+    "StructureSpec.stiffness_file_N_per_m": ("N/m", "K from a file instead of stiffness_N_per_m (as mass_file_kg)"),
     "StructureSpec.constant_force_N": ("N (N m on rad DOFs)", "constant load per DOF, ramped in the static preload"),
     "ContactSpec.name": ("-", "contact name (a `contact` coordinate of the result)"),
     "ContactSpec.dof_gather": (
@@ -110,6 +117,11 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
         "A: rows u (tangential) then v (normal, > 0 = interference), one column per DOF; "
         "2 rows = 2D contact, 3 rows = quasi-3D",
     ),
+    "ContactSpec.dof_gather_entries": (
+        "1",
+        "the sparse form of dof_gather: [row, DOF index (from 0), value] triples; for models with many DOFs",
+    ),
+    "ContactSpec.dof_gather_rows": ("1", "rows of dof_gather_entries' matrix: 2 (2D, default) or 3 (quasi-3D)"),
     "ContactSpec.motion_gather": ("1", "B: one column per `motion_names` entry, q = A x - B p + g"),
     "ContactSpec.normal_stiffness_N_per_m": ("", "normal contact stiffness k_n"),
     "ContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] of a quasi-3D contact"),
@@ -499,7 +511,12 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "adaptive_step": ("1", "1 when the step follows the contact state (Methods 2, 2+3), else 0"),
     "quasi_static": ("1", "1 for the quasi-static method (no velocity, acceleration), else 0"),
     "scheme": ("-", "time-integration scheme and its parameters, e.g. newmark(beta=1/4, gamma=1/2)"),
-    "linear_solver": ("-", "state solves: direct (LU per state) or low-rank (Woodbury update)"),
+    "linear_solver": (
+        "-",
+        "state solves: direct (LU per state), low-rank (Woodbury update) or banded (RCM-ordered banded LU per "
+        "state: sparse structures)",
+    ),
+    "bandwidth": ("1", "half-bandwidth kl = ku of the banded backend after the RCM order; -1 for dense backends"),
     "status": (
         "-",
         "OK, or why the march stopped early (NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, "

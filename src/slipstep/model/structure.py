@@ -181,14 +181,9 @@ def _positive_definite(A, shift: float) -> bool:
 
 
 def _smallest_eigenvalue(A) -> str:
-    """For the error message only (the matrix was refused): its smallest eigenvalue (dense, or
-    sparse Lanczos for a large sparse matrix), as text."""
+    """For the error message only (the matrix was refused): its smallest eigenvalue, as text
+    (a large sparse matrix: no eigen-solve, the factorisation's verdict)."""
     if _issparse(A) and A.shape[0] > SPARSE_CHECK_MIN_N:
-        from scipy.sparse.linalg import ArpackError, eigsh
-
-        try:
-            return f"smallest eigenvalue about {float(eigsh(A, k=1, which='SA', return_eigenvectors=False)[0]):.3g}"
-        except (ArpackError, ValueError):
-            return "a non-positive pivot"
+        return "a non-positive pivot of its sparse symmetric factorisation"
     dense = A.toarray() if _issparse(A) else A
     return f"smallest eigenvalue {float(np.linalg.eigvalsh(dense).min()):.3g}"
