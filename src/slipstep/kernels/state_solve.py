@@ -2,7 +2,7 @@
 
     J(S) = Lin + kfac K_D(S),   K_D(S) = A^T K(S) A
 
-Two ways, chosen once per run (ipar LOWRANK in march.py):
+Two ways, chosen once per run (MarchSettings.structure, kernels/structure_ops.py):
 
 * direct: the LU of the n x n J(S) per state tuple (best when the contact coordinates are
   as many as the DOFs, e.g. a rigid damper);
@@ -47,13 +47,15 @@ class LowRank(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
-                    keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
-    key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
+    key = (kd_state, cache.dt_state); a non-nominal dt (the shortened last step) uses scratch
     slot cap, a state without a piecewise-linear form (coupled slip: its tangent is taken at
     (q, w_old)) scratch slot cap + 1, neither cached. Returns (slot, ok); ok is False when
-    J(S) is singular."""
+    J(S) is singular. cl: the ContactLaw table, cache: the StateCache (kernels/settings.py)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    dt_state, stick, key, keys, used, ok_flags = cache.dt_state, cache.stick, cache.key, cache.keys, cache.used, cache.ok
+    lus, pivs, lr = cache.lu, cache.piv, cache.lr
     nd = kd_state.shape[0]
     for d in range(nd):
         key[d] = kd_state[d]
@@ -131,10 +133,12 @@ def factorise_state(lowrank, Lin, J, kfac, A, nrow, lcode, lpar, fdir, ndir, tro
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, kfac, r, out):
+def solve_low_rank(slot, cache, A, cl, kd_state, q, w_old, kfac, r, out):
     """out = J(kd_state)^-1 r by the low-rank update of ``slot`` (see the module docstring).
     In direct mode the callers use lu_solve(lus[slot], pivs[slot], r, out) instead (kept out of
     this function so that the direct hot path never touches the low-rank arrays)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    lus, pivs, lr = cache.lu, cache.piv, cache.lr
     b = lr.slot_base[slot]
     lu_solve(lr.base_lu[b], lr.base_piv[b], r, out)
     if lr.slot_identity[slot]:
