@@ -115,7 +115,7 @@ def test_implicit_divergence_beyond_the_limit_is_diverged(paper):
     """Force a conditionally stable Newmark step past its limit (the set-up refuses it, so the
     kernel parameter is changed after it): the march ends DIVERGED with the step it was found."""
     sim = ss.Simulation(paper, "piecewise-linear", scheme=newmark(1 / 12, 0.5), periods=1, error_estimate=False)
-    sim.fpar[K.DT] = sim.dt * 1.4  # omega_max dt = 1.4 * sqrt(6) at most: unstable
+    sim.settings = K.replace_settings(sim.settings, dt=sim.dt * 1.4)  # omega_max dt = 1.4 * sqrt(6) at most: unstable
     status = sim.march()
     ds = sim.dataset()
     assert status == Status.DIVERGED and ds.attrs["status"] == "DIVERGED"

@@ -15,6 +15,7 @@ import numpy as np
 
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
+from slipstep.kernels.settings import march_settings
 from slipstep.methods.simulation import (
     RunOptions,
     Runner,
@@ -117,17 +118,18 @@ class ExplicitSimulation(Runner):
             capacity = math.ceil(t_end / dt * (1 + 1e-12)) + 1
         if capacity > 50_000_000:
             raise InputError("duration", f"needs {capacity} steps", "shorten the run")
-        self.fpar = np.zeros(E.N_FPAR)
-        self.fpar[E.DT] = dt
-        self.fpar[E.STEP_FACTOR] = factor
-        self.fpar[E.DT_MAX] = dt_max
-        self.fpar[E.T_START], self.fpar[E.T_END] = 0.0, t_end
-        self.fpar[E.SINGULAR_RTOL] = opt.singular_tolerance
-        self.fpar[E.DIVERGENCE] = 1e6 * cs.length_scale
-        self.ipar = np.zeros(E.N_IPAR, np.int64)
-        self.ipar[E.KIND] = integrator.kernel_kind
-        self.ipar[E.ADAPTIVE] = int(self.adaptive)
-        self.ipar[E.MAX_REDO] = opt.max_redo
+        self.settings = march_settings(
+            dt=dt,
+            step_factor=factor,
+            dt_max=dt_max,
+            t_start=0.0,
+            t_end=t_end,
+            singular_rtol=opt.singular_tolerance,
+            divergence=1e6 * cs.length_scale,
+            solver=integrator.kernel_kind,
+            adaptive=self.adaptive,
+            max_redo=opt.max_redo,
+        )
         self.ws = _allocate_explicit_workspace(cs)
         self.out = _allocate_outputs(cs, capacity)
         self.status = None

@@ -17,8 +17,6 @@ Costs: factorisation O(n kl (kl + ku)), solve and mat-vec O(n (kl + ku)); so a s
 march is linear in n for a fixed bandwidth. Gather maps are CSR: (indptr, indices, data).
 """
 
-from typing import NamedTuple
-
 import numpy as np
 from numba import njit
 
@@ -346,33 +344,14 @@ def band_lambda_max(Mb, Klu, kl, ku, mlu, mpiv, m_diagonal):
     return top
 
 
-class BandContext(NamedTuple):
-    """What the march's call sites need of the banded backend (built once per march from the
-    CompiledSystem and the workspace; ``banded`` False: the dense backend, the rest unused)."""
-
-    banded: bool
-    kl: int
-    ku: int
-    Aptr: np.ndarray  # CSR of A
-    Aidx: np.ndarray
-    Aval: np.ndarray
-    ATptr: np.ndarray  # CSR of A^T
-    ATidx: np.ndarray
-    ATval: np.ndarray
-    Mb: np.ndarray  # band storage of M, C, K
-    Cb: np.ndarray
-    Kb: np.ndarray
-    mpiv: np.ndarray  # int64 (n): pivots of M's banded LU (held in Workspace.Minv)
-    m_diagonal: bool  # M is diagonal (M^-1 by a division)
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def dense_context():
-    """The BandContext of the dense backend (for kernels that never run banded: explicit)."""
-    ei = np.zeros(1, np.int64)
-    ef = np.zeros(0)
-    eb = np.zeros((0, 1))
-    return BandContext(False, 0, 0, ei, ei[:0], ef, ei, ei[:0], ef, eb, eb, eb, ei[:0], True)
+def band_is_diagonal(ab, ku):
+    """True if the band storage holds a diagonal matrix."""
+    for j in range(ab.shape[0]):
+        for t in range(ab.shape[1]):
+            if t != ku and ab[j, t] != 0.0:
+                return False
+    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

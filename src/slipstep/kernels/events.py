@@ -25,7 +25,7 @@ the Illinois method to 1e-13 of the period (a margin counts as crossed below
 the states whose margin reaches zero with a negative slope change (stick -> slip+/-,
 slip -> stick with the slider frozen where it is, contact <-> lift-off, re-contact in stick
 with w = u) and a new phase starts. Outputs are sampled on the uniform grid of
-``fpar[DT]`` at the cost of a sum over the basis (x, q, and the forces and sliders, affine in
+``MarchSettings.dt`` at the cost of a sum over the basis (x, q, and the forces and sliders, affine in
 q within a phase; sin and cos advanced by rotation). Piecewise-linear laws only (no coupled
 slip), harmonic signals without tables or ramps (checked in Python).
 """
@@ -37,10 +37,10 @@ from slipstep.kernels.codes import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LIFT, NON_FINITE, OK, P_KN,
     P_MU, SINGULAR, SLIP_NEG, SLIP_POS, STATE_CYCLING, STICK,
 )
+from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
-from slipstep.kernels.march import DT, SINGULAR_RTOL, STATE_RTOL, T_END, T_START
 
 # margin kinds
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
@@ -220,9 +220,11 @@ def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def event_march(sys, fpar, ipar, ws, out, q0, f0):
-    """Event-driven quasi-static march from t_start to t_end with outputs every fpar[DT]
-    (module docstring); same arguments, layout and counters as kernels.march.march."""
+def event_march(sys, st, ws, out, q0, f0):
+    """Event-driven quasi-static march from st.t_start to st.t_end with outputs every st.dt
+    (module docstring); same arguments (st: the MarchSettings), layout and counters as
+    kernels.march.march."""
+    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)  # kernels/borrow.py
     Kst, A = sys.K, sys.A
     nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
     ndir, trow, kt = sys.n_directions, sys.tangential_row, sys.kt
@@ -246,12 +248,12 @@ def event_march(sys, fpar, ipar, ws, out, q0, f0):
         for c in range(m):
             Pb[2 * (nfh + h) + 1, c] = sys.motion_sin[c, h]
             Pb[2 * (nfh + h) + 2, c] = sys.motion_cos[c, h]
-    period = 2.0 * np.pi / om.max() if nh > 0 else fpar[T_END] - fpar[T_START]
-    rot_c = np.cos(om * fpar[DT])
-    rot_s = np.sin(om * fpar[DT])
-    scan = min(period / 64.0, (fpar[T_END] - fpar[T_START]) / 16.0)
+    period = 2.0 * np.pi / om.max() if nh > 0 else st.t_end - st.t_start
+    rot_c = np.cos(om * st.dt)
+    rot_s = np.sin(om * st.dt)
+    scan = min(period / 64.0, (st.t_end - st.t_start) / 16.0)
     tol_t = 1e-13 * period
-    rtol = fpar[STATE_RTOL]
+    rtol = st.state_rtol
     scr = np.zeros((5, max(n, nq)))
     Fp = np.zeros((nb, nq))
     Wp = np.zeros((nb, nd))
@@ -273,9 +275,9 @@ def event_march(sys, fpar, ipar, ws, out, q0, f0):
     state, w, x = ws.state, ws.w, ws.x
     q1, f1, w1 = ws.q1, ws.f1, ws.w1
     # ---- initial point ----
-    t = fpar[T_START]
-    t_end = fpar[T_END]
-    dt_out = fpar[DT]
+    t = st.t_start
+    t_end = st.t_end
+    dt_out = st.dt
     for r in range(nq):
         out.q[0, r] = q0[r]
         out.f[0, r] = f0[r]
@@ -292,13 +294,13 @@ def event_march(sys, fpar, ipar, ws, out, q0, f0):
     status = OK
     pending = 0  # solves of the phases since the last output
     flips = 0
-    t0 = fpar[T_START]
+    t0 = st.t_start
     o_t, o_dt, o_x, o_q, o_f, o_w, o_state, o_solves = out.t, out.dt, out.x, out.q, out.f, out.w, out.state, out.solves
     while t < t_end - tiny:
         k_phase = k
         ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
                                       keys, used, lus, pivs, Xc, Qc, ws.key, scr, wtmp, MC, kind, owner, scale,
-                                      fpar[SINGULAR_RTOL], counters)
+                                      st.singular_rtol, counters)
         X = Xc[slot]
         Q = Qc[slot]
         # forces and sliders are affine in q within the phase: their basis columns F_j, W_j

@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.banded import dense_context  # the march's call sites take a BandContext (issue 10)
+from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
@@ -43,12 +43,8 @@ from slipstep.kernels.march import (
 from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.signals import evaluate_signal
 
-# float parameters
-DT, STEP_FACTOR, DT_MAX, T_START, T_END, SINGULAR_RTOL, DIVERGENCE = range(7)
-N_FPAR = 7
-# int parameters
-KIND, ADAPTIVE, MAX_REDO = range(3)
-N_IPAR = 3
+# explicit schemes (MarchSettings.solver of explicit_march; the settings it reads: dt, step_factor,
+# dt_max, t_start, t_end, singular_rtol, divergence, adaptive, max_redo)
 CENTRAL_DIFFERENCE, RK4 = 0, 1
 
 
@@ -108,11 +104,12 @@ def _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, l
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
+def explicit_march(sys, st, ws, out, q0, f0):
     """March from t_start to t_end writing step k into out[k] (k = 0: the initial state with
-    local q0, f0), same layout and counters as :func:`slipstep.kernels.march.march`.
+    local q0, f0; st: the MarchSettings), same layout and counters as :func:`slipstep.kernels.march.march`.
     Returns the status; out.counters[C_STEPS] steps done."""
-    # ---- unpack once (the loop touches local arrays only) ----
+    # ---- the arguments without reference counting (kernels/borrow.py), unpacked once ----
+    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
     nrow, lcode, lpar, fdir, ndir, trow, kt = (sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
                                          sys.tangential_row, sys.kt)
@@ -124,15 +121,15 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     counters = out.counters
     n = x.shape[0]
     nq = q1.shape[0]
-    rk4 = ipar[KIND] == RK4
-    adaptive = ipar[ADAPTIVE] == 1
-    bound = fpar[DIVERGENCE]
+    rk4 = st.solver == RK4
+    adaptive = st.adaptive
+    bound = st.divergence
     cap = out.t.shape[0] - 1
     for r in range(nq):
         out.q[0, r] = q0[r]
         out.f[0, r] = f0[r]
-    t = fpar[T_START]
-    t_end = fpar[T_END]
+    t = st.t_start
+    t_end = st.t_end
     _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, 0, t, 0.0, 0)
     k = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
@@ -147,14 +144,14 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(Kst, Minv, A, dense_context(), nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
-                                   fpar[STEP_FACTOR], fpar[DT_MAX])
+            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+                                   st.step_factor, st.dt_max)
         else:
-            dt = fpar[DT]
+            dt = st.dt
         if t + dt > t_end - tiny:
             dt = t_end - t
         solves = 0
-        for attempt in range(ipar[MAX_REDO] + 1):
+        for attempt in range(st.max_redo + 1):
             # ---- factorise M (RK4, once) or M + dt/2 C (central difference, per dt) ----
             if (rk4 and lu_dt != lu_dt) or (not rk4 and lu_dt != dt):
                 c = 0.0 if rk4 else 0.5 * dt
@@ -164,7 +161,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                         Meff[i, j] = M[i, j] + c * Cd[i, j]
                 counters[C_FACTORISATIONS] += 1
                 lu_dt = dt
-                if not lu_factor(Meff, lu, piv, fpar[SINGULAR_RTOL]):
+                if not lu_factor(Meff, lu, piv, st.singular_rtol):
                     status = SINGULAR
                     break
             h = 0.5 * dt
@@ -173,15 +170,15 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
                 for i in range(n):
                     kx[0, i] = v[i]
                     kv[0, i] = a[i]
-                for st in range(1, 4):
-                    c = 1.0 if st == 3 else 0.5
+                for stage in range(1, 4):
+                    c = 1.0 if stage == 3 else 0.5
                     for i in range(n):
-                        xs[i] = x[i] + c * dt * kx[st - 1, i]
-                        vs[i] = v[i] + c * dt * kv[st - 1, i]
+                        xs[i] = x[i] + c * dt * kx[stage - 1, i]
+                        vs[i] = v[i] + c * dt * kv[stage - 1, i]
                     _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, lu, piv, p, fe, gf, rhs,
-                           t + c * dt, xs, vs, w, fs, w_s, ss, q1, kv[st])
+                           t + c * dt, xs, vs, w, fs, w_s, ss, q1, kv[stage])
                     for i in range(n):
-                        kx[st, i] = vs[i]
+                        kx[stage, i] = vs[i]
                 for i in range(n):
                     x1[i] = x[i] + dt / 6.0 * (kx[0, i] + 2.0 * kx[1, i] + 2.0 * kx[2, i] + kx[3, i])
                     v1[i] = v[i] + dt / 6.0 * (kv[0, i] + 2.0 * kv[1, i] + 2.0 * kv[2, i] + kv[3, i])
@@ -208,11 +205,11 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             for r in range(nq):
                 if status == OK and not abs(q1[r]) <= bound:
                     status = DIVERGED  # |q| beyond 1e6 length scales: the scheme's instability
-            if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
+            if status != OK or not adaptive or attempt == st.max_redo:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(Kst, Minv, A, dense_context(), nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
-                                      tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
+                                      tvalue, st.step_factor, st.dt_max)
             if limit >= dt * (1.0 - 1e-9):
                 break
             counters[C_REDOS] += 1

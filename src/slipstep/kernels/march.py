@@ -17,12 +17,12 @@ with y_{n+1-a} = (1 - a) y_{n+1} + a y_n. Written as the residual in dx:
 and the Jacobian in state S is J(S) = Lin + (1 - af) K_D(S).
 Quasi-static (inertia off, paper Eq. 10): Lin = K, r0 = f_e - K x_n, J(S) = K + K_D(S).
 
-Step solvers:
+Step solvers (kernels/step_solvers.py):
     0 modified Newton (Method 1): J(all stick) factorised once per dt, iterate on dx until
       BOTH the increment test (the error estimate theta/(1-theta) of the scaled increment on
       the contact coordinates and the DOFs, theta the larger of the last two contraction
-      ratios, :func:`_newton_update`) and the force-residual test at the new iterate
-      (:func:`_residual_converged`) hold; each iteration = one contact-law call + one solve.
+      ratios, step_solvers.newton_update) and the force-residual test at the new iterate
+      (step_solvers.residual_converged) hold; each iteration = one contact-law call + one solve.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
       compatible at the computed q, else postulate the law's states there and re-solve.
@@ -33,7 +33,7 @@ Step solvers:
       at the step start, or the one a redo found; fixed step: S_n), cached per state, given
       up for J(all stick) from the dx reached when it stops contracting (theta >= 0.5).
     (4 EVENTS: not a solver of this march; kernels/events.py.)
-Accuracy control (fpar RTOL > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
+Accuracy control (MarchSettings.rtol > 0, RunOptions.rtol): dt = min(rule, dt_acc) for the Newton
 solvers (rule: the fixed step or the contact-state step below), min(dt_acc, dt_max) for the
 piecewise-linear solve; dt_acc follows the local error of each step (:func:`_local_error`),
 a step above it is redone smaller (counted as a redo). Every step then factorises afresh.
@@ -41,8 +41,21 @@ Adaptive step (Method 2): dt = min(step_factor * T_min(S_n), dt_max), with
 T_min = 2 pi / sqrt(max|eig(M^-1 (K + K_D(S)))|) cached per state; redo the step with the
 smaller dt when the new state's limit is below the dt used (a redone step postulates the
 state it found).
-Every solve with J(S) goes through kernels/state_solve.py: a cached LU per (S, dt state), or
-the low-rank update of J(all stick) for structures with few contact coordinates.
+Every operation on n x n structure matrices (Lin, M y, C y, K y, Lin dx, the factorisations
+and solves with J(S)) goes through kernels/structure_ops.py, with the backend of
+MarchSettings.structure: a cached LU per (S, dt state) (kernels/state_solve.py), or the
+low-rank update of J(all stick) for structures with few contact coordinates.
+
+One step of :func:`march`, in order (each a function below or in step_solvers.py):
+    step size (fixed / contact-state rule / accuracy)      -> _step_size, _state_step_limit
+    Newmark coefficients and Lin (once per dt)             -> _newmark_matrix
+    loads and motions f_e(t_{n+1}), p(t_{n+1})             -> _loads_and_motions
+    q_base and the residual base r0                        -> _residual_base
+    the step solve per solver                              -> step_solvers.*_step
+    the accuracy / redo rule                               -> _accuracy_redo, _state_redo
+    accept: x_{n+1} = x_n + dx and the Newmark relations   -> _accept
+    store output point n+1                                 -> _store (+ q, f)
+Inputs: the CompiledSystem, MarchSettings (kernels/settings.py), the Workspace, Outputs.
 """
 
 from typing import NamedTuple
@@ -50,6 +63,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.banded import band_contact_stiffness, band_is_diagonal, band_lambda_max, band_to_lu_storage
+from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
@@ -59,24 +74,20 @@ from slipstep.kernels.codes import (  # noqa: F401
     C_PROGRESS, C_STOP, EVENTS, FULL_NEWTON, INTERRUPTED, LAW_CIRCLE, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE,
     PIECEWISE_LINEAR,
 )
-from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
-from slipstep.kernels.banded import (
-    BandContext, band_combine, band_contact_stiffness, band_lambda_max, band_lu_solve, band_matvec_sub, band_to_lu_storage,
-    csr_abs_max, csr_gather, csr_matvec,
+from slipstep.kernels.contact import contact_stiffness
+from slipstep.kernels.settings import (  # noqa: F401  (re-exported: the settings)
+    MarchSettings, contact_table, march_settings, replace_settings, state_cache, step_vectors,
 )
-from slipstep.kernels.linalg import lu_solve
-from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
+from slipstep.kernels import structure_ops as so
+from slipstep.kernels.structure_ops import BANDED, DENSE, LOW_RANK  # noqa: F401
+from slipstep.kernels.step_solvers import (  # noqa: F401
+    CV_FLOOR, CV_TOL, CV_TOL_Q, CV_X, THETA_GIVE_UP, full_newton, piecewise_linear_step, state_tangent_step,
+    stick_tangent_step,
+)
+from slipstep.kernels.state_solve import LowRank
 
-THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
-# float parameters
-BETA, GAMMA, ALPHA_M, ALPHA_F, DT, STEP_FACTOR, DT_MAX, TOL, STATE_RTOL, SINGULAR_RTOL, T_START, T_END = range(12)
-RTOL, ERR_SCALE = 12, 13  # accuracy control (rtol > 0: on; the piecewise-linear solve then keeps dt <= DT_MAX only)
-N_FPAR = 14
 ACC_GROWTH = 1.5  # the largest growth of the accuracy step from one step to the next
-# int parameters
-SOLVER, ADAPTIVE, INERTIA, MAX_ITER, MAX_STATE_ITER, MAX_REDO, FALLBACK, SIGNALS, PRELOAD, LOWRANK = range(10)
-N_IPAR = 10
 
 
 class Workspace(NamedTuple):
@@ -117,7 +128,7 @@ class Workspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
     lin_dt: np.ndarray  # (1,) dt of the current Lin
     visited: np.ndarray  # int8 (max_state_iter + 1, nd): states of the last state iteration
-    mpiv: np.ndarray  # int64 (n) banded backend: pivots of M's banded LU (held in Minv); (0,) when dense
+    mpiv: np.ndarray  # int64 (n) banded backend (issue 10): pivots of M's banded LU (held in Minv); (0,) otherwise
     lr: LowRank  # the low-rank solve's arrays (placeholders in direct mode), see state_solve.py
 
 
@@ -143,281 +154,8 @@ def newmark_coefficients(beta, gamma, dt):
             1.0 - gamma / beta, dt * (1.0 - gamma / (2.0 * beta)))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1,
-                     gf1, r, counters):
-    """The contact law at q = q_base + A dx and the residual r = r0 - Lin dx - kfac A^T f."""
-    n = dx.shape[0]
-    _gather_dx(A, bd, qbase, dx, q1)
-    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
-    counters[C_LAW_CALLS] += 1
-    _scatter(AT, bd, f1, gf1)
-    if bd.banded:  # banded backend (issue 10)
-        for i in range(n):
-            r[i] = r0[i] - kfac * gf1[i]
-        band_matvec_sub(Lin, bd.kl, bd.ku, dx, r)
-        return
-    for i in range(n):
-        s = r0[i] - kfac * gf1[i]
-        for j in range(n):
-            s -= Lin[i, j] * dx[j]
-        r[i] = s
-
-
-# ---- banded backend (issue 10): the products with A and the solves, dense or banded ----------
-@njit(cache=True, error_model="numpy", inline="always")
-def _gather_dx(A, bd, base, y, out):
-    """out = base + A y (q = q_base + A dx)."""
-    if bd.banded:
-        csr_gather(bd.Aptr, bd.Aidx, bd.Aval, base, y, out)
-        return
-    n = y.shape[0]
-    for rr in range(A.shape[0]):
-        s = base[rr]
-        for j in range(n):
-            s += A[rr, j] * y[j]
-        out[rr] = s
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _gather_x(A, B, g, bd, x, p, q):
-    """q = A x - B p + g (kernels.contact.gather; A in CSR for the banded backend)."""
-    if not bd.banded:
-        gather(A, B, g, x, p, q)
-        return
-    for r in range(q.shape[0]):
-        s = g[r]
-        for j in range(B.shape[1]):
-            s -= B[r, j] * p[j]
-        q[r] = s
-    csr_gather(bd.Aptr, bd.Aidx, bd.Aval, q, x, q)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _scatter(AT, bd, f, out):
-    """out = A^T f."""
-    if bd.banded:
-        csr_matvec(bd.ATptr, bd.ATidx, bd.ATval, f, out)
-    else:
-        scatter(AT, f, out)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _solve(bd, lu, piv, b, x):
-    """x = J^-1 b with a factorisation of kernels/linalg.py or (banded) kernels/banded.py."""
-    if bd.banded:
-        band_lu_solve(lu, bd.kl, bd.ku, piv, b, x)
-    else:
-        lu_solve(lu, piv, b, x)
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def _band_is_diagonal(Mb, kl, ku):
-    """True if the band storage holds a diagonal matrix (or is the dense backend's placeholder)."""
-    for j in range(Mb.shape[0]):
-        for t in range(Mb.shape[1]):
-            if t != ku and Mb[j, t] != 0.0:
-                return False
-    return True
-
-
-# convergence parameters of the Newton iterations (the array ``conv``, filled per step by march):
-#   conv[CV_TOL]    tol, the relative tolerance (RunOptions.tolerance)
-#   conv[CV_TOL_Q]  tol * L, the absolute tolerance on the contact coordinates [m]
-#   conv[CV_FLOOR]  tol * L * max diag J(stick): the residual floor [N] (a step at rest)
-#   conv[CV_X + j]  tol * L / max_r |A_rj| (tol * L for a DOF no contact sees): the tolerance on DOF j
-CV_TOL, CV_TOL_Q, CV_FLOOR, CV_X = 0, 1, 2, 3
-#: the residual test never asks for less than this relative residual (round-off of r)
-RESIDUAL_RTOL_MIN = 1e-13
-#: an increment below this fraction of its scale is round-off (its contraction ratio is meaningless)
-ROUNDOFF = 1e-14
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _newton_update(A, bd, dx, delta, it, prev_norm, prev_theta, conv):
-    """dx += delta; returns (status, increment_converged, norm, theta).
-
-    The scaled increment eta = max(max_r |(A delta)_r| / tol_q, max_j |delta_j| / tol_x,j)
-    (contact coordinates and DOFs, conv), its contraction theta_k = eta_k / eta_{k-1} and
-    the robust contraction theta = max(theta_k, theta_{k-1}) (slow or irregular contraction
-    cannot hide behind one lucky ratio). The increment test, the error estimate of a
-    linearly converging iteration (Hairer & Wanner IV.8; Deuflhard's natural monotonicity):
-        theta < 1  and  eta theta / (1 - theta) <= 1
-    The first increment has no theta yet: eta <= 1 itself (then the residual decides). An
-    increment below ROUNDOFF of its scale (L or |x_j|: about 50 machine epsilons) is round-off, whose ratios
-    say nothing about contraction: accepted as converged."""
-    n = dx.shape[0]
-    nq = A.shape[0]
-    for i in range(n):
-        dx[i] += delta[i]
-        if not np.isfinite(dx[i]):
-            return NON_FINITE, False, 0.0, 0.0
-    eta = 0.0
-    tol_q = conv[CV_TOL_Q]
-    if bd.banded:  # banded backend (issue 10)
-        eta = csr_abs_max(bd.Aptr, bd.Aidx, bd.Aval, delta) / tol_q
-    else:
-        for rr in range(nq):
-            s = 0.0
-            for j in range(n):
-                s += A[rr, j] * delta[j]
-            eta = max(eta, abs(s) / tol_q)
-    for i in range(n):
-        eta = max(eta, abs(delta[i]) / conv[CV_X + i])
-    if it == 0:
-        return OK, eta <= 1.0, eta, 0.0
-    theta_k = eta / prev_norm if prev_norm > 0.0 else 0.0
-    theta = max(theta_k, prev_theta) if it >= 2 else theta_k
-    converged = eta * conv[CV_TOL] <= ROUNDOFF or (theta < 1.0 and eta * theta / (1.0 - theta) <= 1.0)
-    return OK, converged, eta, theta_k
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _residual_converged(r, r0, gf1, kfac, conv):
-    """The force-residual test at the current iterate (r = r0 - Lin dx - kfac A^T f):
-        max_i |r_i| <= max(tol, RESIDUAL_RTOL_MIN) * max(F, floor)
-    with F the step's force scale, the largest term of the balance over the DOFs,
-    F = max_i max(|r0_i|, kfac |(A^T f)_i|, |(Lin dx)_i|), (Lin dx = r0 - kfac A^T f - r),
-    and floor = tol L max diag J(stick) (conv)."""
-    rmax = 0.0
-    scale = conv[CV_FLOOR] / conv[CV_TOL]
-    for i in range(r.shape[0]):
-        c = kfac * gf1[i]
-        rmax = max(rmax, abs(r[i]))
-        scale = max(scale, abs(r0[i]), abs(c), abs(r0[i] - c - r[i]))
-    return rmax <= max(conv[CV_TOL], RESIDUAL_RTOL_MIN) * scale
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
-                     dx, delta, r, q1, f1, w1, state1, gf1, max_iter, conv, counters):
-    """Method 1's iteration on r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx) = 0 with the
-    factorised full-stick Jacobian (lu0, piv0). Converged when BOTH the increment test of
-    :func:`_newton_update` (on the contact coordinates and the DOFs) and the force-residual
-    test of :func:`_residual_converged` at the new iterate hold. Returns (status, solves);
-    on success q1, f1, w1, state1, gf1 hold the converged step."""
-    for i in range(dx.shape[0]):
-        dx[i] = 0.0
-    prev_norm = 0.0
-    theta = 0.0
-    inc_ok = False
-    for it in range(max_iter + 1):
-        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
-                         state1, gf1, r, counters)
-        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
-            return OK, it
-        if it == max_iter:
-            break
-        _solve(bd, lu0, piv0, r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
-        if status != OK:
-            return status, it + 1
-    return NOT_CONVERGED, max_iter
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w,
-                 dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                 keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv, singular_rtol, counters):
-    """Newton with the Jacobian J(S) of the current iterate's state (factorised per state,
-    cached); the full-stick one where J(S) is singular. The same two-part convergence test
-    as :func:`_modified_newton` (increment and force residual, both)."""
-    for i in range(dx.shape[0]):
-        dx[i] = 0.0
-    stick_slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, qbase, w, dt_state,
-                                     stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
-    if not ok:
-        return SINGULAR, 0
-    prev_norm = 0.0
-    theta = 0.0
-    inc_ok = False
-    for it in range(max_iter + 1):
-        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1,
-                         state1, gf1, r, counters)
-        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
-            return OK, it
-        if it == max_iter:
-            break
-        use, use_state = stick_slot, stick
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, dt_state,
-                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
-        if ok:
-            use, use_state = slot, state1
-        if lowrank:
-            solve_low_rank(use, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, use_state, q1, w, kfac, r, delta)
-        else:
-            _solve(bd, lus[use], pivs[use], r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
-        if status != OK:
-            return status, it + 1
-    return NOT_CONVERGED, max_iter
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key,
-                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
-    """(ok, lu, piv): the factorisation of J(all stick) for the current step size, held by its
-    state slot (direct) or by the low-rank base (where C(stick) = I). Method 1 iterates with it
-    in :func:`_modified_newton`, which takes only these two arrays so that its hot loop never
-    carries the low-rank arrays (the reason it is separate from :func:`_full_newton`)."""
-    nowhere = np.empty(0)  # J(stick) needs no linearisation point
-    slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, nowhere, nowhere, dt_state, stick,
-                               key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
-    if lowrank:
-        b = lr.slot_base[slot]
-        return ok, lr.base_lu[b], lr.base_piv[b]
-    return ok, lus[slot], pivs[slot]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _guarded_newton(lu, piv, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1,
-                    gf1, max_iter, conv, theta_give_up, from_zero, counters):
-    """:func:`_modified_newton` (the same convergence tests) with the factorised J(S) of a
-    state S (solver 3), given up as soon as it stops contracting (the contraction ratio of
-    the increment >= theta_give_up): J(S) softer than the tangent of the state the step
-    reaches (a slip state entering stick) can make the iteration diverge, where the stiffest
-    tangent, J(all stick), cannot; that one then goes on from the dx reached (from_zero False,
-    theta_give_up inf). Returns (status, solves); NOT_CONVERGED when given up."""
-    if from_zero:
-        for i in range(dx.shape[0]):
-            dx[i] = 0.0
-    prev_norm = 0.0
-    theta = 0.0
-    inc_ok = False
-    for it in range(max_iter + 1):
-        _newton_residual(A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, Lin, kfac, r0, qbase, w, dx, q1, f1, w1, state1, gf1, r, counters)
-        if inc_ok and _residual_converged(r, r0, gf1, kfac, conv):
-            return OK, it
-        if it == max_iter:
-            break
-        _solve(bd, lu, piv, r, delta)
-        status, inc_ok, prev_norm, theta = _newton_update(A, bd, dx, delta, it, prev_norm, theta, conv)
-        if status != OK:
-            return status, it + 1
-        if it > 0 and theta >= theta_give_up:
-            return NOT_CONVERGED, it + 1
-    return NOT_CONVERGED, max_iter
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _state_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick, dt_state, key,
-                         keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
-    """(ok, lu, piv): the factorisation of J(S) for the modified Newton of solver 3, S the
-    contact state whose T_min set the step (cached per state like the stick one). Falls back
-    to J(all stick) where S has no constant tangent (coupled slip), in low-rank mode (whose
-    J(S) solve is not one LU) and where J(S) is singular."""
-    if not lowrank and not coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, tstate):
-        nowhere = np.empty(0)
-        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, nowhere, nowhere, dt_state,
-                                   stick, key, keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters)
-        if ok:
-            return ok, lus[slot], pivs[slot]
-    return _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state, key, keys, used, ok_flags,
-                                lus, pivs, lr, nominal, singular_rtol, counters)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol):
+def _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     """Accuracy control: the local displacement error of a Newmark step (Zienkiewicz & Xie
     1991), e_j = dt^2 |beta - 1/6| (a_{n+1} - a_n)_j, a_{n+1} = a0 dx - a2 v_n - a3 a_n; for a
     massless DOF (M_jj = 0, methods/massless.py: a quasi-static path) the error of its linear
@@ -429,8 +167,7 @@ def _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     c = dt * dt * max(abs(beta - 1.0 / 6.0), 1.0 / 12.0)
     e = np.empty(n)
     for j in range(n):
-        mjj = bd.Mb[j, bd.ku] if bd.banded else M[j, j]
-        if mjj != 0.0:
+        if mdiag[j] != 0.0:
             e[j] = c * (a0 * dx[j] - a2 * v[j] - a3 * a[j] - a[j])
         else:
             e[j] = (dx[j] - v[j] * dt) / 8.0
@@ -438,8 +175,8 @@ def _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     if A.shape[0] == 0:
         for j in range(n):
             err = max(err, abs(e[j]))
-    elif bd.banded:  # banded backend (issue 10)
-        err = csr_abs_max(bd.Aptr, bd.Aidx, bd.Aval, e)
+    elif backend == so.BANDED:  # banded backend (issue 10): A in CSR
+        err = so.gather_abs_max(sys, e)
     else:
         for rr in range(A.shape[0]):
             s = 0.0
@@ -449,18 +186,20 @@ def _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol):
     return err / err_tol
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _accuracy_redo(err, dt, attempt, max_redo):
+    """The accuracy rule on a solved step of local error err (relative, :func:`_local_error`):
+    (redo, dt_redo, dt_next). err > 1 (and a redo left): redo with dt max(0.2, 0.9 err^(-1/3));
+    else the next step dt min(ACC_GROWTH, max(0.2, 0.9 err^(-1/3))) (ACC_GROWTH dt at err 0)."""
+    if err > 1.0 and attempt < max_redo:
+        return True, dt * max(0.2, 0.9 * err ** (-1.0 / 3.0)), dt
+    dt_next = dt * min(ACC_GROWTH, max(0.2, 0.9 * err ** (-1.0 / 3.0))) if err > 0.0 else ACC_GROWTH * dt
+    return False, dt, dt_next
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_diagonal(A, bd, nrow, kn, fdir, ndir, trow, kt):
+def _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt):
     """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF (the residual floor's scale)."""
-    if bd.banded:  # banded backend (issue 10): sum over each row's few entries
-        out = np.zeros(bd.ATptr.shape[0] - 1)
-        for c in range(kn.shape[0]):
-            for k in range(bd.Aptr[nrow[c]], bd.Aptr[nrow[c] + 1]):
-                out[bd.Aidx[k]] += kn[c] * bd.Aval[k] ** 2
-            for d in range(fdir[c], fdir[c] + ndir[c]):
-                for k in range(bd.Aptr[trow[d]], bd.Aptr[trow[d] + 1]):
-                    out[bd.Aidx[k]] += kt[d] * bd.Aval[k] ** 2
-        return out
     n = A.shape[1]
     out = np.zeros(n)
     for c in range(kn.shape[0]):
@@ -472,17 +211,80 @@ def _stick_diagonal(A, bd, nrow, kn, fdir, ndir, trow, kt):
     return out
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _convergence_parameters(backend, sys, tol):
+    """The Newton tolerances conv (step_solvers.CV_*): tol, tol L and per DOF j tol L / max_r |A_rj|
+    (a rotation: L over its lever arm; tol L for a DOF no contact sees); CV_FLOOR is set per dt."""
+    A = sys.A
+    n, nq = sys.constant_force.shape[0], A.shape[0]
+    length_scale = sys.length_scale
+    conv = np.empty(CV_X + n)
+    conv[CV_TOL] = tol
+    conv[CV_TOL_Q] = tol * length_scale
+    conv[CV_FLOOR] = 0.0
+    for i in range(n):
+        amax = 0.0
+        if backend == so.BANDED:  # banded backend (issue 10): A^T in CSR
+            amax = so.column_abs_max_banded(sys, i)
+        for rr in range(nq if backend != so.BANDED else 0):
+            amax = max(amax, abs(A[rr, i]))
+        conv[CV_X + i] = tol * (length_scale / amax if amax > 0.0 else length_scale)
+    return conv
+
+
 @njit(cache=True, error_model="numpy", inline="always")
-def _sub_matvec(Mat, band, bd, y, out):
-    """out -= Mat y (Mat dense, or ``band`` its band storage in the banded backend)."""
-    if bd.banded:
-        band_matvec_sub(band, bd.kl, bd.ku, y, out)
-        return
-    for i in range(out.shape[0]):
-        s = 0.0
-        for j in range(y.shape[0]):
-            s += Mat[i, j] * y[j]
-        out[i] -= s
+def _loads_and_motions(sys, t1, signals, load_factor, fe1, p):
+    """f_e(t1) = f_var(t1) + load_factor f_const and p(t1) (p = 0 and f_var = 0 without signals)."""
+    n = fe1.shape[0]
+    if signals:
+        evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                        sys.force_table_value, sys.force_ramp, fe1)
+        evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                        sys.motion_table_value, sys.motion_ramp, p)
+    else:
+        for i in range(n):
+            fe1[i] = 0.0
+        for i in range(p.shape[0]):
+            p[i] = 0.0
+    f_const = sys.constant_force
+    for i in range(n):
+        fe1[i] += load_factor * f_const[i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf, fe1,
+                   acc_pred, vel_pred, r0):
+    """The dx-independent part of the residual (module docstring):
+        r0 = (1 - af) f_e(t_{n+1}) + af (f_e(t_n) - A^T f_n) - M acc_pred - C vel_pred - K x_n
+        acc_pred = (1 - am)(-a2 v_n - a3 a_n) + am a_n,  vel_pred = (1 - af)(b1 v_n + b2 a_n) + af v_n
+    (the predictor parts of a_{n+1-am} and v_{n+1-af}; the dx terms are in Lin); quasi-static:
+    r0 = f_e(t_{n+1}) - K x_n."""
+    n = x.shape[0]
+    for i in range(n):
+        r0[i] = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i]) if inertia else fe1[i]
+    if inertia:
+        for j in range(n):
+            acc_pred[j] = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
+            vel_pred[j] = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
+    so.sub_predictor(backend, sys, inertia, has_damping, has_stiffness, acc_pred, vel_pred, x, r0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _accept(mdiag, inertia, a0, c1, a2, a3, b1, b2, dt, dx, x, v, a, fe, gf, fe1, gf1):
+    """x_{n+1} = x_n + dx and the Newmark relations a_{n+1} = a0 dx - a2 v_n - a3 a_n,
+    v_{n+1} = a1 dx + b1 v_n + b2 a_n (a massless DOF in a dynamic march, methods/massless.py:
+    v = dx/dt, a = 0); f_e and A^T f move to the new step."""
+    for i in range(x.shape[0]):
+        if inertia and mdiag[i] != 0.0:
+            a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
+            v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
+            a[i] = a_new
+        elif inertia:
+            v[i] = dx[i] / dt
+            a[i] = 0.0
+        x[i] += dx[i]
+        fe[i] = fe1[i]
+        gf[i] = gf1[i]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -506,20 +308,12 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
     T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
     slot, found = find_slot(tkeys, tused, state)
-    if not found and bd.banded:  # banded backend (issue 10): Lanczos on the band (kernels/banded.py)
-        n = bd.Kb.shape[0]
-        Keff = np.zeros((n, 2 * bd.kl + bd.ku + 1))
-        band_to_lu_storage(bd.Kb, bd.kl, bd.ku, Keff)
-        band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, bd.Aptr, bd.Aidx, bd.Aval, state, np.empty(0),
-                               np.empty(0), 1.0, Keff, bd.kl + bd.ku)
-        wmax2 = band_lambda_max(bd.Mb, Keff, bd.kl, bd.ku, Minv, bd.mpiv, bd.m_diagonal)
-        tvalue[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
-    elif not found:
+    if not found:
         Keff = Kst.copy()
         contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
         ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
@@ -532,74 +326,88 @@ def _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def march(sys, fpar, ipar, ws, out, q0, f0):
-    """March from t_start to t_end, writing step k into out[k] (k = 0: the initial state,
-    whose local q0 and f0 are given). Returns the status; out.counters[C_STEPS] steps done.
+def _state_step_limit_banded(sys, ws, cl, state, step_factor, dt_max):
+    """:func:`_state_step_limit` for the banded backend: omega_max^2 of K + K_D(S) against M by
+    Arnoldi on the band (kernels.banded.band_lambda_max; M^-1 by its banded LU in ws.Minv,
+    pivots ws.mpiv), cached per state."""
+    slot, found = find_slot(ws.tmin_keys, ws.tmin_used, state)
+    if not found:
+        nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+        kl, ku = sys.kl, sys.ku
+        Keff = np.zeros((sys.Kb.shape[0], 2 * kl + ku + 1))
+        band_to_lu_storage(sys.Kb, kl, ku, Keff)
+        band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, sys.A_ptr, sys.A_idx, sys.A_val, state,
+                               np.empty(0), np.empty(0), 1.0, Keff, kl + ku)
+        wmax2 = band_lambda_max(sys.Mb, Keff, kl, ku, ws.Minv, ws.mpiv, band_is_diagonal(sys.Mb, ku))
+        ws.tmin_value[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
+    return min(step_factor * ws.tmin_value[slot], dt_max)
 
-    Preload mode (ipar[PRELOAD] = N > 0): N quasi-static increments at t = 0 with the
-    constant loads scaled by k/N and p = 0 (set INERTIA = 0 and SIGNALS = 0)."""
-    # ---- unpack once: the loop below only touches local arrays ----
-    M = sys.M
-    Cd = sys.C
-    Kst = sys.K
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _limit_of(sys, ws, cl, state, st):
+    """:func:`_state_step_limit` of a state with this march's arrays."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    if st.structure == so.BANDED:  # banded backend (issue 10): T_min by Arnoldi on the band
+        return _state_step_limit_banded(sys, ws, cl, state, st.step_factor, st.dt_max)
+    return _state_step_limit(sys.K, ws.Minv, sys.A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, ws.tmin_keys,
+                             ws.tmin_used, ws.tmin_value, st.step_factor, st.dt_max)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _state_redo(sys, ws, cl, st, state1, dt):
+    """The redo rule of the adaptive step (paper 4.2): (redo, limit), redo when the state the
+    step reached needs a smaller step than the dt used (its limit below dt (1 - 1e-9))."""
+    if _same(state1, ws.dt_state):
+        return False, dt
+    limit = _limit_of(sys, ws, cl, state1, st)
+    return limit < dt * (1.0 - 1e-9), limit
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def march(sys, st, ws, out, q0, f0):
+    """March from st.t_start to st.t_end, writing step k into out[k] (k = 0: the initial state,
+    whose local q0 and f0 are given); st: the MarchSettings. Returns the status;
+    out.counters[C_STEPS] steps done.
+
+    Preload mode (st.preload = N > 0): N quasi-static increments at t = 0 with the constant
+    loads scaled by k/N and p = 0 (set inertia and signals False)."""
+    # ---- the arguments' arrays without reference counting (kernels/borrow.py), unpacked once ----
+    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     A = sys.A
-    AT = sys.AT
-    B = sys.B
-    g = sys.g
-    nrow = sys.normal_row
-    kn = sys.kn
-    lcode = sys.law
-    lpar = sys.law_par
-    fdir = sys.first_direction
-    ndir = sys.n_directions
-    trow = sys.tangential_row
-    kt = sys.kt
-    f_const = sys.constant_force
+    cl = contact_table(sys)
+    cache = state_cache(ws)
+    sv = step_vectors(ws)
     length_scale = sys.length_scale
     x, v, a, fe, gf, w, state = ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state
     fe1, gf1, f1, q1, w1, state1 = ws.fe1, ws.gf1, ws.f1, ws.q1, ws.w1, ws.state1
-    dx, delta, r0, r, p, qbase = ws.dx, ws.delta, ws.r0, ws.r, ws.p, ws.qbase
-    Lin, J, Minv, key, dt_state, stick = ws.Lin, ws.J, ws.Minv, ws.key, ws.dt_state, ws.stick
-    keys, used, ok_flags, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_ok, ws.cache_lu, ws.cache_piv
-    tkeys, tused, tvalue, visited = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.visited
-    lr = ws.lr
-    # banded backend (issue 10): every n x n / nq x n product below branches on bd.banded
-    bd = BandContext(sys.banded, sys.kl, sys.ku, sys.A_ptr, sys.A_idx, sys.A_val, sys.AT_ptr, sys.AT_idx, sys.AT_val,
-                     sys.Mb, sys.Cb, sys.Kb, ws.mpiv, _band_is_diagonal(sys.Mb, sys.kl, sys.ku))
-    lowrank = ipar[LOWRANK] == 1
+    dx, p, qbase, r0 = ws.dx, ws.p, ws.qbase, ws.r0
+    Lin, J, dt_state, visited = ws.Lin, ws.J, ws.dt_state, ws.visited
+    lus, pivs = ws.cache_lu, ws.cache_piv
+    backend = st.structure
     counters = out.counters
     n = x.shape[0]
     nq = A.shape[0]
     nd = state.shape[0]
-    beta, gamma, am, af = fpar[BETA], fpar[GAMMA], fpar[ALPHA_M], fpar[ALPHA_F]
-    conv = np.empty(CV_X + n)  # the Newton convergence tolerances (see CV_TOL)
-    conv[CV_TOL] = fpar[TOL]
-    conv[CV_TOL_Q] = fpar[TOL] * length_scale
-    kd_stick = _stick_diagonal(A, bd, nrow, kn, fdir, ndir, trow, kt)
-    for i in range(n):  # DOF j's length: L over its largest gather entry (a rotation: L / lever arm)
-        amax = 0.0
-        if bd.banded:
-            for kk in range(bd.ATptr[i], bd.ATptr[i + 1]):
-                amax = max(amax, abs(bd.ATval[kk]))
-        else:
-            for rr in range(nq):
-                amax = max(amax, abs(A[rr, i]))
-        conv[CV_X + i] = fpar[TOL] * (length_scale / amax if amax > 0.0 else length_scale)
-    state_rtol = fpar[STATE_RTOL]
-    singular_rtol = fpar[SINGULAR_RTOL]
-    solver = ipar[SOLVER]
-    adaptive = ipar[ADAPTIVE] == 1 and ipar[PRELOAD] == 0
-    inertia = ipar[INERTIA] == 1
-    signals = ipar[SIGNALS] == 1
-    n_preload = ipar[PRELOAD]
-    max_iter, max_state_iter, max_redo, fallback = ipar[MAX_ITER], ipar[MAX_STATE_ITER], ipar[MAX_REDO], ipar[FALLBACK]
+    beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
+    conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
+    if backend == so.BANDED:  # banded backend (issue 10): A in CSR, M in band storage
+        kd_stick = so.stick_diagonal_banded(sys)
+    else:
+        kd_stick = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
+                                   sys.tangential_row, sys.kt)
+    mdiag = so.mass_diagonal(backend, sys)
+    state_rtol = st.state_rtol
+    singular_rtol = st.singular_rtol
+    solver = st.solver
+    n_preload = st.preload
+    adaptive = st.adaptive and n_preload == 0
+    inertia = st.inertia
+    signals = st.signals
+    max_iter, max_state_iter, max_redo, fallback = st.max_iter, st.max_state_iter, st.max_redo, st.fallback
     kfac = (1.0 - af) if inertia else 1.0
-    has_damping = np.any(sys.Cb != 0.0) if bd.banded else np.any(Cd != 0.0)
-    has_circle = np.any(lcode == LAW_CIRCLE)
-    has_stiffness = np.any(sys.Kb != 0.0) if bd.banded else np.any(Kst != 0.0)
-    mdiag = np.empty(n)  # diag M (a zero: a massless DOF)
-    for i in range(n):
-        mdiag[i] = sys.Mb[i, sys.ku] if bd.banded else M[i, i]
+    has_damping = so.has_nonzero(backend, sys, 1)
+    has_circle = np.any(cl.lcode == LAW_CIRCLE)
+    has_stiffness = so.has_nonzero(backend, sys, 2)
     acc_pred = np.empty(n)
     vel_pred = np.empty(n)
     cap = out.t.shape[0] - 1
@@ -607,8 +415,8 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     for rr in range(nq):
         out.q[0, rr] = q0[rr]
         out.f[0, rr] = f0[rr]
-    t = fpar[T_START]
-    t_end = fpar[T_END]
+    t = st.t_start
+    t_end = st.t_end
     o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (out.t, out.dt, out.x, out.v, out.a, out.q, out.f,
                                                                   out.w, out.state, out.solves)
     _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, 0, t, 0.0, 0)
@@ -630,9 +438,9 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     dt_state_limit = 0.0  # step limit of dt_state (adaptive)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
-    accuracy = fpar[RTOL] > 0.0 and n_preload == 0 and inertia
-    err_tol = fpar[RTOL] * fpar[ERR_SCALE]
-    dt_acc = fpar[DT]  # the accuracy step, adapted after every step (accuracy control)
+    accuracy = st.rtol > 0.0 and n_preload == 0 and inertia
+    err_tol = st.rtol * st.err_scale
+    dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
     dt_next = dt_acc
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
         if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
@@ -642,20 +450,19 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
         if k >= cap:
             status = CAPACITY
             break
-        # ---- step size (fixed, or by contact state) ----
+        # ---- step size (fixed, or by contact state; the accuracy step) ----
         if n_preload > 0:
             dt_nominal = 1.0
         elif adaptive:
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
-                                                   tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
+                dt_state_limit = _limit_of(sys, ws, cl, state, st)
             dt_nominal = dt_state_limit
         else:
-            dt_nominal = fpar[DT]
+            dt_nominal = st.dt
         if accuracy:  # the step of the local error estimate, never beyond the convergence / stability rule
-            dt_nominal = min(dt_acc, fpar[DT_MAX]) if solver == PIECEWISE_LINEAR else min(dt_nominal, dt_acc)
+            dt_nominal = min(dt_acc, st.dt_max) if solver == PIECEWISE_LINEAR else min(dt_nominal, dt_acc)
         dt = dt_nominal
         if n_preload == 0 and t + dt > t_end - tiny:
             dt = t_end - t
@@ -668,183 +475,46 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if ws.lin_dt[0] != dt:
                 a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
                 last_slot = -1
-                if bd.banded:  # banded backend (issue 10): Lin in band storage, O(n b)
-                    if inertia:
-                        band_combine((1.0 - am) * a0, bd.Mb, (1.0 - af) * c1, bd.Cb, 1.0 - af, bd.Kb, Lin)
-                    else:
-                        band_combine(0.0, bd.Mb, 0.0, bd.Cb, 1.0, bd.Kb, Lin)
-                else:
-                    for i in range(n):
-                        for j in range(n):
-                            if inertia:
-                                Lin[i, j] = (1.0 - am) * a0 * M[i, j] + (1.0 - af) * c1 * Cd[i, j] + (1.0 - af) * Kst[i, j]
-                            else:
-                                Lin[i, j] = Kst[i, j]
+                so.build_lin(backend, sys, inertia, (1.0 - am) * a0, (1.0 - af) * c1, 1.0 - af, Lin)
                 ws.lin_dt[0] = dt
-                kdiag = 0.0
-                for i in range(n):
-                    kdiag = max(kdiag, (Lin[i, bd.ku] if bd.banded else Lin[i, i]) + kfac * kd_stick[i])
-                conv[CV_FLOOR] = fpar[TOL] * length_scale * kdiag
+                conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, Lin, kfac, kd_stick)
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
-            if signals:
-                evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
-                                sys.force_table_value, sys.force_ramp, fe1)
-                evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
-                                sys.motion_table_value, sys.motion_ramp, p)
-            else:
-                for i in range(n):
-                    fe1[i] = 0.0
-                for i in range(p.shape[0]):
-                    p[i] = 0.0
-            for i in range(n):
-                fe1[i] += load_factor * f_const[i]
-            _gather_x(A, B, g, bd, x, p, qbase)
-            for i in range(n):
-                r0[i] = (1.0 - af) * fe1[i] + af * (fe[i] - gf[i]) if inertia else fe1[i]
-            if inertia:
-                # predictor parts of a_{n+1-am} and v_{n+1-af} (the dx terms are in Lin)
-                for j in range(n):
-                    acc_pred[j] = (1.0 - am) * (-a2 * v[j] - a3 * a[j]) + am * a[j]
-                    vel_pred[j] = (1.0 - af) * (b1 * v[j] + b2 * a[j]) + af * v[j]
-                _sub_matvec(M, bd.Mb, bd, acc_pred, r0)
-                if has_damping:
-                    _sub_matvec(Cd, bd.Cb, bd, vel_pred, r0)
-            if has_stiffness:
-                _sub_matvec(Kst, bd.Kb, bd, x, r0)
+            _loads_and_motions(sys, t1, signals, load_factor, fe1, p)
+            so.gather_state(backend, sys, x, p, qbase)
+            _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf,
+                           fe1, acc_pred, vel_pred, r0)
             # ---- the step solver ----
-            status = STATE_CYCLING
             if solver == PIECEWISE_LINEAR:
-                if attempt == 0:  # postulate S_{n+1} = S_n; a redone step keeps the state it found
-                    for d in range(nd):
-                        state1[d] = state[d]
-                counters[C_N_VISITED] = 0
-                for it in range(max_state_iter):
-                    for d in range(nd):
-                        visited[it, d] = state1[d]
-                    counters[C_N_VISITED] = it + 1
-                    if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton on the consistent tangent
-                        status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
-                                                    delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key, keys,
-                                                    used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
-                                                    singular_rtol, counters)
-                        solves += more
-                        break
-                    same = nominal and last_slot >= 0
-                    if same:
-                        for d in range(nd):
-                            if keys[last_slot, d] != state1[d] or keys[last_slot, nd + d] != dt_state[d]:
-                                same = False
-                                break
-                    if same:
-                        slot, ok = last_slot, ok_flags[last_slot]
-                    else:
-                        slot, ok = factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt,
-                                                   state1, qbase, w, dt_state, stick, key, keys, used, ok_flags, lus, pivs,
-                                                   lr, nominal, singular_rtol, counters)
-                        last_slot = slot if nominal else -1
-                    if not ok:
-                        status = SINGULAR
-                        break
-                    piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, qbase, w, f1, w1)
-                    _scatter(AT, bd, f1, gf1)
-                    for i in range(n):
-                        r[i] = r0[i] - kfac * gf1[i]
-                    if lowrank:
-                        solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, kfac,
-                                       r, dx)
-                    else:
-                        _solve(bd, lus[slot], pivs[slot], r, dx)
-                    solves += 1
-                    finite = True
-                    for i in range(n):
-                        if not np.isfinite(dx[i]):
-                            finite = False
-                    if not finite:
-                        status = NON_FINITE
-                        break
-                    _gather_dx(A, bd, qbase, dx, q1)
-                    if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-                        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-                        _scatter(AT, bd, f1, gf1)
-                        status = OK
-                        break
-                    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
-                    counters[C_LAW_CALLS] += 1
-                if status != OK and status != NON_FINITE and fallback == 1:
-                    counters[C_FALLBACKS] += 1
-                    pl_status = status
-                    ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt,
-                                                          stick, dt_state, key, keys, used, ok_flags, lus, pivs, lr,
-                                                          nominal, singular_rtol, counters)
-                    more = 0
-                    if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow,
-                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
-                                                        max_iter, conv, counters)
-                    solves += more
-                    if status != OK:
-                        status = pl_status  # the more telling reason: singular state or cycling
+                status, more, last_slot = piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state,
+                                                                visited, attempt, nominal, last_slot, has_circle,
+                                                                max_state_iter, fallback, max_iter, conv, state_rtol,
+                                                                singular_rtol, length_scale, counters)
+            elif solver == FULL_NEWTON:
+                status, more = full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv,
+                                           singular_rtol, counters)
+            elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
+                tstate = dt_state if adaptive else state
+                status, more, okS, luS, pivS, tan_dt = state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
+                                                                          tstate, dt, nominal, max_iter, conv,
+                                                                          singular_rtol, counters, okS, luS, pivS,
+                                                                          tan_dt, tan_state)
             else:
-                if solver == FULL_NEWTON:
-                    status, more = _full_newton(lowrank, Lin, J, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0,
-                                                qbase, w, dx, delta, r, q1, f1, w1, state1, gf1, stick, dt_state, key,
-                                                keys, used, ok_flags, lus, pivs, lr, nominal, max_iter, conv,
-                                                singular_rtol, counters)
-                elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
-                    tstate = dt_state if adaptive else state
-                    if not (nominal and dt == tan_dt and _same(tstate, tan_state)):
-                        okS, luS, pivS = _state_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, tstate, stick,
-                                                              dt_state, key, keys, used, ok_flags, lus, pivs, lr,
-                                                              nominal, singular_rtol, counters)
-                        tan_dt = dt if nominal else np.nan
-                        for d in range(nd):
-                            tan_state[d] = tstate[d]
-                    stick_dt = np.nan
-                    status, more = SINGULAR, 0
-                    if okS:
-                        status, more = _guarded_newton(luS, pivS, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
-                                                       delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
-                                                       THETA_GIVE_UP, True, counters)
-                    if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
-                        counters[C_FALLBACKS] += 1
-                        restart = status != NOT_CONVERGED  # else go on from the dx reached
-                        solves += more
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, stick, dt_state,
-                                                              key, keys, used, ok_flags, lus, pivs, lr, nominal,
-                                                              singular_rtol, counters)
-                        status, more = SINGULAR, 0
-                        if ok0:
-                            status, more = _guarded_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, r0, qbase, w, dx,
-                                                           delta, r, q1, f1, w1, state1, gf1, max_iter, conv,
-                                                           np.inf, restart, counters)
-                else:
-                    if dt != stick_dt or not nominal:  # the stick factorisation of this step size
-                        ok0, lu0, piv0 = _stick_factorisation(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow,
-                                                              kt, stick, dt_state, key, keys, used, ok_flags, lus,
-                                                              pivs, lr, nominal, singular_rtol, counters)
-                        stick_dt = dt if nominal else np.nan
-                    if ok0:
-                        status, more = _modified_newton(lu0, piv0, Lin, kfac, A, AT, bd, nrow, lcode, lpar, fdir, ndir, trow,
-                                                        kt, r0, qbase, w, dx, delta, r, q1, f1, w1, state1, gf1,
-                                                        max_iter, conv, counters)
-                    else:
-                        status, more = SINGULAR, 0
-                solves += more
+                status, more, ok0, lu0, piv0, stick_dt = stick_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
+                                                                            dt, nominal, max_iter, conv,
+                                                                            singular_rtol, counters, ok0, lu0, piv0,
+                                                                            stick_dt)
+            solves += more
+            # ---- accuracy / redo rule ----
             if accuracy and status == OK:
-                err = _local_error(M, A, bd, dx, v, a, a0, a2, a3, dt, beta, err_tol)
-                if err > 1.0 and attempt < max_redo:  # reject: redo with the step the estimate asks for
+                err = _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
+                redo, dt, dt_next = _accuracy_redo(err, dt, attempt, max_redo)
+                if redo:  # reject: redo with the step the estimate asks for
                     counters[C_REDOS] += 1
-                    dt = dt * max(0.2, 0.9 * err ** (-1.0 / 3.0))
                     continue
-                dt_next = dt * min(ACC_GROWTH, max(0.2, 0.9 * err ** (-1.0 / 3.0))) if err > 0.0 else ACC_GROWTH * dt
             if status != OK or not adaptive or attempt == max_redo:
                 break
-            # ---- redo rule (paper 4.2): the new state needs a smaller step ----
-            if _same(state1, dt_state):
-                break
-            limit = _state_step_limit(Kst, Minv, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
-                                      tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
-            if limit >= dt * (1.0 - 1e-9):
+            redo, limit = _state_redo(sys, ws, cl, st, state1, dt)  # paper 4.2: the new state needs a smaller step
+            if not redo:
                 break
             counters[C_REDOS] += 1
             for d in range(nd):
@@ -860,17 +530,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             out.t[k + 1] = t + dt if n_preload == 0 else t
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
-        for i in range(n):
-            if inertia and mdiag[i] != 0.0:
-                a_new = a0 * dx[i] - a2 * v[i] - a3 * a[i]
-                v[i] = c1 * dx[i] + b1 * v[i] + b2 * a[i]
-                a[i] = a_new
-            elif inertia:  # a massless DOF in a dynamic march (methods/massless.py): v = dx/dt, a = 0
-                v[i] = dx[i] / dt
-                a[i] = 0.0
-            x[i] += dx[i]
-            fe[i] = fe1[i]
-            gf[i] = gf1[i]
+        _accept(mdiag, inertia, a0, c1, a2, a3, b1, b2, dt, dx, x, v, a, fe, gf, fe1, gf1)
         if _accept_contacts(w, state, w1, state1):
             counters[C_STATE_CHANGES] += 1
         if n_preload == 0:

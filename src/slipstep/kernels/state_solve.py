@@ -2,12 +2,12 @@
 
     J(S) = Lin + kfac K_D(S),   K_D(S) = A^T K(S) A
 
-Three ways, chosen once per run (ipar LOWRANK in march.py, CompiledSystem.banded):
+Three ways, chosen once per run (MarchSettings.structure, kernels/structure_ops.py):
 
-* banded (issue 10, the banded backend of slipstep.system): J(S) assembled in band storage
-  (Lin plus the outer products of each contact's few sparse rows) and factorised by the
-  banded LU of kernels/banded.py, cached per state like the direct LUs: O(n b^2) per state,
-  O(n b) per solve;
+* banded (issue 10, the banded backend of slipstep.system): J(S) assembled in banded-LU
+  storage (Lin plus the outer products of each contact's few sparse rows) and factorised by
+  the banded LU of kernels/banded.py, cached per state like the direct LUs
+  (:func:`factorise_banded`): O(n b^2) per state, O(n b) per solve;
 
 * direct: the LU of the n x n J(S) per state tuple (best when the contact coordinates are
   as many as the DOFs, e.g. a rigid damper);
@@ -53,13 +53,15 @@ class LowRank(NamedTuple):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, dt_state, stick, key,
-                    keys, used, ok_flags, lus, pivs, lr, nominal, singular_rtol, counters):
+def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nominal, singular_rtol, counters):
     """Slot of the factorised solve of J(kd_state) for the current step size, cached per
-    key = (kd_state, dt_state); a non-nominal dt (the shortened last step) uses scratch
+    key = (kd_state, cache.dt_state); a non-nominal dt (the shortened last step) uses scratch
     slot cap, a state without a piecewise-linear form (coupled slip: its tangent is taken at
     (q, w_old)) scratch slot cap + 1, neither cached. Returns (slot, ok); ok is False when
-    J(S) is singular."""
+    J(S) is singular. cl: the ContactLaw table, cache: the StateCache (kernels/settings.py)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    dt_state, stick, key, keys, used, ok_flags = cache.dt_state, cache.stick, cache.key, cache.keys, cache.used, cache.ok
+    lus, pivs, lr = cache.lu, cache.piv, cache.lr
     nd = kd_state.shape[0]
     for d in range(nd):
         key[d] = kd_state[d]
@@ -74,15 +76,6 @@ def factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir,
     else:
         slot = cap
     n = Lin.shape[0]
-    if bd.banded:  # banded backend (issue 10): J(S) = Lin + kfac A^T K(S) A in band storage, banded LU
-        lu = lus[slot]
-        band_to_lu_storage(Lin, bd.kl, bd.ku, lu)
-        band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, bd.Aptr, bd.Aidx, bd.Aval, kd_state, q, w_old,
-                               kfac, lu, bd.kl + bd.ku)
-        ok = band_lu_factor(lu, bd.kl, bd.ku, pivs[slot], singular_rtol)
-        ok_flags[slot] = ok
-        counters[C_FACTORISATIONS] += 1
-        return slot, ok
     if not lowrank:
         for i in range(n):
             for j in range(n):
@@ -146,10 +139,12 @@ def factorise_state(lowrank, Lin, J, kfac, A, bd, nrow, lcode, lpar, fdir, ndir,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state, q, w_old, kfac, r, out):
+def solve_low_rank(slot, cache, A, cl, kd_state, q, w_old, kfac, r, out):
     """out = J(kd_state)^-1 r by the low-rank update of ``slot`` (see the module docstring).
     In direct mode the callers use lu_solve(lus[slot], pivs[slot], r, out) instead (kept out of
     this function so that the direct hot path never touches the low-rank arrays)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    lus, pivs, lr = cache.lu, cache.piv, cache.lr
     b = lr.slot_base[slot]
     lu_solve(lr.base_lu[b], lr.base_piv[b], r, out)
     if lr.slot_identity[slot]:
@@ -168,3 +163,34 @@ def solve_low_rank(slot, lus, pivs, lr, A, nrow, lcode, lpar, fdir, ndir, trow, 
         for c in range(nq):
             acc += lr.Z[b, i, c] * lr.s[c]
         out[i] -= acc
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def factorise_banded(sys, cl, cache, Lin, kfac, kd_state, q, w_old, nominal, singular_rtol, counters):
+    """:func:`factorise_state` for the banded backend: the slot of the banded LU of
+    J(kd_state) = Lin + kfac A^T K(kd_state) A (Lin in band storage, A in CSR), cached per key
+    (kd_state, dt state) with the same scratch slots. Returns (slot, ok)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    nd = kd_state.shape[0]
+    key = cache.key
+    for d in range(nd):
+        key[d] = kd_state[d]
+        key[nd + d] = cache.dt_state[d]
+    cap = cache.used.shape[0]
+    if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state):
+        slot = cap + 1
+    elif nominal:
+        slot, found = find_slot(cache.keys, cache.used, key)
+        if found:
+            return slot, cache.ok[slot]
+    else:
+        slot = cap
+    kl, ku = sys.kl, sys.ku
+    lu = cache.lu[slot]
+    band_to_lu_storage(Lin, kl, ku, lu)
+    band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, sys.A_ptr, sys.A_idx, sys.A_val, kd_state, q,
+                           w_old, kfac, lu, kl + ku)
+    ok = band_lu_factor(lu, kl, ku, cache.piv[slot], singular_rtol)
+    cache.ok[slot] = ok
+    counters[C_FACTORISATIONS] += 1
+    return slot, ok

@@ -183,7 +183,7 @@ class Runner:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
-        args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
+        args = (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
         status, self.kernel_time = call_kernel(
@@ -354,29 +354,33 @@ class Simulation(Runner):
             capacity = n_fixed + 1
         self.low_rank = use_low_rank(cs, opt.linear_solver)
         self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
-        self.fpar = np.zeros(K.N_FPAR)
-        self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
-        self.fpar[K.DT] = dt
-        self.fpar[K.STEP_FACTOR] = min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor)
-        self.fpar[K.DT_MAX] = min(dt_max, self.dt_stability)
-        self.fpar[K.TOL] = opt.tolerance
-        self.fpar[K.STATE_RTOL] = opt.state_tolerance
-        self.fpar[K.SINGULAR_RTOL] = opt.singular_tolerance
-        self.fpar[K.T_START], self.fpar[K.T_END] = 0.0, t_end
-        if opt.rtol is not None and not self.method.quasi_static:
-            self.fpar[K.RTOL] = opt.rtol
-            self.fpar[K.ERR_SCALE] = RTOL_LOCAL_FACTOR * cs.length_scale
-        self.ipar = np.zeros(K.N_IPAR, np.int64)
-        self.ipar[K.SOLVER] = self.method.solver
-        self.ipar[K.ADAPTIVE] = int(self.method.adaptive)
-        self.ipar[K.INERTIA] = int(not self.method.quasi_static)
-        self.ipar[K.MAX_ITER] = opt.max_iterations
-        self.ipar[K.MAX_STATE_ITER] = opt.max_state_iterations
-        self.ipar[K.MAX_REDO] = opt.max_redo
-        self.ipar[K.FALLBACK] = int(opt.fallback)
-        self.ipar[K.SIGNALS] = 1
-        self.ipar[K.PRELOAD] = 0
-        self.ipar[K.LOWRANK] = int(self.low_rank)
+        accuracy_on = opt.rtol is not None and not self.method.quasi_static
+        self.settings = K.march_settings(
+            beta=scheme.beta,
+            gamma=scheme.gamma,
+            alpha_m=scheme.alpha_m,
+            alpha_f=scheme.alpha_f,
+            dt=dt,
+            step_factor=min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor),
+            dt_max=min(dt_max, self.dt_stability),
+            tol=opt.tolerance,
+            state_rtol=opt.state_tolerance,
+            singular_rtol=opt.singular_tolerance,
+            t_start=0.0,
+            t_end=t_end,
+            rtol=opt.rtol if accuracy_on else 0.0,
+            err_scale=RTOL_LOCAL_FACTOR * cs.length_scale if accuracy_on else 0.0,
+            solver=self.method.solver,
+            adaptive=self.method.adaptive,
+            inertia=not self.method.quasi_static,
+            max_iter=opt.max_iterations,
+            max_state_iter=opt.max_state_iterations,
+            max_redo=opt.max_redo,
+            fallback=opt.fallback,
+            signals=True,
+            preload=0,
+            structure=K.BANDED if cs.banded else (K.LOW_RANK if self.low_rank else K.DENSE),
+        )
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
         self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
         self.status = None
@@ -465,14 +469,20 @@ class Simulation(Runner):
             arr[:] = 0.0
         ws.state[:] = STICK
         _reset_cache(ws)
-        ipar = self.ipar.copy()
-        ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK]] = 0, 0, K.PIECEWISE_LINEAR, 0, 1
-        ipar[K.PRELOAD] = self.options.preload_increments
+        settings = K.replace_settings(
+            self.settings,
+            inertia=False,
+            signals=False,
+            solver=K.PIECEWISE_LINEAR,
+            adaptive=False,
+            fallback=True,
+            preload=self.options.preload_increments,
+        )
         nq = cs.A.shape[0]
         q, f = np.zeros(nq), np.zeros(nq)
         ramp = _allocate_outputs(cs, self.options.preload_increments)
         if np.any(cs.constant_force != 0) or np.any(cs.g != 0):
-            status = K.march(cs, self.fpar, ipar, ws, ramp, q, f)
+            status = K.march(cs, settings, ws, ramp, q, f)
             counters = ramp.counters
             q[:], f[:] = ramp.q[counters[K.C_STEPS]], ramp.f[counters[K.C_STEPS]]
         else:
@@ -496,7 +506,7 @@ class Simulation(Runner):
                 stacklevel=3,
             )
         if self.method.quasi_static and (np.any(p0 != 0) or np.any(fe0 != cs.constant_force)):
-            q[:], f[:] = self._static_start(ipar)
+            q[:], f[:] = self._static_start(settings)
         else:
             w_pre = ws.w.copy()
             local_displacement(cs, ws.x, p0, q)
@@ -508,23 +518,19 @@ class Simulation(Runner):
         self.preload_state = tuple(a.copy() for a in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state))
         self.q0, self.f0 = q.copy(), f.copy()
 
-    def _static_start(self, ipar) -> tuple[np.ndarray, np.ndarray]:
+    def _static_start(self, settings: K.MarchSettings) -> tuple[np.ndarray, np.ndarray]:
         """Quasi-static runs start from the static equilibrium at p(0), f_e(0): one
         piecewise-linear quasi-static step from the preload (x, w) to t = 0 (K x + A^T f(q, w)
         = f_e(0) with q = A x - B p(0) + g, the sliders moved by that solve). Returns (q, f)."""
         cs, ws = self.compiled, self.ws
-        fpar = self.fpar.copy()
         delta = 1e-9 * (self.period if self.period is not None else self.t_end)
-        fpar[K.T_START], fpar[K.T_END], fpar[K.DT] = -delta, 0.0, delta
-        fpar[K.RTOL] = 0.0
-        ipar = ipar.copy()
-        ipar[[K.INERTIA, K.SIGNALS, K.SOLVER, K.ADAPTIVE, K.FALLBACK, K.PRELOAD]] = 0, 1, K.PIECEWISE_LINEAR, 0, 1, 0
+        settings = K.replace_settings(settings, t_start=-delta, t_end=0.0, dt=delta, rtol=0.0, signals=True, preload=0)
         out = _allocate_outputs(cs, 1)
         nq = cs.A.shape[0]
         q, f = np.zeros(nq), np.zeros(nq)
         local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
         contact_law(cs, q, ws.w.copy(), f, np.empty_like(ws.w), np.empty_like(ws.state))
-        status = K.march(cs, fpar, ipar, ws, out, q, f)
+        status = K.march(cs, settings, ws, out, q, f)
         if status != K.OK:
             raise SolverError(f"the static equilibrium at t = 0 (p(0), f_e(0)) failed: {Status(status).message}")
         _reset_cache(ws)
@@ -561,7 +567,7 @@ class Simulation(Runner):
             a = mass_solve(cs, fe0 - structure_product(cs, "C", v) - structure_product(cs, "K", x) - gf)
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
-        self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
+        self.settings = K.replace_settings(self.settings, t_start=t_start, t_end=t_start + self.t_end)
         # the step-doubling twins march from the preload: no estimate for a continued march
         self._accuracy = {
             "energy_error_estimate": math.nan,
@@ -757,7 +763,7 @@ def banded_lambda_max(cs: CompiledSystem, state: np.ndarray) -> float:
         kl + ku,
     )
     mlu, mpiv = band_mass_lu(cs)
-    return float(BD.band_lambda_max(cs.Mb, keff, kl, ku, mlu, mpiv, bool(K._band_is_diagonal(cs.Mb, kl, ku))))
+    return float(BD.band_lambda_max(cs.Mb, keff, kl, ku, mlu, mpiv, bool(BD.band_is_diagonal(cs.Mb, ku))))
 
 
 def band_mass_lu(cs: CompiledSystem) -> tuple[np.ndarray, np.ndarray]:
