@@ -25,7 +25,7 @@ skipped for the larger sizes of that method (printed as '>budget').
 Usage:  python benchmarks/bench_scaling.py [--family chain|grid|strip] [--sizes 100,200,400]
             [--contacts 20] [--contact-sizes 10,20,40] [--contact-n 200] [--methods 1,3,2+3,4]
             [--backend auto|direct|low-rank|banded] [--contact-kind jenkins|2d] [--dense]
-            [--width 4] [--periods 1] [--budget 60] [--json FILE]
+            [--width 4] [--periods 1] [--no-error-estimate] [--budget 60] [--json FILE]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import resource
 import time
 import tracemalloc
 
@@ -40,13 +41,14 @@ import numpy as np
 import scipy.sparse as sp
 
 import slipstep
+from slipstep.system import BANDED_MIN_N
 
 METHODS = {"1": "newmark", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive", "4": "quasi-static"}
 FREQUENCY_HZ = 40.0
 MASS_KG, SPRING_N_PER_M = 0.02, 4e5
 
 
-OPTIONS = {"backend": "auto", "kind": "jenkins", "dense": False, "width": 4}
+OPTIONS = {"backend": "auto", "kind": "jenkins", "dense": False, "width": 4, "periods": 1.0, "error_estimate": True}
 
 
 def _springs(n: int, pairs, grounded) -> sp.csr_matrix:
@@ -113,20 +115,37 @@ def _with_contacts(K, candidates: np.ndarray, n_contacts: int, tip: int, name: s
     return slipstep.System(structure, tuple(contacts), slipstep.Excitation(force=force), name=name)
 
 
+def _simulation(system, method):
+    return slipstep.Simulation(
+        system,
+        method,
+        periods=OPTIONS["periods"],
+        linear_solver=OPTIONS["backend"],
+        error_estimate=OPTIONS["error_estimate"],
+    )
+
+
 def measure(build, n: int, n_contacts: int, method: str) -> dict:
-    """Set-up and one-period kernel time of one (size, contacts, method)."""
-    tracemalloc.start()
+    """Set-up and one-period kernel time of one (size, contacts, method); then, in a second
+    pass under tracemalloc (which slows Python allocations, so not timed), the peak memory of
+    the set-up and a march (numpy's allocations), and the process's peak resident set."""
     start = time.perf_counter()
     system = build(n, n_contacts)
-    sim = slipstep.Simulation(system, method, periods=OPTIONS["periods"], linear_solver=OPTIONS["backend"])
+    sim = _simulation(system, method)
     setup = time.perf_counter() - start
     sim.march()  # first march: the compiled kernel is loaded (and warm caches)
     kernel = sim.kernel_time
     sim.march()
     kernel = min(kernel, sim.kernel_time)
+    steps = int(sim.out.counters[0])
+    attrs = sim.method_attrs()
+    del sim
+    tracemalloc.start()
+    again = _simulation(build(n, n_contacts), method)
+    again.march()
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    steps = int(sim.out.counters[0])
+    del again
     return {
         "n": system.n_dofs,
         "contacts": n_contacts,
@@ -136,9 +155,9 @@ def measure(build, n: int, n_contacts: int, method: str) -> dict:
         "steps": steps,
         "per_step_us": kernel / max(steps, 1) * 1e6,
         "peak_MB": peak / 1e6,
-        "status": sim.status.name,
-        "linear_solver": sim.method_attrs()["linear_solver"],
-        "bandwidth": sim.method_attrs()["bandwidth"],
+        "rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
+        "linear_solver": attrs["linear_solver"],
+        "bandwidth": attrs["bandwidth"],
     }
 
 
@@ -163,7 +182,8 @@ def sweep(build, pairs, methods, budget) -> list[dict]:
             print(
                 f"  N={row['n']:6d} contacts={nc:4d} Method {label:3s}: set-up {row['setup_s']:8.3f} s, period "
                 f"{row['period_s']:8.4f} s, {row['steps']:6d} steps, {row['per_step_us']:9.1f} us/step, "
-                f"peak {row['peak_MB']:8.1f} MB, {row['status']}, {row['linear_solver']} (b = {row['bandwidth']})",
+                f"peak {row['peak_MB']:8.1f} MB (max RSS {row['rss_MB']:7.0f} MB), {row['linear_solver']} "
+                f"(b = {row['bandwidth']})",
                 flush=True,
             )
             if row["setup_s"] + row["period_s"] > budget:
@@ -179,6 +199,11 @@ def main() -> None:
     ap.add_argument("--dense", action="store_true", help="dense input matrices (the pre-issue-10 input)")
     ap.add_argument("--width", type=int, default=4, help="rows of the strip family")
     ap.add_argument("--periods", type=float, default=1.0)
+    ap.add_argument(
+        "--no-error-estimate",
+        action="store_true",
+        help="no step-doubling pilot twins in the set-up (error_estimate off)",
+    )
     ap.add_argument("--sizes", default="100,200,400")
     ap.add_argument("--contacts", type=int, default=20, help="contact points for the N sweep")
     ap.add_argument("--contact-sizes", default="10,20,40")
@@ -188,13 +213,19 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     OPTIONS.update(
-        backend=args.backend, kind=args.contact_kind, dense=args.dense, width=args.width, periods=args.periods
+        backend=args.backend,
+        kind=args.contact_kind,
+        dense=args.dense,
+        width=args.width,
+        periods=args.periods,
+        error_estimate=not args.no_error_estimate,
     )
     build = {"chain": chain, "grid": grid, "strip": strip}[args.family]
     methods = args.methods.split(",")
     sizes = [int(s) for s in args.sizes.split(",")]
     contact_sizes = [int(s) for s in args.contact_sizes.split(",")]
-    measure(build, 20, 2, METHODS[methods[0]])  # compile/load the kernels outside the timings
+    for warm in (20, BANDED_MIN_N + 10):  # compile/load the kernels (dense and banded) outside the timings
+        measure(build, warm, 2, METHODS[methods[0]])
     print(f"{args.family}: N sweep at {args.contacts} contacts")
     by_n = sweep(build, [(n, args.contacts) for n in sizes], methods, args.budget)
     print(f"{args.family}: contact sweep at N = {args.contact_n}")

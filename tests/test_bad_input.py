@@ -50,6 +50,19 @@ frequency_Hz = 50.0
 """
 
 
+def _sparse_chain(n: int):
+    """A sparse fixed-free chain with one Jenkins contact (the banded backend's input)."""
+    import scipy.sparse as sp
+
+    K = sp.diags([np.full(n, 2.0), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr") * 1e5
+    A = sp.csr_matrix(([1.0], ([0], [n // 2])), shape=(2, n))
+    contact = ss.ContactElement("J", A, 1e5, 1e5, 0.3, normal_offset=1e-5)
+    amp = np.zeros(n)
+    amp[-1] = 1.0
+    force = ss.Signal(tuple(f"x{i}" for i in range(n)), (ss.Harmonic(50.0, amp),))
+    return ss.System(ss.Structure(sp.identity(n, format="csr"), None, K), (contact,), ss.Excitation(force=force))
+
+
 def edit(text: str, old: str, new: str) -> str:
     """Replace the first ``old`` (which must exist) by ``new``."""
     assert old in text, old
@@ -713,6 +726,41 @@ CASES = [
         "RESULT",
         cli=("plot", "crafted.nc"),
         setup=_external_storage_netcdf,
+    ),
+    # -- matrix files and sparse gathers in case files (issue 10) -------------------------------
+    Bad(
+        "toml-matrix-file-type",
+        '`mass_file_kg = "M.txt"` (not .npz / .mtx / .npy)',
+        "[structure] mass_file_kg",
+        toml=edit(STRUCTURE, "mass_kg = [[1.0, 0.0], [0.0, 1.0]]", 'mass_file_kg = "M.txt"'),
+    ),
+    Bad(
+        "toml-matrix-file-missing",
+        '`mass_file_kg = "missing.npz"` (no such file)',
+        "[structure] mass_file_kg",
+        toml=edit(STRUCTURE, "mass_kg = [[1.0, 0.0], [0.0, 1.0]]", 'mass_file_kg = "missing.npz"'),
+    ),
+    Bad(
+        "toml-matrix-twice",
+        "`mass_kg` and `mass_file_kg` both given",
+        "[structure] mass_file_kg",
+        toml=edit(
+            STRUCTURE,
+            "mass_kg = [[1.0, 0.0], [0.0, 1.0]]",
+            'mass_kg = [[1.0, 0.0], [0.0, 1.0]]\nmass_file_kg = "M.npz"',
+        ),
+    ),
+    Bad(
+        "toml-gather-entries-row",
+        "`dof_gather_entries = [[2, 0, 1.0]]` in a 2-row contact",
+        "[[contacts]] 1 (C1): dof_gather_entries",
+        toml=edit(STRUCTURE, "dof_gather = [[1.0, 0.0], [0.0, 1.0]]", "dof_gather_entries = [[2, 0, 1.0]]"),
+    ),
+    Bad(
+        "sparse-events-method",
+        '`Simulation(sparse 400-DOF chain, "quasi-static-events")`',
+        "method",
+        api=lambda: ss.Simulation(_sparse_chain(400), "quasi-static-events", periods=1),
     ),
     Bad(
         "cli-report-output-is-directory", "`slipstep report paper -o .`", "--output", cli=("report", "paper", "-o", ".")

@@ -26,7 +26,7 @@ from slipstep.kernels.laws import uncoupled
 
 #: Lanczos runs to convergence (n steps, full reorthogonalisation) up to this size, else LANCZOS_STEPS
 LANCZOS_FULL = 400
-LANCZOS_STEPS = 80
+LANCZOS_STEPS = 40
 
 
 # ---- band storage ----------------------------------------------------------------------------
