@@ -176,7 +176,7 @@ def _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol
         for j in range(n):
             err = max(err, abs(e[j]))
     elif backend == so.BANDED:  # banded backend (issue 10): A in CSR
-        err = so.gather_abs_max(sys, e)
+        err = so.gather_abs_max(so.csr_of(sys), e)
     else:
         for rr in range(A.shape[0]):
             s = 0.0

@@ -20,7 +20,7 @@ from numba import njit
 
 from slipstep.kernels.codes import C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 from slipstep.kernels.codes import STATE_CYCLING
-from slipstep.kernels.contact import compatible, coupled, law, piecewise_law
+from slipstep.kernels.contact import compatible, coupled, law, piecewise_law, scatter
 from slipstep.kernels import structure_ops as so
 
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
@@ -37,10 +37,10 @@ ROUNDOFF = 1e-14
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def local_coordinates(backend, sys, A, qbase, dx, q):
+def local_coordinates(backend, csr, A, qbase, dx, q):
     """q = q_base + A dx (A in CSR for the banded backend: structure_ops.gather_increment)."""
     if backend == so.BANDED:
-        so.gather_increment(sys, qbase, dx, q)
+        so.gather_increment(csr, qbase, dx, q)
         return
     n = dx.shape[0]
     for rr in range(A.shape[0]):
@@ -51,13 +51,13 @@ def local_coordinates(backend, sys, A, qbase, dx, q):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def newton_residual(backend, sys, A, AT, cl, Lin, kfac, sv, counters):
+def newton_residual(backend, csr, A, AT, cl, Lin, kfac, sv, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - kfac A^T f - Lin dx."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    local_coordinates(backend, sys, A, sv.qbase, sv.dx, sv.q1)
+    local_coordinates(backend, csr, A, sv.qbase, sv.dx, sv.q1)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, sv.q1, sv.w, sv.f1, sv.w1, sv.state1)
     counters[C_LAW_CALLS] += 1
-    so.scatter_force(backend, sys, AT, sv.f1, sv.gf1)
+    so.scatter_force(backend, csr, AT, sv.f1, sv.gf1)
     r, r0, gf1 = sv.r, sv.r0, sv.gf1
     for i in range(r.shape[0]):
         r[i] = r0[i] - kfac * gf1[i]
@@ -65,7 +65,7 @@ def newton_residual(backend, sys, A, AT, cl, Lin, kfac, sv, counters):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def newton_update(backend, sys, A, dx, delta, it, prev_norm, prev_theta, conv):
+def newton_update(backend, csr, A, dx, delta, it, prev_norm, prev_theta, conv):
     """dx += delta; returns (status, increment_converged, norm, theta).
 
     The scaled increment eta = max(max_r |(A delta)_r| / tol_q, max_j |delta_j| / tol_x,j)
@@ -86,7 +86,7 @@ def newton_update(backend, sys, A, dx, delta, it, prev_norm, prev_theta, conv):
     eta = 0.0
     tol_q = conv[CV_TOL_Q]
     if backend == so.BANDED:  # max_r |(A delta)_r| with A in CSR
-        eta = so.gather_abs_max(sys, delta) / tol_q
+        eta = so.gather_abs_max(csr, delta) / tol_q
     for rr in range(nq if backend != so.BANDED else 0):
         s = 0.0
         for j in range(n):
@@ -119,8 +119,19 @@ def residual_converged(sv, kfac, conv):
     return rmax <= max(conv[CV_TOL], RESIDUAL_RTOL_MIN) * scale
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def modified_newton(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero, counters):
+    """The modified Newton iteration of :func:`_modified_newton_dense` (the dense backends, the
+    kernel split's code unchanged) or its banded copy (A in CSR: ``csr``, structure_ops.csr_of)."""
+    if backend == so.BANDED:
+        return _modified_newton_banded(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up,
+                                       from_zero, counters)
+    return _modified_newton_dense(backend, lu, piv, Lin, kfac, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero,
+                                  counters)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def modified_newton(backend, lu, piv, Lin, kfac, sys, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero, counters):
+def _modified_newton_banded(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero, counters):
     """Iterate dx += F^-1 r(dx) with one factorised Jacobian F = (lu, piv) (Method 1: J(all
     stick); solver 3: J(S) of a state), from dx = 0 (from_zero) or from the dx reached.
     Converged when BOTH the increment test of :func:`newton_update` (on the contact
@@ -137,13 +148,13 @@ def modified_newton(backend, lu, piv, Lin, kfac, sys, A, AT, cl, sv, max_iter, c
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        newton_residual(backend, sys, A, AT, cl, Lin, kfac, sv, counters)
+        newton_residual(backend, csr, A, AT, cl, Lin, kfac, sv, counters)
         if inc_ok and residual_converged(sv, kfac, conv):
             return OK, it
         if it == max_iter:
             break
         so.solve_factor(backend, lu, piv, r, delta)
-        status, inc_ok, prev_norm, theta = newton_update(backend, sys, A, dx, delta, it, prev_norm, theta, conv)
+        status, inc_ok, prev_norm, theta = newton_update(backend, csr, A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
         if it > 0 and theta >= theta_give_up:
@@ -151,6 +162,91 @@ def modified_newton(backend, lu, piv, Lin, kfac, sys, A, AT, cl, sv, max_iter, c
     return NOT_CONVERGED, max_iter
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _local_coordinates_dense(A, qbase, dx, q):
+    """q = q_base + A dx."""
+    n = dx.shape[0]
+    for rr in range(A.shape[0]):
+        s = qbase[rr]
+        for j in range(n):
+            s += A[rr, j] * dx[j]
+        q[rr] = s
+@njit(cache=True, error_model="numpy", inline="always")
+def _newton_residual_dense(backend, A, AT, cl, Lin, kfac, sv, counters):
+    """The contact law at q = q_base + A dx and the residual r = r0 - kfac A^T f - Lin dx."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    _local_coordinates_dense(A, sv.qbase, sv.dx, sv.q1)
+    law(nrow, lcode, lpar, fdir, ndir, trow, kt, sv.q1, sv.w, sv.f1, sv.w1, sv.state1)
+    counters[C_LAW_CALLS] += 1
+    scatter(AT, sv.f1, sv.gf1)
+    r, r0, gf1 = sv.r, sv.r0, sv.gf1
+    for i in range(r.shape[0]):
+        r[i] = r0[i] - kfac * gf1[i]
+    so.sub_lin(backend, Lin, sv.dx, r)
+@njit(cache=True, error_model="numpy", inline="always")
+def _newton_update_dense(A, dx, delta, it, prev_norm, prev_theta, conv):
+    """dx += delta; returns (status, increment_converged, norm, theta).
+
+    The scaled increment eta = max(max_r |(A delta)_r| / tol_q, max_j |delta_j| / tol_x,j)
+    (contact coordinates and DOFs, conv), its contraction theta_k = eta_k / eta_{k-1} and
+    the robust contraction theta = max(theta_k, theta_{k-1}) (slow or irregular contraction
+    cannot hide behind one lucky ratio). The increment test, the error estimate of a
+    linearly converging iteration (Hairer & Wanner IV.8; Deuflhard's natural monotonicity):
+        theta < 1  and  eta theta / (1 - theta) <= 1
+    The first increment has no theta yet: eta <= 1 itself (then the residual decides). An
+    increment below ROUNDOFF of its scale (L or |x_j|: about 50 machine epsilons) is round-off, whose ratios
+    say nothing about contraction: accepted as converged."""
+    n = dx.shape[0]
+    nq = A.shape[0]
+    for i in range(n):
+        dx[i] += delta[i]
+        if not np.isfinite(dx[i]):
+            return NON_FINITE, False, 0.0, 0.0
+    eta = 0.0
+    tol_q = conv[CV_TOL_Q]
+    for rr in range(nq):
+        s = 0.0
+        for j in range(n):
+            s += A[rr, j] * delta[j]
+        eta = max(eta, abs(s) / tol_q)
+    for i in range(n):
+        eta = max(eta, abs(delta[i]) / conv[CV_X + i])
+    if it == 0:
+        return OK, eta <= 1.0, eta, 0.0
+    theta_k = eta / prev_norm if prev_norm > 0.0 else 0.0
+    theta = max(theta_k, prev_theta) if it >= 2 else theta_k
+    converged = eta * conv[CV_TOL] <= ROUNDOFF or (theta < 1.0 and eta * theta / (1.0 - theta) <= 1.0)
+    return OK, converged, eta, theta_k
+@njit(cache=True, nogil=True, error_model="numpy")
+def _modified_newton_dense(backend, lu, piv, Lin, kfac, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero, counters):
+    """Iterate dx += F^-1 r(dx) with one factorised Jacobian F = (lu, piv) (Method 1: J(all
+    stick); solver 3: J(S) of a state), from dx = 0 (from_zero) or from the dx reached.
+    Converged when BOTH the increment test of :func:`newton_update` (on the contact
+    coordinates and the DOFs) and the force-residual test of :func:`residual_converged` at
+    the new iterate hold; given up (NOT_CONVERGED) as soon as the contraction ratio of the
+    increment reaches theta_give_up (inf: never). Returns (status, solves); on success the
+    StepVectors hold the converged step. Takes the two factor arrays only, so that its hot
+    loop never carries the low-rank arrays."""
+    dx, delta, r = sv.dx, sv.delta, sv.r
+    if from_zero:
+        for i in range(dx.shape[0]):
+            dx[i] = 0.0
+    prev_norm = 0.0
+    theta = 0.0
+    inc_ok = False
+    for it in range(max_iter + 1):
+        _newton_residual_dense(backend, A, AT, cl, Lin, kfac, sv, counters)
+        if inc_ok and residual_converged(sv, kfac, conv):
+            return OK, it
+        if it == max_iter:
+            break
+        so.solve_factor(backend, lu, piv, r, delta)
+        status, inc_ok, prev_norm, theta = _newton_update_dense(A, dx, delta, it, prev_norm, theta, conv)
+        if status != OK:
+            return status, it + 1
+        if it > 0 and theta >= theta_give_up:
+            return NOT_CONVERGED, it + 1
+    return NOT_CONVERGED, max_iter
 @njit(cache=True, nogil=True, error_model="numpy")
 def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol, counters):
     """Newton with the Jacobian J(S) of the current iterate's state S (factorised per state,
@@ -170,7 +266,7 @@ def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, co
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        newton_residual(backend, sys, A, AT, cl, Lin, kfac, sv, counters)
+        newton_residual(backend, so.csr_of(sys), A, AT, cl, Lin, kfac, sv, counters)
         if inc_ok and residual_converged(sv, kfac, conv):
             return OK, it
         if it == max_iter:
@@ -180,7 +276,7 @@ def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, co
         if ok:
             use, use_state = slot, state1
         so.solve(backend, sys, cl, cache, use, use_state, q1, w, kfac, r, delta)
-        status, inc_ok, prev_norm, theta = newton_update(backend, sys, A, dx, delta, it, prev_norm, theta, conv)
+        status, inc_ok, prev_norm, theta = newton_update(backend, so.csr_of(sys), A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
     return NOT_CONVERGED, max_iter
@@ -225,7 +321,7 @@ def stick_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv, dt, nominal, m
         ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
         stick_dt = dt if nominal else np.nan
     if ok0:
-        status, more = modified_newton(backend, lu0, piv0, Lin, kfac, sys, sys.A, sys.AT, cl, sv, max_iter, conv, np.inf,
+        status, more = modified_newton(backend, lu0, piv0, Lin, kfac, so.csr_of(sys), sys.A, sys.AT, cl, sv, max_iter, conv, np.inf,
                                        True, counters)
     else:
         status, more = SINGULAR, 0
@@ -256,7 +352,7 @@ def state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv, tstate, dt, no
     A, AT = sys.A, sys.AT
     status, more = SINGULAR, 0
     if okS:
-        status, more = modified_newton(backend, luS, pivS, Lin, kfac, sys, A, AT, cl, sv, max_iter, conv, THETA_GIVE_UP,
+        status, more = modified_newton(backend, luS, pivS, Lin, kfac, so.csr_of(sys), A, AT, cl, sv, max_iter, conv, THETA_GIVE_UP,
                                        True, counters)
     solves = 0
     if status != OK:  # J(S) too soft for the state the step reached: the stick tangent
@@ -266,13 +362,28 @@ def state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv, tstate, dt, no
         ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
         status, more = SINGULAR, 0
         if ok0:
-            status, more = modified_newton(backend, lu0, piv0, Lin, kfac, sys, A, AT, cl, sv, max_iter, conv, np.inf,
+            status, more = modified_newton(backend, lu0, piv0, Lin, kfac, so.csr_of(sys), A, AT, cl, sv, max_iter, conv, np.inf,
                                            restart, counters)
     return status, solves + more, okS, luS, pivS, tan_dt
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
+                          has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
+                          length_scale, counters):
+    """Solver 2 (Methods 3, 4): :func:`_piecewise_linear_step_dense` (the dense backends: the
+    kernel split's code unchanged) or its banded copy (A in CSR)."""
+    if backend == so.BANDED:
+        return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt,
+                                             nominal, last_slot, has_circle, max_state_iter, fallback, max_iter, conv,
+                                             state_rtol, singular_rtol, length_scale, counters)
+    return _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal,
+                                        last_slot, has_circle, max_state_iter, fallback, max_iter, conv, state_rtol,
+                                        singular_rtol, length_scale, counters)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
                           has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
                           length_scale, counters):
     """Solver 2 (Methods 3, 4): postulate S = S_n (a redone step keeps the state it found),
@@ -323,7 +434,7 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
         for rr in range(q1.shape[0]):  # the law at q_base (in q1: one call site of the law with q1)
             q1[rr] = qbase[rr]
         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-        so.scatter_force(backend, sys, AT, f1, gf1)
+        so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)
         for i in range(n):
             r[i] = r0[i] - kfac * gf1[i]
         so.solve(backend, sys, cl, cache, slot, state1, q1, w, kfac, r, dx)
@@ -335,10 +446,10 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
         if not finite:
             status = NON_FINITE
             break
-        local_coordinates(backend, sys, A, qbase, dx, q1)
+        local_coordinates(backend, so.csr_of(sys), A, qbase, dx, q1)
         if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
             piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-            so.scatter_force(backend, sys, AT, f1, gf1)
+            so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -349,7 +460,93 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
         ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
         more = 0
         if ok0:
-            status, more = modified_newton(backend, lu0, piv0, Lin, kfac, sys, A, AT, cl, sv, max_iter, conv, np.inf,
+            status, more = modified_newton(backend, lu0, piv0, Lin, kfac, so.csr_of(sys), A, AT, cl, sv, max_iter, conv, np.inf,
+                                           True, counters)
+        solves += more
+        if status != OK:
+            status = pl_status  # the more telling reason: singular state or cycling
+    return status, solves, last_slot
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
+                          has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
+                          length_scale, counters):
+    """Solver 2 (Methods 3, 4): postulate S = S_n (a redone step keeps the state it found),
+    solve the linear step J(S) dx = r0 - kfac A^T s(S, w_n) - kfac A^T K(S) q_base (the law
+    f = K(S) q + s(S, w_n) of the postulate), accept if S is compatible at q = q_base + A dx,
+    else postulate the law's states there and re-solve. A postulated coupled slip (no linear
+    form) is solved by :func:`full_newton` instead. If the states cycle (max_state_iter
+    postulates), modified Newton with J(all stick) for that step (fallback, counted).
+    last_slot: the cache slot of the last factorisation, reused without a look-up while the
+    step is nominal. Returns (status, solves, last_slot)."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    A, AT = sys.A, sys.AT
+    nd = state.shape[0]
+    n = sv.dx.shape[0]
+    dx, r, r0, qbase, w, q1, f1, w1, state1, gf1 = sv.dx, sv.r, sv.r0, sv.qbase, sv.w, sv.q1, sv.f1, sv.w1, \
+        sv.state1, sv.gf1
+    keys, dt_state = cache.keys, cache.dt_state
+    status = STATE_CYCLING
+    solves = 0
+    if attempt == 0:  # postulate S_{n+1} = S_n; a redone step keeps the state it found
+        for d in range(nd):
+            state1[d] = state[d]
+    counters[C_N_VISITED] = 0
+    for it in range(max_state_iter):
+        for d in range(nd):
+            visited[it, d] = state1[d]
+        counters[C_N_VISITED] = it + 1
+        if has_circle and coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state1):  # no linear form: Newton
+            status, more = full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv,
+                                       singular_rtol, counters)
+            solves += more
+            break
+        same = nominal and last_slot >= 0
+        if same:
+            for d in range(nd):
+                if keys[last_slot, d] != state1[d] or keys[last_slot, nd + d] != dt_state[d]:
+                    same = False
+                    break
+        if same:
+            slot, ok = last_slot, cache.ok[last_slot]
+        else:
+            slot, ok = so.factorise(backend, sys, cl, cache, Lin, J, kfac, state1, qbase, w, nominal, singular_rtol,
+                                    counters)
+            last_slot = slot if nominal else -1
+        if not ok:
+            status = SINGULAR
+            break
+        for rr in range(q1.shape[0]):  # the law at q_base (in q1: one call site of the law with q1)
+            q1[rr] = qbase[rr]
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
+        scatter(AT, f1, gf1)
+        for i in range(n):
+            r[i] = r0[i] - kfac * gf1[i]
+        so.solve(backend, sys, cl, cache, slot, state1, q1, w, kfac, r, dx)
+        solves += 1
+        finite = True
+        for i in range(n):
+            if not np.isfinite(dx[i]):
+                finite = False
+        if not finite:
+            status = NON_FINITE
+            break
+        _local_coordinates_dense(A, qbase, dx, q1)
+        if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
+            piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
+            scatter(AT, f1, gf1)
+            status = OK
+            break
+        law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
+        counters[C_LAW_CALLS] += 1
+    if status != OK and status != NON_FINITE and fallback:
+        counters[C_FALLBACKS] += 1
+        pl_status = status
+        ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
+        more = 0
+        if ok0:
+            status, more = _modified_newton_dense(backend, lu0, piv0, Lin, kfac, A, AT, cl, sv, max_iter, conv, np.inf,
                                            True, counters)
         solves += more
         if status != OK:

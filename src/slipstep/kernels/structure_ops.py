@@ -207,23 +207,31 @@ def has_nonzero(backend, sys, which):
 
 
 # ---- products with the gather map A of the banded backend (CSR) ----------------------------
+# ``csr`` = csr_of(sys): the six CSR arrays of A and A^T, a small tuple the step solvers carry
+# (not the whole CompiledSystem: passing it to a non-inlined solver costs microseconds a step)
 @njit(cache=True, error_model="numpy", inline="always")
-def gather_increment(sys, base, y, out):
+def csr_of(sys):
+    """(A_ptr, A_idx, A_val, AT_ptr, AT_idx, AT_val) of a CompiledSystem."""
+    return sys.A_ptr, sys.A_idx, sys.A_val, sys.AT_ptr, sys.AT_idx, sys.AT_val
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def gather_increment(csr, base, y, out):
     """out = base + A y, A in CSR (banded backend)."""
-    csr_gather(sys.A_ptr, sys.A_idx, sys.A_val, base, y, out)
+    csr_gather(csr[0], csr[1], csr[2], base, y, out)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def gather_abs_max(sys, y):
+def gather_abs_max(csr, y):
     """max_r |(A y)_r|, A in CSR (banded backend)."""
-    return csr_abs_max(sys.A_ptr, sys.A_idx, sys.A_val, y)
+    return csr_abs_max(csr[0], csr[1], csr[2], y)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def scatter_force(backend, sys, AT, f, out):
+def scatter_force(backend, csr, AT, f, out):
     """out = A^T f (AT dense, or A^T in CSR for the banded backend)."""
     if backend == BANDED:
-        csr_matvec(sys.AT_ptr, sys.AT_idx, sys.AT_val, f, out)
+        csr_matvec(csr[3], csr[4], csr[5], f, out)
     else:
         scatter(AT, f, out)
 
