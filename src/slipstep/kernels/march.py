@@ -63,7 +63,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.borrow import borrowed
+from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
@@ -77,7 +77,7 @@ from slipstep.kernels.contact import contact_stiffness, gather
 from slipstep.kernels.settings import (  # noqa: F401  (re-exported: the settings)
     MarchSettings, contact_table, march_settings, replace_settings, state_cache, step_vectors,
 )
-from slipstep.kernels.signals import evaluate_signal
+from slipstep.kernels.signals import evaluate_signal, harmonic_basis, signal_from_basis
 from slipstep.kernels import structure_ops as so
 from slipstep.kernels.structure_ops import DENSE, LOW_RANK  # noqa: F401
 from slipstep.kernels.step_solvers import (  # noqa: F401
@@ -127,6 +127,8 @@ class Workspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
     lin_dt: np.ndarray  # (1,) dt of the current Lin
     visited: np.ndarray  # int8 (max_state_iter + 1, nd): states of the last state iteration
+    basis: np.ndarray  # (4, nh) the harmonic basis of the loads and motions (signals.harmonic_basis)
+    clock: np.ndarray  # (4,) its time, rotation step, rotations since the exact anchor, previous step
     lr: LowRank  # the low-rank solve's arrays (placeholders in direct mode), see state_solve.py
 
 
@@ -227,14 +229,24 @@ def _convergence_parameters(sys, tol):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _loads_and_motions(sys, t1, signals, load_factor, fe1, p):
-    """f_e(t1) = f_var(t1) + load_factor f_const and p(t1) (p = 0 and f_var = 0 without signals)."""
+def _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p):
+    """f_e(t1) = f_var(t1) + load_factor f_const and p(t1) (p = 0 and f_var = 0 without signals).
+    Harmonic signals (no table, outside the ramp) from the rotated harmonic basis of
+    signals.harmonic_basis (no sin / cos call on a march of equal steps), others by
+    signals.evaluate_signal."""
     n = fe1.shape[0]
     if signals:
-        evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
-                        sys.force_table_value, sys.force_ramp, fe1)
-        evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
-                        sys.motion_table_value, sys.motion_ramp, p)
+        harmonic_basis(t1, sys.force_frequency, sys.motion_frequency, basis, clock)
+        if sys.force_table_time.shape[0] == 0 and not (sys.force_ramp > 0.0 and t1 < sys.force_ramp):
+            signal_from_basis(sys.force_sin, sys.force_cos, basis, 0, fe1)
+        else:
+            evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                            sys.force_table_value, sys.force_ramp, fe1)
+        if sys.motion_table_time.shape[0] == 0 and not (sys.motion_ramp > 0.0 and t1 < sys.motion_ramp):
+            signal_from_basis(sys.motion_sin, sys.motion_cos, basis, sys.force_frequency.shape[0], p)
+        else:
+            evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                            sys.motion_table_value, sys.motion_ramp, p)
     else:
         for i in range(n):
             fe1[i] = 0.0
@@ -363,10 +375,10 @@ def march(sys, st, ws, out, q0, f0):
     nq = A.shape[0]
     nd = state.shape[0]
     beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
-    conv = _convergence_parameters(sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
-    kd_stick = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions, sys.tangential_row,
+    own_conv = _convergence_parameters(sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
+    own_kd = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions, sys.tangential_row,
                                sys.kt)
-    mdiag = so.diagonal(backend, sys.M)
+    own_mdiag = so.diagonal(backend, sys.M)
     state_rtol = st.state_rtol
     singular_rtol = st.singular_rtol
     solver = st.solver
@@ -379,8 +391,7 @@ def march(sys, st, ws, out, q0, f0):
     has_damping = np.any(sys.C != 0.0)
     has_circle = np.any(cl.lcode == LAW_CIRCLE)
     has_stiffness = np.any(sys.K != 0.0)
-    acc_pred = np.empty(n)
-    vel_pred = np.empty(n)
+    own_pred = np.empty((2, n))
     cap = out.t.shape[0] - 1
     # ---- initial point ----
     for rr in range(nq):
@@ -399,7 +410,10 @@ def march(sys, st, ws, out, q0, f0):
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
     stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
     tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
-    tan_state = np.full(nd, -1, np.int8)
+    own_tan = np.full(nd, -1, np.int8)
+    # the arrays allocated here, borrowed too (kernels/borrow.py; kept alive to the end below)
+    conv, kd_stick, mdiag, tan_state = borrowed(own_conv), borrowed(own_kd), borrowed(own_mdiag), borrowed(own_tan)
+    acc_pred, vel_pred = borrowed(own_pred[0]), borrowed(own_pred[1])
     okS = False
     luS = lus[0]
     pivS = pivs[0]
@@ -409,6 +423,8 @@ def march(sys, st, ws, out, q0, f0):
     dt_state_limit = 0.0  # step limit of dt_state (adaptive)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
+    basis, clock = ws.basis, ws.clock
+    clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
     accuracy = st.rtol > 0.0 and n_preload == 0 and inertia
     err_tol = st.rtol * st.err_scale
     dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
@@ -450,7 +466,7 @@ def march(sys, st, ws, out, q0, f0):
                 ws.lin_dt[0] = dt
                 conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, Lin, kfac, kd_stick)
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
-            _loads_and_motions(sys, t1, signals, load_factor, fe1, p)
+            _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p)
             gather(A, sys.B, sys.g, x, p, qbase)
             _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf,
                            fe1, acc_pred, vel_pred, r0)
@@ -513,6 +529,7 @@ def march(sys, st, ws, out, q0, f0):
             o_q[k, rr] = q1[rr]
             o_f[k, rr] = f1[rr]
     counters[C_STEPS] = k
+    keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
     return status
 
 

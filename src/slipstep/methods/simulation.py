@@ -808,6 +808,8 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         tmin_value=z(cap),
         lin_dt=np.full(1, np.nan),
         visited=i8(max_state_iter + 1, nd),
+        basis=z(4, cs.force_frequency.shape[0] + cs.motion_frequency.shape[0]),
+        clock=z(4),
         lr=lr,
     )
 
