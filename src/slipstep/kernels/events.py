@@ -116,9 +116,14 @@ def _first_root_1h(c, om, ta, t_end, tol):
     r0 = -c0 / R
     r1 = max(-1.0, (-c0 - tol) / R)
     e0 = np.pi - np.arcsin(r0)  # sin(psi) decreasing through r0: the zero crossing
-    e1 = np.pi - np.arcsin(r1)  # ... and through the tolerance band's edge, just after it
+    dr = r0 - r1
+    if dr <= 1e-6 and abs(r0) < 0.9:  # ... and through the tolerance band's edge, just after it:
+        e1 = e0 + dr / np.sqrt(1.0 - r0 * r0)  # first order in dr (the next term below 6 dr^2 < 6e-12)
+    else:
+        e1 = np.pi - np.arcsin(r1)
     psi_a = om[0] * ta + phi
-    d1 = (e1 - psi_a) % two_pi
+    x1 = e1 - psi_a
+    d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
     d0 = d1 - (e1 - e0)
     t = ta + max(d0, 0.0) / om[0]
     return t if t <= t_end else t_end + 1.0

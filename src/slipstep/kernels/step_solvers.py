@@ -20,7 +20,7 @@ from numba import njit
 
 from slipstep.kernels.codes import C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 from slipstep.kernels.codes import STATE_CYCLING
-from slipstep.kernels.contact import compatible, coupled, law, piecewise_law, scatter
+from slipstep.kernels.contact import compatible_law, coupled, law, piecewise_law, scatter
 from slipstep.kernels import structure_ops as so
 
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
@@ -331,9 +331,8 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
             status = NON_FINITE
             break
         local_coordinates(A, qbase, dx, q1)
-        if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-            piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-            scatter(AT, f1, gf1)
+        if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
+            scatter(AT, f1, gf1)  # f1, w1: the law of the postulate at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
