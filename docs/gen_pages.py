@@ -1034,7 +1034,8 @@ def validation_report() -> str:
     system = ss.load_system("paper")
     cs = system.compile()
     nd = cs.kt.shape[0]
-    t_min, ev = ss.state_t_min(cs, np.ones(nd, np.int8))
+    t_min = ss.state_t_min(cs, np.ones(nd, np.int8))
+    ev = ss.state_eigenvalues(cs, np.ones(nd, np.int8))
     f_khz = np.sort(np.sqrt(np.real(ev))) / (2 * math.pi) / 1e3
     sim = ss.Simulation(system, "newmark", periods=1)
     qs = ss.run(system, "quasi-static", periods=3)

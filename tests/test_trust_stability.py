@@ -66,7 +66,7 @@ def test_step_beyond_stability_is_refused(paper):
 
 def test_highest_frequency_covers_full_stick(paper):
     cs = paper.compile()
-    t_min, _ = ss.state_t_min(cs, np.ones(3, np.int8))
+    t_min = ss.state_t_min(cs, np.ones(3, np.int8))
     assert highest_frequency(cs) >= 2 * math.pi / t_min * (1 - 1e-12)
 
 

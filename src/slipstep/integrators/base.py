@@ -152,7 +152,10 @@ class ExplicitIntegrator(Integrator):
 
     @property
     def step_limit_factor(self) -> float:
-        return self.omega_crit / (2.0 * math.pi)
+        """Omega_crit / (2 pi): the stability limit is the step limit (step_control.stability_factor)."""
+        from slipstep.methods.step_control import stability_factor
+
+        return stability_factor(self.omega_crit)
 
     def simulation(self, system, variant: str = "fixed", **options):
         from slipstep.integrators.explicit_simulation import ExplicitSimulation

@@ -79,7 +79,7 @@ class ExplicitWorkspace(NamedTuple):
     ss: np.ndarray  # stage states (discarded), int8
     lu: np.ndarray  # (n, n) factorised M (RK4) or M + dt/2 C (central difference)
     piv: np.ndarray  # int64 (n)
-    Minv: np.ndarray
+    mass_factor: np.ndarray  # L with M = L L^T (kernels/eigen.py)
     tmin_keys: np.ndarray  # int8 (cap, nd)
     tmin_used: np.ndarray  # bool (cap)
     tmin_value: np.ndarray  # (cap,) s
@@ -119,7 +119,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
     gf, fe, p, rhs, xs, vs, kx, kv = ws.gf, ws.fe, ws.p, ws.rhs, ws.xs, ws.vs, ws.kx, ws.kv
     fs, w_s, ss, lu, piv = ws.fs, ws.ws_, ws.ss, ws.lu, ws.piv
-    tkeys, tused, tvalue, Minv = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.Minv
+    tkeys, tused, tvalue, mass_factor = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.mass_factor
     counters = out.counters
     n = x.shape[0]
     nq = q1.shape[0]
@@ -146,7 +146,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+            dt = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                                    fpar[STEP_FACTOR], fpar[DT_MAX])
         else:
             dt = fpar[DT]
@@ -210,7 +210,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == ipar[MAX_REDO]:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
+            limit = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
                                       tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

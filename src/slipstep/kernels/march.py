@@ -60,6 +60,7 @@ from slipstep.kernels.codes import (  # noqa: F401
     PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import compatible, contact_stiffness, coupled, gather, law, piecewise_law, scatter
+from slipstep.kernels.eigen import EIG_RTOL, MAX_BASIS, MAX_RESTARTS, largest_eigenvalue_modulus
 from slipstep.kernels.linalg import lu_solve
 from slipstep.kernels.state_solve import LowRank, factorise_state, solve_low_rank
 from slipstep.kernels.signals import evaluate_signal
@@ -99,7 +100,7 @@ class Workspace(NamedTuple):
     qbase: np.ndarray
     Lin: np.ndarray
     J: np.ndarray
-    Minv: np.ndarray
+    mass_factor: np.ndarray  # L with M = L L^T (zero pivots: DOFs without mass), kernels/eigen.py
     key: np.ndarray  # int8 (2 nd): [S for K_D, S for dt]
     dt_state: np.ndarray  # int8 (nd)
     stick: np.ndarray  # int8 (nd) all STICK
@@ -425,19 +426,16 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
-    T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
+    T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8), the largest |eigenvalue| alone
+    to EIG_RTOL (kernels/eigen.py; mass_factor: L with M = L L^T)."""
     slot, found = find_slot(tkeys, tused, state)
     if not found:
         Keff = Kst.copy()
         contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
-        ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
-        wmax2 = 0.0
-        for i in range(ev.shape[0]):
-            if abs(ev[i]) > wmax2:
-                wmax2 = abs(ev[i])
+        wmax2 = largest_eigenvalue_modulus(Keff, mass_factor, EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
         tvalue[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
     return min(step_factor * tvalue[slot], dt_max)
 
@@ -470,7 +468,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     x, v, a, fe, gf, w, state = ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state
     fe1, gf1, f1, q1, w1, state1 = ws.fe1, ws.gf1, ws.f1, ws.q1, ws.w1, ws.state1
     dx, delta, r0, r, p, qbase = ws.dx, ws.delta, ws.r0, ws.r, ws.p, ws.qbase
-    Lin, J, Minv, key, dt_state, stick = ws.Lin, ws.J, ws.Minv, ws.key, ws.dt_state, ws.stick
+    Lin, J, mass_factor, key, dt_state, stick = ws.Lin, ws.J, ws.mass_factor, ws.key, ws.dt_state, ws.stick
     keys, used, ok_flags, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_ok, ws.cache_lu, ws.cache_piv
     tkeys, tused, tvalue, visited = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.visited
     lr = ws.lr
@@ -550,7 +548,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             if k == 0 or not _same(state, dt_state):
                 for d in range(nd):
                     dt_state[d] = state[d]
-                dt_state_limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
+                dt_state_limit = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state,
                                                    tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             dt_nominal = dt_state_limit
         else:
@@ -741,7 +739,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             # ---- redo rule (paper 4.2): the new state needs a smaller step ----
             if _same(state1, dt_state):
                 break
-            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
+            limit = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1,
                                       tkeys, tused, tvalue, fpar[STEP_FACTOR], fpar[DT_MAX])
             if limit >= dt * (1.0 - 1e-9):
                 break

@@ -1,5 +1,5 @@
-"""The step rule's accuracy side: stability limits over the visitable contact states, the
-step-doubling estimate of the time-discretisation error, and the divergence test.
+"""The step rule's accuracy side: the step-doubling estimate of the time-discretisation
+error, the default rule's refinement of the step, and the divergence test.
 
 Error estimate (step doubling, Richardson). Newmark / HHT / generalised alpha are second
 order, also across stick-slip transitions for the loop energy (measured: the loop-energy
@@ -14,7 +14,7 @@ dissipated energy per cycle (friction, last period, all contacts) and the peak c
 force over the last period, both relative. Explicit schemes cannot double their step
 (stability): their twin halves it, err ~ (Q_dt - Q_dt/2) * 4/3.
 
-Default step rule (item 4 of issue 8; README "Methods"):
+Default step rule (item 4 of issue 8; README "Methods"; the limits: methods/step_control.py):
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
     then, while the step-doubling estimate at dt exceeds DEFAULT_TARGET = 0.5 % on the loop
     energy, dt = dt sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period,
@@ -24,7 +24,6 @@ A run whose final estimate exceeds WARN_LIMIT = 1 % warns and names the estimate
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 
@@ -32,7 +31,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
-from slipstep.kernels.contact import LIFT, STICK
+from slipstep.methods.step_control import highest_frequency  # noqa: F401  (re-exported)
 
 DEFAULT_TARGET = 0.005
 WARN_LIMIT = 0.01
@@ -40,38 +39,6 @@ WARN_LIMIT = 0.01
 #: PILOT_PERIODS periods, whatever the run's length: the step does not depend on it)
 PILOT_ROUNDS = 3
 PILOT_PERIODS = 3
-#: all state combinations are searched for the highest frequency up to this many directions
-MAX_ENUMERATED_DIRECTIONS = 5
-
-
-def omega_max(cs, state) -> float:
-    """omega_max^2 = max |eig(M^-1 (K + K_D(S)))| (paper Eq. 8) of one contact state [rad/s]
-    (massless DOFs condensed out: slipstep.methods.simulation.state_t_min)."""
-    from slipstep.methods.simulation import state_t_min
-
-    t_min, _ = state_t_min(cs, np.asarray(state, np.int8))
-    return 2.0 * math.pi / t_min if t_min > 0 else math.inf
-
-
-def highest_frequency(cs) -> float:
-    """The highest omega_max over the contact states a march can visit [rad/s]: every
-    combination of stick, slip+, slip- and lift-off (lift-off shared by a contact's
-    directions) for up to MAX_ENUMERATED_DIRECTIONS directions, else full stick and the
-    uniform slip states (slip couples mu k_n into the tangential rows and can raise it)."""
-    nd = cs.kt.shape[0]
-    owner = np.asarray(cs.direction_contact)
-    if nd <= MAX_ENUMERATED_DIRECTIONS:
-        states = itertools.product((STICK, 2, 3, LIFT), repeat=nd)
-    else:
-        states = [(s,) * nd for s in (STICK, 2, 3)]
-    best = 0.0
-    for st in states:
-        st = np.array(st, np.int8)
-        lifted = {owner[d] for d in range(nd) if st[d] == LIFT}
-        if any((st[d] == LIFT) != (owner[d] in lifted) for d in range(nd)):
-            continue  # lift-off is a contact's state, not a direction's
-        best = max(best, omega_max(cs, st))
-    return best
 
 
 def loop_energy(out, n_steps: int, cs, period: float | None) -> tuple[float, float]:

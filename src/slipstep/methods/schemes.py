@@ -11,11 +11,11 @@ All are the generalised-alpha balance of :mod:`slipstep.kernels.march` with para
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from fractions import Fraction
 
 from slipstep.errors import InputError
+from slipstep.methods import step_control as SC
 
 
 @dataclass(frozen=True)
@@ -28,27 +28,20 @@ class Scheme:
 
     @property
     def step_limit_factor(self) -> float:
-        """dt <= factor * T_min: the convergence limit of the fixed-point (modified Newton)
-        iteration of a Newmark step, dt < T_min / (2 pi sqrt(beta)) (paper 4.2)."""
-        return 1.0 / (2.0 * math.pi * math.sqrt(self.beta))
+        """dt <= factor * T_min, factor = 1 / (2 pi sqrt(beta)): the modified-Newton convergence
+        limit (paper 4.2; slipstep.methods.step_control.convergence_factor)."""
+        return SC.convergence_factor(self.beta)
 
     @property
     def omega_crit(self) -> float:
-        """Stability limit Omega_crit = omega_max dt of the linear step (inf: unconditionally stable).
-
-        Newmark (Hughes 1987, 9.1): unconditionally stable for 2 beta >= gamma >= 1/2; otherwise
-        stable for omega dt <= Omega_crit = 1 / sqrt(gamma/2 - beta) (undamped, the binding case):
-        beta = 1/6: 2 sqrt(3) = 3.46; beta = 1/12: sqrt(6) = 2.45. HHT (alpha in [0, 1/3]) and
-        generalised alpha (rho_inf in [0, 1]) satisfy alpha_m <= alpha_f <= 1/2,
-        beta >= 1/4 + (alpha_f - alpha_m)/2 and are unconditionally stable (Chung & Hulbert 1993)."""
-        if self.alpha_m != 0.0 or self.alpha_f != 0.0 or 2.0 * self.beta >= self.gamma - 1e-14:
-            return math.inf
-        return 1.0 / math.sqrt(self.gamma / 2.0 - self.beta)
+        """Stability limit Omega_crit = omega_max dt (inf: unconditionally stable;
+        slipstep.methods.step_control.newmark_omega_crit)."""
+        return SC.newmark_omega_crit(self.beta, self.gamma, self.alpha_m, self.alpha_f)
 
     @property
     def stability_limit_factor(self) -> float:
         """dt <= factor * T_min for stability, factor = Omega_crit / (2 pi) (inf if unconditional)."""
-        return self.omega_crit / (2.0 * math.pi)
+        return SC.stability_factor(self.omega_crit)
 
 
 def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:

@@ -24,8 +24,11 @@ from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
-from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
+from slipstep.methods import step_control as SC
+from slipstep.methods.eigen import mass_factor
+from slipstep.methods.step_control import default_max_step, state_t_min  # noqa: F401  (re-exported)
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
@@ -132,20 +135,6 @@ class RunOptions:
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
-
-
-def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
-    """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
-    (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
-    quasi-static-dofs method) those are condensed out first (methods/massless.py)."""
-    zero = ML.massless_mask(cs.M)
-    if zero.any():
-        return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
-    Keff = cs.K.copy()
-    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
-    ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
-    wmax2 = np.abs(ev).max()
-    return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), ev
 
 
 class Runner:
@@ -275,7 +264,6 @@ class Simulation(Runner):
         self.massless = ML.select_massless(system, self.options.massless_dofs) if self.method.massless else None
         if self.massless is not None:  # those DOFs without inertia; T_min of the dynamic part
             self.compiled = cs = ML.inertia_free(cs, self.massless)
-            self.t_min_stick, _ = ML.condensed_t_min(cs, self.stick, self.massless)
         else:
             if self.options.massless_dofs != "auto":
                 raise InputError(
@@ -283,7 +271,7 @@ class Simulation(Runner):
                     f"is only used by the quasi-static-dofs method, not {self.method.name}",
                     "use method quasi-static-dofs or drop the option",
                 )
-            self.t_min_stick, _ = state_t_min(cs, self.stick)
+        self.t_min_stick = state_t_min(cs, self.stick)  # massless DOFs (zero rows of M) condensed
         period = system.period
         opt = self.options
         if opt.duration is not None:
@@ -322,20 +310,21 @@ class Simulation(Runner):
             )
         self.dt = dt
         dt_max = self.max_step
-        n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
-        if opt.rtol is not None and not self.method.quasi_static:  # the local error is O(dt^3)
-            base = min(self.t_min_stick / math.pi, dt_max)
-            capacity = math.ceil(4 * t_end / base * max(1.0, (1e-2 / opt.rtol) ** (1 / 3))) + 100
-        elif self.method.adaptive:
-            capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
-        else:
-            capacity = n_fixed + 1
+        capacity = SC.capacity(
+            t_end,
+            dt,
+            self.dt_limit,
+            dt_max,
+            self.method.adaptive,
+            None if self.method.quasi_static else opt.rtol,
+            self.t_min_stick,
+        )
         self.low_rank = use_low_rank(cs, opt.linear_solver)
         self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
-        self.fpar[K.STEP_FACTOR] = min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor)
+        self.fpar[K.STEP_FACTOR] = SC.kernel_step_factor(scheme, opt.step_ratio)
         self.fpar[K.DT_MAX] = min(dt_max, self.dt_stability)
         self.fpar[K.TOL] = opt.tolerance
         self.fpar[K.STATE_RTOL] = opt.state_tolerance
@@ -361,44 +350,26 @@ class Simulation(Runner):
         self.kernel_time = math.nan
         self._preload()
 
-    # -- the step rule (README "Methods"; methods/accuracy.py) ------------------------------
+    # -- the step rule (README "Methods"; methods/step_control.py, methods/accuracy.py) ------
     def _step_limits(self, scheme) -> tuple[float, float]:
-        """(dt_limit, dt_stability): the step limit r * factor * T_min(stick) of the Newton
-        iteration's convergence (paper 4.2), capped at the scheme's stability limit
-        Omega_crit / omega_max (omega_max over every visitable contact state) with a warning.
-        With rtol and the piecewise-linear solve only the stability limit is kept."""
+        """(dt_limit, dt_stability): :func:`slipstep.methods.step_control.step_limits`."""
         opt = self.options
-        dt_stability = math.inf
-        if math.isfinite(scheme.omega_crit) and not self.method.quasi_static:
-            w = accuracy.highest_frequency(self.compiled)
-            dt_stability = scheme.omega_crit / w if w > 0 else math.inf
-        conv = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
-        if opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR and not self.method.quasi_static:
-            conv = dt_stability  # nothing iterates within a linear phase: only stability limits the step
-        if conv > dt_stability * (1 + 1e-12) and opt.dt is None:
-            warnings.warn(
-                f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
-                f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
-                f"is capped at the stability limit",
-                stacklevel=4,
-            )
-            conv = dt_stability
-        return conv, dt_stability
+        iterates = not (opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR)
+        return SC.step_limits(
+            self.compiled,
+            scheme,
+            self.t_min_stick,
+            opt.step_ratio,
+            self.method.quasi_static,
+            iterates,
+            opt.dt is not None,
+        )
 
     def _fixed_step(self, limit: float, max_step: float) -> float:
-        """The fixed step: min(limit, max_step), rounded down to whole steps per period."""
-        opt, period = self.options, self.period
-        if opt.dt is not None:
-            return opt.dt
-        if self.method.quasi_static:
-            return (period if period is not None else self.t_end) / opt.steps_per_period
-        if not math.isfinite(limit) and not math.isfinite(max_step):
-            raise InputError(
-                "structure", "has no stiffness at all in full stick (T_min is infinite)", "add contacts or stiffness"
-            )
-        if period is not None:
-            return period / math.ceil(period / min(limit, max_step) * (1 - 1e-12))
-        return min(limit, max_step)
+        """The fixed step: :func:`slipstep.methods.step_control.fixed_step`."""
+        opt = self.options
+        spp = opt.steps_per_period if self.method.quasi_static else None
+        return SC.fixed_step(limit, max_step, self.period, self.t_end, opt.dt, spp)
 
     def _pilot_allowed(self) -> bool:
         opt = self.options
@@ -635,14 +606,6 @@ def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> n
     return f
 
 
-def default_max_step(period: float | None, dt_stick: float) -> float:
-    """The accuracy cap of dynamic steps, fixed and adaptive: at least 50 steps per excitation
-    period (the T_min rule of paper 4.2 is a convergence limit and says nothing about accuracy
-    when the structure's highest frequency is close to the excitation); without a period, 10
-    full-stick steps (the cap then only bounds adaptive steps in lift-off, where T_min = inf)."""
-    return period / 50 if period else 10 * dt_stick
-
-
 def compiled_entry(dispatcher, args):
     """The compiled overload of a numba dispatcher for these argument types, callable without
     the per-call type dispatch (about 6 us for our tuples of arrays); the dispatcher itself
@@ -788,7 +751,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         qbase=z(nq),
         Lin=z(n, n),
         J=z(n, n),
-        Minv=ML.inverse_mass(cs.M),
+        mass_factor=mass_factor(cs.M),
         key=i8(2 * nd),
         dt_state=i8(nd),
         stick=np.full(nd, STICK, np.int8),
