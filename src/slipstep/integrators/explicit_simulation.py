@@ -22,6 +22,8 @@ from slipstep.methods.eigen import mass_factor
 from slipstep.model.validate import positive
 from slipstep.system import System
 
+DEFAULT_STEP_RATIO = RunOptions.step_ratio  # the one default (RunOptions)
+
 #: options an explicit run understands (the rest of RunOptions is for implicit solvers)
 EXPLICIT_OPTIONS = (
     "periods",
@@ -63,7 +65,7 @@ class ExplicitSimulation(Runner):
         if integrator.kind != "explicit" or integrator.kernel_kind is None:
             raise InputError("scheme", f"{integrator.name} is not an explicit scheme", "use central-difference or rk4")
         self.system, self.integrator, self.adaptive = system, integrator, bool(adaptive)
-        ratio = positive("step_ratio", options.get("step_ratio", 1.0))
+        ratio = positive("step_ratio", options.get("step_ratio", DEFAULT_STEP_RATIO))
         self._options_given, self._accuracy = dict(options), None
         if ratio > 1.0:
             raise InputError(
@@ -144,7 +146,7 @@ class ExplicitSimulation(Runner):
             return nan
         opts = dict(
             self._options_given,
-            step_ratio=self._options_given.get("step_ratio", 1.0) / 2,
+            step_ratio=self._options_given.get("step_ratio", DEFAULT_STEP_RATIO) / 2,
             max_step=self.max_step / 2,
             duration=self.t_end,
         )

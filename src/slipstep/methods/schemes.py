@@ -16,13 +16,14 @@ from fractions import Fraction
 
 from slipstep.errors import InputError
 from slipstep.methods import step_control as SC
+from slipstep.methods.registry import scheme_default
 
 
 @dataclass(frozen=True)
 class Scheme:
     name: str
-    beta: float = 0.25
-    gamma: float = 0.5
+    beta: float = scheme_default("newmark", "beta")
+    gamma: float = scheme_default("newmark", "gamma")
     alpha_m: float = 0.0
     alpha_f: float = 0.0
 
@@ -44,24 +45,30 @@ class Scheme:
         return SC.stability_factor(self.omega_crit)
 
 
-def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:
+def newmark(
+    beta: float = scheme_default("newmark", "beta"), gamma: float = scheme_default("newmark", "gamma")
+) -> Scheme:
+    """Newmark(beta, gamma), default average acceleration (defaults: slipstep.methods.registry.SCHEMES)."""
     if not (beta > 0 and gamma >= 0.5):
         raise InputError(
             "scheme.beta/gamma",
             f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
             "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)",
         )
-    name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
+    default = (scheme_default("newmark", "beta"), scheme_default("newmark", "gamma"))
+    name = "newmark" if (beta, gamma) == default else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
     return Scheme(name, beta, gamma)
 
 
-def hht(alpha: float = 0.05) -> Scheme:
+def hht(alpha: float = scheme_default("hht", "alpha")) -> Scheme:
+    """HHT-alpha, 0 <= alpha <= 1/3 (default: slipstep.methods.registry.SCHEMES)."""
     if not 0 <= alpha <= 1 / 3:
         raise InputError("scheme.alpha", f"is {alpha}", "give 0 <= alpha <= 1/3")
     return Scheme(f"hht(alpha={alpha:g})", (1 + alpha) ** 2 / 4, 0.5 + alpha, 0.0, alpha)
 
 
-def generalized_alpha(rho_inf: float = 0.9) -> Scheme:
+def generalized_alpha(rho_inf: float = scheme_default("generalized-alpha", "rho_inf")) -> Scheme:
+    """Generalised alpha, 0 <= rho_inf <= 1 (default: slipstep.methods.registry.SCHEMES)."""
     if not 0 <= rho_inf <= 1:
         raise InputError("scheme.rho_inf", f"is {rho_inf}", "give 0 <= rho_inf <= 1")
     am = (2 * rho_inf - 1) / (rho_inf + 1)

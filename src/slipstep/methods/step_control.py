@@ -24,12 +24,17 @@ from __future__ import annotations
 import itertools
 import math
 import warnings
+from typing import TYPE_CHECKING
 
-import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.kernels.contact import LIFT, STICK, add_contact_stiffness
-from slipstep.methods import eigen
+from slipstep.kernels.codes import LIFT, SLIP_NEG, SLIP_POS, STICK
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# light at import (the CLI's listings read the factors below): numpy and the numerical
+# modules (kernels.contact, methods.eigen) are imported by the functions that need them
 
 #: all state combinations are searched for the highest frequency up to this many directions
 MAX_ENUMERATED_DIRECTIONS = 5
@@ -40,8 +45,12 @@ STICK_STEPS_CAP = 10
 
 
 # -- T_min ---------------------------------------------------------------------------------
-def effective_stiffness(cs, state) -> np.ndarray:
+def effective_stiffness(cs, state) -> "np.ndarray":
     """K_eff = K + K_D(S) of one contact state (the law's stiffness, kernels/contact.py)."""
+    import numpy as np
+
+    from slipstep.kernels.contact import add_contact_stiffness
+
     K = cs.K.copy()
     add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, K)
     return K
@@ -56,6 +65,9 @@ def state_omega2(cs, state) -> float:
     """omega_max^2 = max |eig(M^-1 (K + K_D(S)))| [rad^2/s^2] from the largest eigenvalue alone
     (methods/eigen.py); with massless DOFs (zero rows of M) those are condensed out, and a state
     in which they have no quasi-static equilibrium is refused (methods/massless.py)."""
+    import numpy as np
+
+    from slipstep.methods import eigen
     from slipstep.methods import massless as ML
 
     K = effective_stiffness(cs, state)
@@ -76,10 +88,12 @@ def state_omega_max(cs, state) -> float:
     return math.sqrt(state_omega2(cs, state))
 
 
-def state_eigenvalues(cs, state) -> np.ndarray:
+def state_eigenvalues(cs, state) -> "np.ndarray":
     """Every eigenvalue lambda of M^-1 (K + K_D(S)) (massless DOFs condensed): a full dense
     decomposition, for the analyses that need the whole spectrum (the advisor's frequencies and
     flutter test, the filter's ringing frequencies); the step needs only :func:`state_t_min`."""
+    import numpy as np
+
     from slipstep.methods import massless as ML
 
     zero = ML.massless_mask(cs.M)
@@ -93,12 +107,14 @@ def highest_frequency(cs) -> float:
     combination of stick, slip+, slip- and lift-off (lift-off shared by a contact's
     directions) for up to MAX_ENUMERATED_DIRECTIONS directions, else full stick and the
     uniform slip states (slip couples mu k_n into the tangential rows and can raise it)."""
+    import numpy as np
+
     nd = cs.kt.shape[0]
     owner = np.asarray(cs.direction_contact)
     if nd <= MAX_ENUMERATED_DIRECTIONS:
-        states = itertools.product((STICK, 2, 3, LIFT), repeat=nd)
+        states = itertools.product((STICK, SLIP_POS, SLIP_NEG, LIFT), repeat=nd)
     else:
-        states = [(s,) * nd for s in (STICK, 2, 3)]
+        states = [(s,) * nd for s in (STICK, SLIP_POS, SLIP_NEG)]
     best = 0.0
     for st in states:
         st = np.array(st, np.int8)
