@@ -9,7 +9,15 @@ import pytest
 import scipy.sparse as sp
 
 import slipstep as ss
-from slipstep.kernels.eigen import EIG_RTOL, MAX_BASIS, MAX_RESTARTS, apply_operator, largest_eigenvalue_modulus
+from slipstep.kernels.eigen import (
+    DENSE_LIMIT,
+    EIG_RTOL,
+    MAX_BASIS,
+    MAX_RESTARTS,
+    apply_operator,
+    krylov_largest_modulus,
+    largest_eigenvalue_modulus,
+)
 from slipstep.methods import eigen, step_control
 
 
@@ -81,12 +89,15 @@ def test_python_sparse_chain_against_the_tridiagonal_eigenvalue():
     assert eigen.largest_eigenvalue(M, K) == pytest.approx(ref, rel=1e-10)
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 10, MAX_BASIS, MAX_BASIS + 1, 120])
+@pytest.mark.parametrize("n", [1, 2, 3, 10, MAX_BASIS, MAX_BASIS + 1, DENSE_LIMIT + 1, 120])
 @pytest.mark.parametrize("symmetric", [True, False])
-def test_kernel_largest_eigenvalue_matches_dense(n, symmetric):
+@pytest.mark.parametrize("routine", [largest_eigenvalue_modulus, krylov_largest_modulus])
+def test_kernel_largest_eigenvalue_matches_dense(n, symmetric, routine):
+    """Both paths of the march's routine (dense B up to DENSE_LIMIT, Krylov above) and the
+    Krylov routine itself at every size (full basis for n <= MAX_BASIS, restarts above)."""
     rng = np.random.default_rng(7 * n + symmetric)
     M, K = random_system(n, symmetric, rng)
-    got = largest_eigenvalue_modulus(K, eigen.mass_factor(M), EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
+    got = routine(K, eigen.mass_factor(M), EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
     assert got == pytest.approx(dense_reference(M, K), rel=1e-8)
 
 
@@ -95,6 +106,18 @@ def test_kernel_largest_eigenvalue_on_a_clustered_chain_with_restarts():
     M, K = chain(150, sparse=False)
     got = largest_eigenvalue_modulus(K, eigen.mass_factor(M), EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
     assert got == pytest.approx(dense_reference(M, K), rel=1e-8)
+
+
+def test_kernel_krylov_unconverged_returns_a_larger_bound():
+    """Out of restarts: |theta| + ||r|| (a shorter, safe step). On this symmetric chain one basis
+    of 48 vectors gives theta 7e-15 below lambda_max with a residual of 2e-8 > EIG_RTOL: the
+    returned bound is above lambda_max and within the residual of it."""
+    M, K = chain(300, sparse=False)
+    L = eigen.mass_factor(M)
+    exact = dense_reference(M, K)
+    early = krylov_largest_modulus(K, L, EIG_RTOL, MAX_BASIS, 0)
+    assert exact <= early <= exact * (1 + 1e-6)
+    assert krylov_largest_modulus(K, L, EIG_RTOL, MAX_BASIS, MAX_RESTARTS) == pytest.approx(exact, rel=1e-8)
 
 
 def test_kernel_massless_dofs_are_held_at_zero():
@@ -106,7 +129,8 @@ def test_kernel_massless_dofs_are_held_at_zero():
     assert np.all(np.diag(L)[5:] == 0)
     d = np.arange(5)
     ref = np.abs(np.linalg.eigvals(np.linalg.solve(M[np.ix_(d, d)], K[np.ix_(d, d)]))).max()
-    assert largest_eigenvalue_modulus(K, L, EIG_RTOL, MAX_BASIS, MAX_RESTARTS) == pytest.approx(ref, rel=1e-10)
+    for routine in (largest_eigenvalue_modulus, krylov_largest_modulus):
+        assert routine(K, L, EIG_RTOL, MAX_BASIS, MAX_RESTARTS) == pytest.approx(ref, rel=1e-10)
 
 
 def test_operator_is_m_inverse_k_in_scaled_coordinates():

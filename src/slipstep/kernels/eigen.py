@@ -23,9 +23,10 @@ theta, and theta <= lambda_max (Ritz values lie inside the spectrum); for a non-
 is the same test up to the eigenvector condition number (ARPACK's test). Otherwise restart with
 the MAX_BASIS // 2 Ritz vectors of largest |theta| (real and imaginary parts of complex ones),
 the largest last, so the next vector B y continues the Krylov space from its residual.
-When n <= MAX_BASIS the basis spans the whole space after n vectors: H is then similar to B up
-to round-off and the result is the exact largest |eigenvalue| to machine precision (the steps of
-small systems are those of the former dense eigvals). Why not power iteration: its error falls
+Small systems (n <= DENSE_LIMIT): B is formed (scaled by the diagonal of a lumped mass, else
+two triangular solves) and its eigenvalues taken by LAPACK (the symmetric solver when K_eff is
+symmetric), faster there than the Krylov routine (benchmarks/bench_eigen.py); both are exact to
+round-off (the former dense eigvals of M^-1 K_eff to 1e-15 on the paper case). Why not power iteration: its error falls
 like (lambda_2/lambda_1)^k, hopeless for the clustered top spectra of chains (lambda_2/lambda_1 =
 1 - 7e-6 at 1,000 DOFs); Krylov methods converge like a Chebyshev polynomial in sqrt of the gap.
 
@@ -36,6 +37,9 @@ Not converged after MAX_RESTARTS restarts: |theta| + ||r|| is returned (an eigen
 import numpy as np
 from numba import njit
 
+#: at most this many DOFs: the eigenvalues of the dense n x n B by LAPACK (3-6x faster than the
+#: Krylov routine up to here, 1x at about 100 DOFs, 2.5-4x slower at 300-1000: bench_eigen.py)
+DENSE_LIMIT = 64
 #: relative residual of the Ritz pair at which the largest |eigenvalue| is accepted
 EIG_RTOL = 1e-10
 #: Krylov basis size (memory: 2 MAX_BASIS n numbers)
@@ -122,8 +126,89 @@ def _dot(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def scaled_matrix(Keff, L):
+    """B = L^-1 K_eff L^-T as a dense n x n matrix (zero rows and columns for zero pivots):
+    B_ij = K_ij / (L_ii L_jj) for a diagonal L (a lumped mass), else two triangular solves."""
+    n = Keff.shape[0]
+    diagonal = True
+    regular = True
+    for i in range(n):
+        if L[i, i] == 0.0:
+            regular = False
+        for j in range(i):
+            if L[i, j] != 0.0:
+                diagonal = False
+    B = np.empty((n, n))
+    if diagonal:
+        d = np.empty(n)
+        for i in range(n):
+            d[i] = 1.0 / L[i, i] if L[i, i] != 0.0 else 0.0
+        for i in range(n):
+            for j in range(n):
+                B[i, j] = Keff[i, j] * d[i] * d[j]
+        return B
+    if regular:  # LAPACK: X = L^-1 K_eff, B = (L^-1 X^T)^T
+        X = np.linalg.solve(L, Keff)
+        return np.ascontiguousarray(np.linalg.solve(L, np.ascontiguousarray(X.T)).T)
+    X = np.empty((n, n))
+    col = np.empty(n)
+    out = np.empty(n)
+    for c in range(n):  # X = L^-1 K_eff, column by column
+        for i in range(n):
+            col[i] = Keff[i, c]
+        lower_solve(L, col, out)
+        for i in range(n):
+            X[i, c] = out[i]
+    for r in range(n):  # B = X L^-T: row r of B is L^-1 (row r of X)
+        lower_solve(L, X[r], out)
+        for j in range(n):
+            B[r, j] = out[j]
+    return B
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def dense_largest_modulus(B):
+    """max |eig(B)| by LAPACK: the symmetric solver (dsyevd) when B is symmetric to 1e-13 of its
+    largest entry (the part 1e-13 off is round-off of K_eff's assembly), else the general one."""
+    n = B.shape[0]
+    scale = 0.0
+    asym = 0.0
+    for i in range(n):
+        for j in range(n):
+            scale = max(scale, abs(B[i, j]))
+            asym = max(asym, abs(B[i, j] - B[j, i]))
+    best = 0.0
+    if asym <= 1e-13 * scale:
+        S = np.empty((n, n))
+        for i in range(n):
+            for j in range(n):
+                S[i, j] = 0.5 * (B[i, j] + B[j, i])
+        ev = np.linalg.eigvalsh(S)
+        for i in range(n):
+            best = max(best, abs(ev[i]))
+        return best
+    evc = np.linalg.eigvals(B.astype(np.complex128))
+    for i in range(n):
+        best = max(best, abs(evc[i]))
+    return best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def largest_eigenvalue_modulus(Keff, L, rtol, max_basis, max_restarts):
-    """max |eig(M^-1 K_eff)| to the relative residual rtol (module docstring), M = L L^T."""
+    """max |eig(M^-1 K_eff)| to the relative residual rtol (module docstring), M = L L^T:
+    LAPACK on the dense B up to DENSE_LIMIT DOFs, the thick-restart Krylov routine above."""
+    n = Keff.shape[0]
+    if n == 0:
+        return 0.0
+    if n <= DENSE_LIMIT:
+        return dense_largest_modulus(scaled_matrix(Keff, L))
+    return krylov_largest_modulus(Keff, L, rtol, max_basis, max_restarts)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def krylov_largest_modulus(Keff, L, rtol, max_basis, max_restarts):
+    """max |eig(L^-1 K_eff L^-T)| by the thick-restart Krylov-Rayleigh-Ritz iteration of the
+    module docstring, to the relative residual rtol (any n)."""
     n = Keff.shape[0]
     if n == 0:
         return 0.0
