@@ -11,7 +11,7 @@
 
 Times: min (median) of R repeats, the contenders interleaved in the same run.
 
-    python benchmarks/bench_eigen.py [--repeats R]
+    python benchmarks/bench_eigen.py [--repeats R] [--quick]
 """
 
 from __future__ import annotations
@@ -78,7 +78,10 @@ def ms(t) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--quick", action="store_true", help="2 repeats")
     args = ap.parse_args()
+    if args.quick:
+        args.repeats = 2
     rng = np.random.default_rng(2026)
     largest_eigenvalue_modulus(np.eye(3), np.eye(3), EIG_RTOL, MAX_BASIS, MAX_RESTARTS)  # compile
     krylov_largest_modulus(np.eye(3), np.eye(3), EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
