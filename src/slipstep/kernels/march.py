@@ -128,6 +128,17 @@ class Outputs(NamedTuple):
     state: np.ndarray
     solves: np.ndarray
     counters: np.ndarray
+    step: np.ndarray  # int64 (rows,): the step stored in each row
+    dofs: np.ndarray  # int64: the kernel DOF of each x, v, a column (methods/save.py kernel_dofs)
+    rows: np.ndarray  # int64: the contact row of each q, f column
+    dirs: np.ndarray  # int64: the direction of each w, state column
+    plan: np.ndarray  # int64 (5,): S_CAPACITY steps, S_EVERY k, and S_ROWS rows kept, S_LAST last kept step, S_GRID
+    times: np.ndarray  # (2 + G,): S_FROM window start [s], S_FAIL time of a failed step [s], then G given times [s]
+
+
+# Outputs.plan and Outputs.times (the save plan of methods/save.py; the kernel keeps S_ROWS, S_LAST, S_GRID)
+S_CAPACITY, S_EVERY, S_ROWS, S_LAST, S_GRID = range(5)
+S_FROM, S_FAIL = 0, 1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -503,16 +514,15 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
     has_stiffness = np.any(Kst != 0.0)
     acc_pred = np.empty(n)
     vel_pred = np.empty(n)
-    cap = out.t.shape[0] - 1
+    cap = out.plan[S_CAPACITY]
     # ---- initial point ----
-    for rr in range(nq):
-        out.q[0, rr] = q0[rr]
-        out.f[0, rr] = f0[rr]
     t = fpar[T_START]
     t_end = fpar[T_END]
-    o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (out.t, out.dt, out.x, out.v, out.a, out.q, out.f,
-                                                                  out.w, out.state, out.solves)
-    _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, 0, t, 0.0, 0)
+    o_q, o_f, o_rows = out.q, out.f, out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        o_q[row, ii] = q0[o_rows[ii]]
+        o_f[row, ii] = f0[o_rows[ii]]
     for d in range(nd):
         dt_state[d] = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
@@ -540,7 +550,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             status = INTERRUPTED
             counters[C_FAIL_STEP] = k
             break
-        if k >= cap:
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
             status = CAPACITY
             break
         # ---- step size (fixed, or by contact state) ----
@@ -756,7 +766,7 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
             dt_acc = dt_next
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
-            out.t[k + 1] = t + dt if n_preload == 0 else t
+            out.times[S_FAIL] = t + dt if n_preload == 0 else t
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
         for i in range(n):
@@ -775,25 +785,61 @@ def march(sys, fpar, ipar, ws, out, q0, f0):
         if n_preload == 0:
             t += dt
         k += 1
-        _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
         counters[C_PROGRESS] = k
-        for rr in range(nq):
-            o_q[k, rr] = q1[rr]
-            o_f[k, rr] = f1[rr]
+        for ii in range(o_rows.shape[0]):
+            o_q[row, ii] = q1[o_rows[ii]]
+            o_f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves):
-    """Write the carried state as output point k."""
-    o_t[k] = t
-    o_dt[k] = dt
-    o_solves[k] = solves
-    for i in range(x.shape[0]):
-        o_x[k, i] = x[i]
-        o_v[k, i] = v[i]
-        o_a[k, i] = a[i]
-    for d in range(w.shape[0]):
-        o_w[k, d] = w[d]
-        o_state[k, d] = state[d]
+def _store(x, v, a, w, state, out, k, t, dt, solves):
+    """Write the carried state of step k (time t) into the pending row out.plan[S_ROWS] (the
+    saved DOFs and directions) and keep it, or leave it pending (overwritten by the next step),
+    by the save plan (methods/save.py): every S_EVERY-th step from the window start
+    times[S_FROM] (the pending step before the window is kept with its first step), or, with
+    given times, the two step ends around each given time. Returns the row written."""
+    plan, times = out.plan, out.times
+    if k == 0:
+        plan[S_ROWS] = 0
+        plan[S_LAST] = -1
+        plan[S_GRID] = 0
+        times[S_FAIL] = np.nan
+    j = plan[S_ROWS]
+    n_times = times.shape[0] - 2
+    if n_times > 0:  # given times: keep the step ends around each
+        g = plan[S_GRID]
+        keep = g < n_times and times[2 + g] <= t
+        while g < n_times and times[2 + g] <= t:
+            g += 1
+        plan[S_GRID] = g
+    else:
+        keep = t >= times[S_FROM] and k % plan[S_EVERY] == 0
+        if t >= times[S_FROM] and plan[S_LAST] < 0:
+            keep = True  # the first step of the window
+    if keep and k > 0 and plan[S_LAST] != k - 1 and (n_times > 0 or plan[S_LAST] < 0):
+        plan[S_LAST] = k - 1  # the pending row holds step k - 1: keep it
+        j += 1
+    out.step[j] = k
+    out.t[j] = t
+    out.dt[j] = dt
+    out.solves[j] = solves
+    o_x, o_v, o_a, dofs = out.x, out.v, out.a, out.dofs
+    for ii in range(dofs.shape[0]):
+        i = dofs[ii]
+        o_x[j, ii] = x[i]
+        o_v[j, ii] = v[i]
+        o_a[j, ii] = a[i]
+    o_w, o_state, dirs = out.w, out.state, out.dirs
+    for ii in range(dirs.shape[0]):
+        d = dirs[ii]
+        o_w[j, ii] = w[d]
+        o_state[j, ii] = state[d]
+    if keep:
+        plan[S_LAST] = k
+        plan[S_ROWS] = j + 1
+    else:
+        plan[S_ROWS] = j
+    return j
