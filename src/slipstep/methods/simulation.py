@@ -226,6 +226,9 @@ class Runner:
         motion = evaluate_compiled(_motion_signal(self.compiled), t)
         failure = self.failure_report()
         message = self.status.message
+        if self.status == Status.CAPACITY:  # which buffer: the steps, or the saved rows (methods/save.py)
+            rows_full = n_steps < int(self.out.plan[K.S_CAPACITY])
+            message += " (out of output rows of the save plan)" if rows_full else " (out of step capacity)"
         if failure:
             message = (
                 f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
