@@ -136,7 +136,9 @@ def test_memory_estimate_is_the_saved_allocation():
         per_row = sum(a.nbytes for a in out if a.ndim and a.shape[0] == rows) / rows
         assert per_row == memory.point_bytes(plan.dofs.size, plan.rows.size, plan.directions.size)
         expected = memory.run_bytes(rows, plan.dofs.size, plan.rows.size, plan.directions.size, 0, 0)
-        assert sim.memory_estimate - expected == pytest.approx(sim.memory_estimate - memory.PEAK_FACTOR * rows * per_row)
+        assert sim.memory_estimate - expected == pytest.approx(
+            sim.memory_estimate - memory.PEAK_FACTOR * rows * per_row
+        )
         ds = sim.run()
         assert ds.attrs["status"] == "OK" and ds.sizes["dof"] == plan.dofs.size
     auto = Simulation(system, "piecewise-linear", periods=2, error_estimate=False)
@@ -163,8 +165,10 @@ def test_max_memory_uses_the_saved_sizes():
 def test_output_rows_running_out_is_told_apart_from_steps(paper):
     sim = Simulation(paper, "newmark", periods=1, error_estimate=False, save={"every": 2})
     out = sim.out
-    sim.out = out._replace(**{k: getattr(out, k)[:12].copy() for k in ("t", "dt", "x", "v", "a", "q", "f")},
-                           **{k: getattr(out, k)[:12].copy() for k in ("w", "state", "solves", "step")})
+    sim.out = out._replace(
+        **{k: getattr(out, k)[:12].copy() for k in ("t", "dt", "x", "v", "a", "q", "f")},
+        **{k: getattr(out, k)[:12].copy() for k in ("w", "state", "solves", "step")},
+    )
     sim.march()
     ds = sim.dataset()
     assert ds.attrs["status"] == "CAPACITY" and "out of output rows" in ds.attrs["status_message"]
@@ -217,8 +221,10 @@ def test_cli_and_case_file(tmp_path, monkeypatch):
     assert res.exit_code == 0, res.output
     ds = ss.load_result(tmp_path / "slipstep-out" / "paper_newmark.nc")
     assert list(ds["dof"].values) == ["x_G", "phi"] and np.all(np.diff(ds["step"].values)[:-1] == 10)
-    text = (CASES_DIR / "paper.toml").read_text().replace(
-        "[run]\n", '[run.save]\ncontacts = ["P1"]\nlast_periods = 1\n\n[run]\n'
+    text = (
+        (CASES_DIR / "paper.toml")
+        .read_text()
+        .replace("[run]\n", '[run.save]\ncontacts = ["P1"]\nlast_periods = 1\n\n[run]\n')
     )
     (tmp_path / "case.toml").write_text(text)
     res = runner.invoke(app, ["run", "case.toml", "--save-dofs", "none", "--json"])
@@ -251,3 +257,20 @@ def test_bad_save(paper, save, field, words):
     with pytest.raises(ss.InputError) as info:
         Simulation(paper, "newmark", periods=2, save=save)
     assert info.value.field == field and words in str(info.value)
+
+
+def test_given_times_finer_than_the_steps_are_the_interpolation_of_the_full_save(paper, paper_full):
+    t = paper_full["time"].values
+    grid = np.linspace(t[0], t[-1], 7 * t.size)  # about 7 given times per step
+    ds = ss.run(paper, "newmark", periods=2, error_estimate=False, save={"times": grid})
+    assert ds.sizes["time"] == grid.size and ds.attrs["steps"] == paper_full.attrs["steps"]
+    rows = {"t": t, "x": paper_full["displacement"].values, "v": paper_full["velocity"].values}
+    rows["a"] = paper_full["acceleration"].values
+    for key, name in (("q", "tangential_displacement"), ("f", "tangential_force"), ("w", "slider")):
+        rows[key] = paper_full[name].values
+    rows.update(state=paper_full["contact_state"].values, solves=paper_full["solves"].values, dt=t * 0)
+    expected = SV.interpolate(rows, grid, True, 0.5)
+    np.testing.assert_array_equal(ds["displacement"].values, expected["x"])
+    np.testing.assert_array_equal(ds["velocity"].values, expected["v"])
+    np.testing.assert_array_equal(ds["tangential_force"].values, expected["f"])
+    np.testing.assert_array_equal(ds["contact_state"].values, expected["state"])

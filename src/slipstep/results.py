@@ -37,7 +37,16 @@ DYNAMIC_ONLY = ("velocity", "acceleration")
 
 
 def build_dataset(
-    system, out, n_stored: int, motion: np.ndarray, attrs: dict, dynamic: bool, compiled, plan=None, grid=None, gamma=None
+    system,
+    out,
+    n_stored: int,
+    motion: np.ndarray,
+    attrs: dict,
+    dynamic: bool,
+    compiled,
+    plan=None,
+    grid=None,
+    gamma=None,
 ) -> xr.Dataset:
     """Assemble the Dataset of the first ``n_stored`` + 1 rows of kernel outputs: the saved DOFs
     (coordinate ``dof``), contacts and directions of ``plan`` (slipstep.methods.save.Plan;

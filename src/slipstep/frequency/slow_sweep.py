@@ -139,7 +139,9 @@ def sine_sweep(
     saved = set(sim.save_plan.dofs.tolist())
     if not sim.save_plan.every_step or any(names.index(r) not in saved for r in responses if r in names):
         raise InputError(
-            "save", f"is {sim.save_plan.text!r}: the sine sweep needs its responses at every step", "drop the save option"
+            "save",
+            f"is {sim.save_plan.text!r}: the sine sweep needs its responses at every step",
+            "drop the save option",
         )
     ds_t = sim.run()
     units = [system.structure.dof_units[names.index(r)] for r in responses]

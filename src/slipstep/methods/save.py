@@ -132,7 +132,9 @@ def match(key: str, patterns, names, what: str) -> np.ndarray:
         hit = [i for i, name in enumerate(names) if fnmatch.fnmatchcase(name, p)]
         if not hit:
             close = difflib.get_close_matches(p, list(names), n=4, cutoff=0.5) or list(names[:4])
-            raise InputError(key, f"{p!r} matches no {what}", f"use {what} names or patterns such as {', '.join(close)}")
+            raise InputError(
+                key, f"{p!r} matches no {what}", f"use {what} names or patterns such as {', '.join(close)}"
+            )
         chosen.update(hit)
     return np.array(sorted(chosen), np.int64)
 
@@ -216,13 +218,17 @@ def resolve(value, system, cs, t_start: float, t_end: float, period: float | Non
     times = None
     if spec.times is not None:
         if spec.last_periods is not None or every != 1:
-            raise InputError("save.times", "is given with every / last_periods", "give either times or every/last_periods")
+            raise InputError(
+                "save.times", "is given with every / last_periods", "give either times or every/last_periods"
+            )
         try:
             times = np.asarray(spec.times, float).ravel()
         except (TypeError, ValueError):
             raise InputError("save.times", f"is {spec.times!r}", "give a list of times in seconds") from None
         if times.size == 0 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
-            raise InputError("save.times", "is not a non-empty increasing list of finite times", "give sorted times [s]")
+            raise InputError(
+                "save.times", "is not a non-empty increasing list of finite times", "give sorted times [s]"
+            )
         tol = 1e-12 * max(abs(t_end), 1e-300)
         if times[0] < t_start - tol or times[-1] > t_end + tol:
             raise InputError(
@@ -257,7 +263,7 @@ def rows_needed(plan: Plan, capacity: int, t_start: float, t_end: float) -> int:
     (an upper bound; 2 spare rows: the pending row and a bracket pair)."""
     steps = capacity + 1
     if plan.times is not None:
-        return int(min(steps, 2 * plan.times.size + 1)) + 2
+        return int(min(steps, 2 * plan.times.size + 2)) + 2
     if math.isfinite(plan.t_from):
         fraction = (t_end - plan.t_from) / max(t_end - t_start, 1e-300)
         steps = int(min(steps, math.ceil(steps * fraction * 1.5 + 16)))
@@ -266,12 +272,11 @@ def rows_needed(plan: Plan, capacity: int, t_start: float, t_end: float) -> int:
 
 def kernel_arrays(plan: Plan, cs, capacity: int):
     """(dofs, rows, dirs, plan_int, times) for kernels.march.Outputs."""
-    ip = np.zeros(5, np.int64)
-    ip[0], ip[1] = capacity, plan.every
-    times = np.empty(2 + (0 if plan.times is None else plan.times.size))
-    times[0], times[1] = plan.t_from, math.nan
+    ip = np.array([capacity, plan.every, 0, -1, 0, 0], np.int64)  # kernels.march S_CAPACITY ... S_NEXT
+    times = np.empty(3 + (0 if plan.times is None else plan.times.size))
+    times[0], times[1], times[-1] = plan.t_from, math.nan, math.inf  # S_FROM, S_FAIL, ..., sentinel
     if plan.times is not None:
-        times[2:] = plan.times
+        times[2:-1] = plan.times
     return kernel_dofs(cs, plan.dofs), plan.rows.copy(), plan.directions.copy(), ip, times
 
 

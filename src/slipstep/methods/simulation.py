@@ -175,11 +175,17 @@ class Runner:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
+        reset_outputs(self.out)
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        plan = getattr(self, "save_plan", None)
+        times = self.out.t  # the progress bar reads the time of step k from row k
+        if plan is not None and not plan.every_step and self.progress:  # rows are not steps: t ~ k dt
+            cap = int(self.out.plan[K.S_CAPACITY])
+            times = self.fpar[K.T_START] + np.minimum(np.arange(cap + 1) * self.dt, self.t_end)
         status, self.kernel_time = call_kernel(
-            kernel, args, self.out.counters, self.out.t, self.t_end, self.out.t.shape[0], self.progress
+            kernel, args, self.out.counters, times, self.t_end, int(self.out.plan[K.S_CAPACITY]) + 1, self.progress
         )
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
@@ -861,7 +867,7 @@ def _allocate_outputs(
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
     if plan is None:
         dofs, rows, dirs = np.arange(n, dtype=np.int64), np.arange(nq, dtype=np.int64), np.arange(nd, dtype=np.int64)
-        ip, times = np.array([capacity, 1, 0, -1, 0], np.int64), np.array([-math.inf, math.nan])
+        ip, times = np.array([capacity, 1, 0, -1, 0, 0], np.int64), np.array([-math.inf, math.nan, math.inf])
         k = capacity + 3
     else:
         dofs, rows, dirs, ip, times = SV.kernel_arrays(plan, cs, capacity)
@@ -889,6 +895,13 @@ def _allocate_outputs(
         plan=ip,
         times=times,
     )
+
+
+def reset_outputs(out: K.Outputs) -> None:
+    """Set the save plan's running entries before a march (the kernel's _store keeps them):
+    no row kept, no step kept, the first given time, the first multiple of every; no failure."""
+    out.plan[[K.S_ROWS, K.S_LAST, K.S_GRID, K.S_NEXT]] = 0, -1, 0, 0
+    out.times[K.S_FAIL] = math.nan
 
 
 def saved_rows(out: K.Outputs, n_steps: int) -> int:

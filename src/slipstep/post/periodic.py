@@ -133,7 +133,9 @@ def periodicity(
     if variable not in ds or ds[variable].size == 0:
         from slipstep.errors import InputError
 
-        raise InputError("save", f"of this result saved no {variable} ({ds.attrs.get('save')})", "save DOFs or contacts")
+        raise InputError(
+            "save", f"of this result saved no {variable} ({ds.attrs.get('save')})", "save DOFs or contacts"
+        )
     y = np.asarray(ds[variable].values, float).reshape(t.size, -1)
     n = int(np.floor((t[-1] - t[0]) / T * (1 + _REL)))
     scale = max(float(np.ptp(y, axis=0).max(initial=0.0)), float(ds.attrs.get("length_scale_m", 0.0)) * 1e-3, 1e-300)

@@ -60,7 +60,9 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
     opts.setdefault("save", "all")  # the period change and the shooting replay read every DOF at every step
     sim = Simulation(system, method, periods=1.0, **opts)
-    SV.needs(sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option")
+    SV.needs(
+        sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option"
+    )
     return sim
 
 
