@@ -207,6 +207,8 @@ def pilot_step(sim, dt0: float) -> float:
         if fine is None or coarse is None:
             return dt
         est = richardson(fine[1], coarse[1])
+        if not math.isfinite(est):  # no loop energy at dt (nothing slips): nothing to refine on
+            return dt
         if not est > DEFAULT_TARGET:
             if abs(duration - sim.t_end) <= 1e-12 * duration:
                 sim._coarse = (2 * dt, coarse)  # reused by the final estimate
