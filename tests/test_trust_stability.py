@@ -103,6 +103,12 @@ def test_energy_criterion():
             np.ones((k, 1), np.int8),
             np.zeros(k, np.int64),
             np.zeros(9, np.int64),
+            np.arange(k),  # every step saved (slipstep.methods.save): step, dofs, rows, dirs, plan, times
+            np.arange(1),
+            np.arange(2),
+            np.arange(1),
+            np.array([k - 1, 1, k, k - 1, 0, 0]),
+            np.array([-np.inf, np.nan, np.inf]),
         )
 
     zero = np.zeros((t.size, 1))

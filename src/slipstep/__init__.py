@@ -33,6 +33,7 @@ _EXPORTS = {
     "generalized_alpha": ("slipstep.methods.schemes", "generalized_alpha"),
     "hht": ("slipstep.methods.schemes", "hht"),
     "newmark": ("slipstep.methods.schemes", "newmark"),
+    "Save": ("slipstep.methods.save", "Save"),
     "RunOptions": ("slipstep.methods.simulation", "RunOptions"),
     "Simulation": ("slipstep.methods.simulation", "Simulation"),
     "run": ("slipstep.methods.simulation", "run"),

@@ -276,7 +276,9 @@ def _method(cli_value: Optional[str], spec):
         raise InputError(field, exc.problem, exc.fix) from None
 
 
-def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None) -> tuple[dict, dict]:
+def _run_options(
+    spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None, save=None
+) -> tuple[dict, dict]:
     """Command-line options over the case's \\[run] table; unset ones keep RunOptions defaults.
     Returns (options, where each option came from: the flag or the case key). --duration wins
     over --periods, as duration does in RunOptions; a --periods given on the command line wins
@@ -305,7 +307,48 @@ def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, d
 
         opts["max_memory"] = parse_size("--max-memory", max_memory)
     origin["max_memory"] = "--max-memory"
+    _save_options(spec, save or {}, opts, origin)
     return opts, origin
+
+
+SAVE_FLAGS = {"dofs": "--save-dofs", "contacts": "--save-contacts", "every": "--save-every"}
+SAVE_FLAGS.update(last_periods="--save-last-periods", times="--save-times")
+
+
+def _save_options(spec, flags: dict, opts: dict, origin: dict) -> None:
+    """The ``save`` option: the case's [run.save] table, each key overridden by its --save-* flag
+    (flags: {key: command-line text}); origins per key for messages ('save.dofs' -> the flag)."""
+    table = spec.save.options() if getattr(spec, "save", None) is not None else {}
+    origin["save"] = "[run.save]" if table else "--save-dofs"
+    for key in ("dofs", "contacts", "every", "last_periods", "times", "response"):
+        origin[f"save.{key}"] = f"[run.save] {'times_s' if key == 'times' else key}"
+    for key, text in flags.items():
+        if text is None:
+            continue
+        flag = SAVE_FLAGS[key]
+        origin[f"save.{key}"] = flag
+        if key in ("dofs", "contacts"):
+            names = [p.strip() for p in str(text).split(",") if p.strip()]
+            table[key] = names[0] if len(names) == 1 and names[0] in ("all", "none", "response") else names
+        elif key == "times":
+            table[key] = _times(flag, text)
+        else:
+            table[key] = text
+    if table:
+        opts["save"] = table
+
+
+def _times(flag: str, text: str) -> list[float]:
+    """'0.1:0.2:101' (start:stop:count, seconds) or '0.1,0.15,0.2' -> times [s]."""
+    import numpy as np
+
+    try:
+        if ":" in text:
+            start, stop, count = text.split(":")
+            return np.linspace(float(start), float(stop), int(count)).tolist()
+        return [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise InputError(flag, f"is {text!r}", "give start:stop:count (seconds) or a comma-separated list") from None
 
 
 @contextlib.contextmanager
@@ -388,6 +431,17 @@ def run(
         help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
         "the local error estimate, never beyond the method's step limit.",
     ),
+    save_dofs: Optional[str] = typer.Option(
+        None,
+        help="DOFs to save: all, none, response (those the contacts see, the forced ones) or "
+        "comma-separated names / patterns ('blade*'). Default: all up to 200 DOFs, else response.",
+    ),
+    save_contacts: Optional[str] = typer.Option(None, help="Contacts to save: all, none or comma-separated names."),
+    save_every: Optional[int] = typer.Option(None, help="Save every k-th step (and the last one)."),
+    save_last_periods: Optional[float] = typer.Option(None, help="Save only the last P >= 1 excitation periods."),
+    save_times: Optional[str] = typer.Option(
+        None, help="Save at given times \\[s]: start:stop:count or a comma-separated list (interpolated)."
+    ),
 ):
     """Simulate CASE with one method; print a summary and write the result Dataset (netCDF).
 
@@ -403,7 +457,10 @@ def run(
 
         system, spec = load_case(case)
         chosen = _method(method, spec)
-        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration)
+        flags = dict(
+            dofs=save_dofs, contacts=save_contacts, every=save_every, last_periods=save_last_periods, times=save_times
+        )
+        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration, flags)
         if rtol is not None:
             opts["rtol"], origin["rtol"] = rtol, "--rtol"
         directory = output_dir_option(output_dir)

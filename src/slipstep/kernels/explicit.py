@@ -37,7 +37,7 @@ from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
-    CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
+    CAPACITY, NON_FINITE, OK, S_CAPACITY, S_FAIL, S_ROWS, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
 from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.signals import evaluate_signal
@@ -126,13 +126,14 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
     rk4 = ipar[KIND] == RK4
     adaptive = ipar[ADAPTIVE] == 1
     bound = fpar[DIVERGENCE]
-    cap = out.t.shape[0] - 1
-    for r in range(nq):
-        out.q[0, r] = q0[r]
-        out.f[0, r] = f0[r]
+    cap = out.plan[S_CAPACITY]
     t = fpar[T_START]
     t_end = fpar[T_END]
-    _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, 0, t, 0.0, 0)
+    o_rows = out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        out.q[row, ii] = q0[o_rows[ii]]
+        out.f[row, ii] = f0[o_rows[ii]]
     k = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
     lu_dt = np.nan
@@ -142,7 +143,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             status = INTERRUPTED
             counters[C_FAIL_STEP] = k
             break
-        if k >= cap:
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
             status = CAPACITY
             break
         if adaptive:
@@ -219,7 +220,7 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
         counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
-            out.t[k + 1] = t + dt
+            out.times[S_FAIL] = t + dt
             break
         # ---- accept ----
         for i in range(n):
@@ -230,10 +231,10 @@ def explicit_march(sys, fpar, ipar, ws, out, q0, f0):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, k, t, dt, solves)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
         counters[C_PROGRESS] = k
-        for r in range(nq):
-            out.q[k, r] = q1[r]
-            out.f[k, r] = f1[r]
+        for ii in range(o_rows.shape[0]):
+            out.q[row, ii] = q1[o_rows[ii]]
+            out.f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status

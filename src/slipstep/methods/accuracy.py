@@ -31,6 +31,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
+from slipstep.methods.save import Save, contact_columns
 from slipstep.methods.step_control import highest_frequency  # noqa: F401  (re-exported)
 
 DEFAULT_TARGET = 0.005
@@ -44,18 +45,22 @@ PILOT_PERIODS = 3
 def loop_energy(out, n_steps: int, cs, period: float | None) -> tuple[float, float]:
     """(friction energy dissipated over the last period [J], peak |contact force| over it [N])
     from kernel outputs: D = sum_d int T_d dw_d (trapezoid rule, interpolated at the start
-    of the period, as slipstep.post.energy.friction_energy_per_period)."""
-    t = out.t[: n_steps + 1]
+    of the period, as slipstep.post.energy.friction_energy_per_period). ``out`` must hold
+    every contact at every step of the last period (``saved_rows`` rows: slipstep.methods.save)."""
+    from slipstep.methods.simulation import saved_rows
+
+    k = saved_rows(out, n_steps)
+    t = out.t[:k]
     if period is None or t[-1] - t[0] < period * (1 - 1e-9):
         period = t[-1] - t[0]
-    T = out.f[: n_steps + 1][:, np.asarray(cs.tangential_row)]
-    w = out.w[: n_steps + 1]
+    T = out.f[:k][:, contact_columns(out, cs)[0]]
+    w = out.w[:k]
     inc = (0.5 * (T[1:] + T[:-1]) * np.diff(w, axis=0)).sum(axis=1)
     cum = np.concatenate([[0.0], np.cumsum(inc)])
     start = t[-1] - period
     energy = cum[-1] - np.interp(start, t, cum)
     last = t >= start - 1e-12 * period
-    peak = float(np.abs(out.f[: n_steps + 1][last]).max(initial=0.0))
+    peak = float(np.abs(out.f[:k][last]).max(initial=0.0))
     return float(energy), peak
 
 
@@ -103,6 +108,9 @@ def check_divergence(runner) -> Status:
     from slipstep.methods.simulation import _force_signal, _motion_signal
     from slipstep.model.excitation import evaluate_compiled
 
+    plan = getattr(runner, "save_plan", None)
+    if plan is not None and not (plan.all_dofs and plan.all_contacts and plan.every_step):
+        return runner.status  # needs every DOF and contact at every step (not made; NON_FINITE still is)
     if runner.status == Status.OK:
         cs, out = runner.compiled, runner.out
         n = int(out.counters[C_STEPS])
@@ -134,6 +142,7 @@ def twin(sim, method: str, **changes):
         "error_estimate": False,
         "max_state_iterations": opt.max_state_iterations,
         "step_ratio": opt.step_ratio,
+        "save": Save(dofs="none"),  # the loop energy needs the contacts at every step only
     }
     base.update(changes)
     if sim.method.massless:
@@ -183,6 +192,9 @@ def estimate(sim) -> dict:
     nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan, "error_estimate_method": "none"}
     if not sim.options.error_estimate or sim.status != Status.OK or sim.period is None:
         return nan
+    plan = sim.save_plan
+    if not (plan.all_contacts and plan.every == 1 and plan.times is None):
+        return dict(nan, error_estimate_method="none (needs every contact at every step: the save option)")
     n = int(sim.out.counters[C_STEPS])
     energy, peak = loop_energy(sim.out, n, sim.compiled, sim.period)
     opt = sim.options

@@ -23,6 +23,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
+from slipstep.methods import save as SV
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
 from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
@@ -78,6 +79,9 @@ class RunOptions:
         slipstep.methods.memory); default: half of the available memory.
     massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
         shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
+    save: what the march stores (methods/save.py): 'auto' (everything for at most
+        save.FULL_SAVE_MAX_DOFS DOFs, else the contacts and the response DOFs, every step), 'all',
+        a slipstep.Save or a dict of its keys (dofs, contacts, every, last_periods, times, response).
     """
 
     periods: float = 3.0
@@ -100,6 +104,7 @@ class RunOptions:
     error_estimate: bool = True
     max_memory: float | None = None
     massless_dofs: object = "auto"
+    save: object = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -132,6 +137,7 @@ class RunOptions:
             memory.parse_size("max_memory", self.max_memory)
         if self.linear_solver not in ("auto", "direct", "low-rank"):
             raise InputError("linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct' or 'low-rank'")
+        SV.as_save(self.save)
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
@@ -158,11 +164,17 @@ class Runner:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
+        reset_outputs(self.out)
         args = (self.compiled, self.fpar, self.ipar, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        plan = getattr(self, "save_plan", None)
+        times = self.out.t  # the progress bar reads the time of step k from row k
+        if plan is not None and not plan.every_step and self.progress:  # rows are not steps: t ~ k dt
+            cap = int(self.out.plan[K.S_CAPACITY])
+            times = self.fpar[K.T_START] + np.minimum(np.arange(cap + 1) * self.dt, self.t_end)
         status, self.kernel_time = call_kernel(
-            kernel, args, self.out.counters, self.out.t, self.t_end, self.out.t.shape[0], self.progress
+            kernel, args, self.out.counters, times, self.t_end, int(self.out.plan[K.S_CAPACITY]) + 1, self.progress
         )
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
@@ -186,7 +198,10 @@ class Runner:
         if self.status in (None, Status.OK):
             return {}
         step = int(self.out.counters[K.C_FAIL_STEP])
-        report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
+        t_fail = float(self.out.times[K.S_FAIL])
+        if not math.isfinite(t_fail):  # interrupted: the time of the last step done
+            t_fail = float(self.out.t[max(saved_rows(self.out, int(self.out.counters[K.C_STEPS])) - 1, 0)])
+        report = {"failed_at_step": step, "failed_at_time_s": t_fail}
         visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
@@ -197,10 +212,18 @@ class Runner:
             raise RuntimeError("call march() first")
         c = self.out.counters
         n_steps = int(c[K.C_STEPS])
-        t = self.out.t[: n_steps + 1]
+        plan = getattr(self, "save_plan", None)
+        rows = saved_rows(self.out, n_steps)
+        grid = None if plan is None or plan.times is None else plan.times
+        if grid is not None:  # the given times the march reached
+            grid = grid[grid <= self.out.t[rows - 1] * (1 + 1e-15) + 1e-300]
+        t = self.out.t[:rows] if grid is None else grid
         motion = evaluate_compiled(_motion_signal(self.compiled), t)
         failure = self.failure_report()
         message = self.status.message
+        if self.status == Status.CAPACITY:  # which buffer: the steps, or the saved rows (methods/save.py)
+            rows_full = n_steps < int(self.out.plan[K.S_CAPACITY])
+            message += " (out of output rows of the save plan)" if rows_full else " (out of step capacity)"
         if failure:
             message = (
                 f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
@@ -209,7 +232,7 @@ class Runner:
             if "states_visited" in failure:
                 message += f", states tried {failure['states_visited']}"
             message += self.failure_hint if self.status == Status.NON_FINITE else ""
-        solves = int(self.out.solves[1 : n_steps + 1].sum())
+        solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
         method = self.method_attrs()
         attrs = {"title": f"slipstep result: {self.system.name}, {method['method']}", "case": self.system.name}
         attrs.update(method)
@@ -237,8 +260,19 @@ class Runner:
         )
         attrs.update(failure)
         attrs.update(self.accuracy_attrs())
+        if plan is not None:
+            attrs.update(plan.attrs())
         return build_dataset(
-            self.system, self.out, n_steps, motion, attrs, dynamic=not method["quasi_static"], compiled=self.compiled
+            self.system,
+            self.out,
+            rows - 1,
+            motion,
+            attrs,
+            dynamic=not method["quasi_static"],
+            compiled=self.compiled,
+            plan=plan,
+            grid=grid,
+            gamma=None if method["quasi_static"] else self.options.scheme.gamma,
         )
 
 
@@ -285,6 +319,7 @@ class Simulation(Runner):
                 "give duration (seconds) or a harmonic excitation",
             )
         self.period, self.t_end = period, t_end
+        self.save_plan = SV.resolve(self.options.save, system, cs, 0.0, t_end, period)
         scheme = opt.scheme
         self._accuracy = None
         self._coarse = None
@@ -320,7 +355,9 @@ class Simulation(Runner):
             self.t_min_stick,
         )
         self.low_rank = use_low_rank(cs, opt.linear_solver)
-        self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
+        self.memory_estimate = check_memory(
+            cs, capacity, opt, self.method.quasi_static, self.low_rank, self.save_plan, t_end
+        )
         self.fpar = np.zeros(K.N_FPAR)
         self.fpar[[K.BETA, K.GAMMA, K.ALPHA_M, K.ALPHA_F]] = scheme.beta, scheme.gamma, scheme.alpha_m, scheme.alpha_f
         self.fpar[K.DT] = dt
@@ -345,7 +382,7 @@ class Simulation(Runner):
         self.ipar[K.PRELOAD] = 0
         self.ipar[K.LOWRANK] = int(self.low_rank)
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory, self.save_plan, t_end)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
@@ -507,6 +544,7 @@ class Simulation(Runner):
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
         self.fpar[K.T_START], self.fpar[K.T_END] = t_start, t_start + self.t_end
+        self.out.times[K.S_FROM] = t_start + self.save_plan.t_from  # the last periods of this march
         # the step-doubling twins march from the preload: no estimate for a continued march
         self._accuracy = {
             "energy_error_estimate": math.nan,
@@ -666,17 +704,31 @@ def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     return linear_solver == "low-rank" and nq > 0
 
 
-def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_static: bool, low_rank: bool) -> float:
-    """The memory estimate of a march of ``capacity`` steps (slipstep.methods.memory) checked
-    against the limit before anything is allocated; returns it [bytes]."""
+def check_memory(
+    cs: CompiledSystem,
+    capacity: int,
+    opt: RunOptions,
+    quasi_static: bool,
+    low_rank: bool,
+    plan: SV.Plan | None = None,
+    t_end: float = 0.0,
+) -> float:
+    """The memory estimate of a march of ``capacity`` steps saving ``plan`` (None: everything;
+    slipstep.methods.memory) checked against the limit before anything is allocated; returns
+    it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
     field_name = "duration" if opt.duration is not None else "periods"
     fixes = "simulate fewer periods (or a shorter duration)" + (
         ", use fewer steps_per_period" if quasi_static else ", raise the step ratio"
     )
+    points = capacity + 1
+    if plan is not None:
+        n, nq, nd = plan.dofs.size, plan.rows.size, plan.directions.size
+        points = SV.rows_needed(plan, capacity, 0.0, t_end)
+        fixes = "save less (save: fewer dofs, every k-th step or the last periods; --save-dofs, --save-every), " + fixes
     limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
     return memory.check(
-        capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
+        points, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
     )
 
 
@@ -769,27 +821,59 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
-    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
-    the available memory) is refused first (runners check it earlier with a better message)."""
+def _allocate_outputs(
+    cs: CompiledSystem, capacity: int, max_memory: float | None = None, plan: SV.Plan | None = None, t_end: float = 0.0
+) -> K.Outputs:
+    """The output buffers of a march of at most ``capacity`` steps saving ``plan`` (None: every
+    DOF and contact at every step); a buffer beyond the memory limit (default: half of the
+    available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
-    k = capacity + 1
+    if plan is None:
+        dofs, rows, dirs = np.arange(n, dtype=np.int64), np.arange(nq, dtype=np.int64), np.arange(nd, dtype=np.int64)
+        ip, times = np.array([capacity, 1, 0, -1, 0, 0], np.int64), np.array([-math.inf, math.nan, math.inf])
+        k = capacity + 3
+    else:
+        dofs, rows, dirs, ip, times = SV.kernel_arrays(plan, cs, capacity)
+        k = SV.rows_needed(plan, capacity, 0.0, t_end)
+    ns, nqs, nds = dofs.size, rows.size, dirs.size
     if k > 100_000:
         limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
-        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
+        memory.check(k, ns, nqs, nds, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time or save less")
     return K.Outputs(
         t=np.zeros(k),
         dt=np.zeros(k),
-        x=np.zeros((k, n)),
-        v=np.zeros((k, n)),
-        a=np.zeros((k, n)),
-        q=np.zeros((k, nq)),
-        f=np.zeros((k, nq)),
-        w=np.zeros((k, nd)),
-        state=np.zeros((k, nd), np.int8),
+        x=np.zeros((k, ns)),
+        v=np.zeros((k, ns)),
+        a=np.zeros((k, ns)),
+        q=np.zeros((k, nqs)),
+        f=np.zeros((k, nqs)),
+        w=np.zeros((k, nds)),
+        state=np.zeros((k, nds), np.int8),
         solves=np.zeros(k, np.int64),
         counters=np.zeros(K.N_COUNTERS, np.int64),
+        step=np.full(k, -1, np.int64),
+        dofs=dofs,
+        rows=rows,
+        dirs=dirs,
+        plan=ip,
+        times=times,
     )
+
+
+def reset_outputs(out: K.Outputs) -> None:
+    """Set the save plan's running entries before a march (the kernel's _store keeps them):
+    no row kept, no step kept, the first given time, the first multiple of every; no failure."""
+    out.plan[[K.S_ROWS, K.S_LAST, K.S_GRID, K.S_NEXT]] = 0, -1, 0, 0
+    out.times[K.S_FAIL] = math.nan
+
+
+def saved_rows(out: K.Outputs, n_steps: int) -> int:
+    """Rows of ``out`` holding the march of ``n_steps`` steps: those the kernel kept, and the
+    pending row when it holds the last step (a march always ends with its last step)."""
+    rows = int(out.plan[K.S_ROWS])
+    if rows < out.step.shape[0] and out.step[rows] == n_steps and (rows == 0 or out.step[rows - 1] != n_steps):
+        rows += 1
+    return max(rows, 1)
 
 
 def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):
