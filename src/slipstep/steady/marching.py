@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 
+from slipstep.methods import save as SV
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.methods.simulation import Simulation
@@ -57,7 +58,12 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
         ):
             raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
-    return Simulation(system, method, periods=1.0, **opts)
+    opts.setdefault("save", "all")  # the period change and the shooting replay read every DOF at every step
+    sim = Simulation(system, method, periods=1.0, **opts)
+    SV.needs(
+        sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option"
+    )
+    return sim
 
 
 def check_tolerance(tolerance: float, max_periods: int) -> None:
