@@ -30,7 +30,10 @@ import textwrap
 import time
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 import slipstep
 from slipstep.kernels import march as K
@@ -132,11 +135,37 @@ except ImportError:  # older kernels
     FLOOR_FUNCTIONS = "contact.local_displacement + contact_law + generalised_force + linalg.lu_solve"
 
 
+def _borrow_value(context, builder, ty, value):
+    if isinstance(ty, types.Array):
+        view = cgutils.create_struct_proxy(ty)(context, builder, value=value)
+        view.meminfo = ir.Constant(view.meminfo.type, None)
+        return view._getvalue()
+    if isinstance(ty, types.BaseTuple):
+        for i, member in enumerate(ty.types):
+            item = _borrow_value(context, builder, member, builder.extract_value(value, i))
+            value = builder.insert_value(value, item, i)
+    return value
+
+
+@intrinsic
+def _borrowed(typingctx, value):
+    """The arrays of value without reference counting (as kernels/borrow.py, repeated here so
+    that the floor is the same loop whatever slipstep tree is on the path)."""
+
+    def codegen(context, builder, signature, args):
+        return _borrow_value(context, builder, signature.args[0], args[0])
+
+    return value(value), codegen
+
+
 @njit(cache=False)
 def floor_kernel(sys, lu, piv, Lin, x0, p, w_old, r0, n_iter, q, f, w_new, state, gf, r, delta, dx):
     """q_base = A x0 - B p + g once; then n_iter times: q = q_base + A dx; f = law(q, w_old);
     gf = A^T f; r = r0 - gf - Lin dx; delta = J^-1 r (prefactorised); dx = 1e-9 delta (a tiny
-    drift so nothing is hoisted and each iteration depends on the last, as in Newton)."""
+    drift so nothing is hoisted and each iteration depends on the last, as in Newton). The
+    arguments are borrowed (no reference counting, as in the march kernels)."""
+    sys, lu, piv, Lin, x0, p, w_old, r0 = _borrowed((sys, lu, piv, Lin, x0, p, w_old, r0))
+    q, f, w_new, state, gf, r, delta, dx = _borrowed((q, f, w_new, state, gf, r, delta, dx))
     n = x0.shape[0]
     A = sys.A
     nq = A.shape[0]

@@ -11,7 +11,15 @@ a warm-up, with the methods interleaved round-robin so machine noise hits all al
 ratio is to Method 1 measured in the same run. Printed beside it: the paper's ratio
 (Figure 8) and our goal.
 
-Usage:  python benchmarks/bench_methods.py [--quick] [--repeats N] [--json [FILE]]
+``--per-step``: the cost of one step of Method 4 (quasi-static, 300 steps/period, paper case)
+split into its solve and the rest (loads and motions, residual base, compatibility bookkeeping,
+outputs, loop control): the solve part is timed by a numba loop written here that repeats exactly
+the piecewise-linear solve of one step (the law in the postulated state at q_base, A^T f, the
+residual, one LU solve with the cached factorisation, q = q_base + A dx, the compatibility check,
+the law at q and A^T f) on the march's own arrays; the rest is the step time minus that. Runs
+with any slipstep tree on PYTHONPATH (it uses only kernels/contact.py and kernels/linalg.py).
+
+Usage:  python benchmarks/bench_methods.py [--quick] [--repeats N] [--json [FILE]] [--per-step]
 """
 
 from __future__ import annotations
@@ -23,9 +31,17 @@ import os
 import statistics
 import time
 
+import numpy as np
+from llvmlite import ir
+from numba import njit
+from numba.core import cgutils
+from numba.extending import intrinsic
+
 import slipstep
 from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.kernels import march as K
+from slipstep.kernels.contact import compatible, piecewise_law, scatter
+from slipstep.kernels.linalg import lu_factor, lu_solve
 
 # (method, label, paper ratio to Method 1 (Figure 8: "at most"), our goal ratio)
 METHODS = [
@@ -94,6 +110,125 @@ def bench_case(label: str, system: slipstep.System, periods: float, repeats: int
     return rows
 
 
+@intrinsic
+def _borrowed(typingctx, ary):
+    """The array without reference counting (as kernels/borrow.py, repeated here so that the
+    floor runs with any slipstep tree)."""
+
+    def codegen(context, builder, signature, args):
+        view = cgutils.create_struct_proxy(signature.args[0])(context, builder, value=args[0])
+        view.meminfo = ir.Constant(view.meminfo.type, None)
+        return view._getvalue()
+
+    return ary(ary), codegen
+
+
+@njit(cache=True)
+def _solve_floor(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, lu, piv, qbase, w, st, r0, rtol, L, n_steps):
+    """n_steps piecewise-linear step solves in state st (one postulate each, as a compatible step of
+    Method 4); the arrays are the arguments (no view or copy is made per step)."""
+    A, AT, nrow, lcode, lpar, fdir = (
+        _borrowed(A),
+        _borrowed(AT),
+        _borrowed(nrow),
+        _borrowed(lcode),
+        _borrowed(lpar),
+        _borrowed(fdir),
+    )
+    ndir, trow, kt, lu, piv = _borrowed(ndir), _borrowed(trow), _borrowed(kt), _borrowed(lu), _borrowed(piv)
+    qbase, w, st, r0 = _borrowed(qbase), _borrowed(w), _borrowed(st), _borrowed(r0)
+    nq, n = A.shape
+    f = np.empty(nq)
+    q = np.empty(nq)
+    w1 = np.empty(w.shape[0])
+    gf = np.empty(n)
+    r = np.empty(n)
+    dx = np.empty(n)
+    ok = 0
+    for k in range(n_steps):
+        for i in range(nq):
+            q[i] = qbase[i]
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, f, w1)
+        scatter(AT, f, gf)
+        for i in range(n):
+            r[i] = r0[i] - gf[i]
+        lu_solve(lu, piv, r, dx)
+        for rr in range(nq):
+            s = qbase[rr]
+            for j in range(n):
+                s += A[rr, j] * dx[j]
+            q[rr] = s
+        ok += compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, rtol, L)
+        piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, f, w1)
+        scatter(AT, f, gf)
+    return ok
+
+
+def per_step(repeats: int) -> dict:
+    """Method 4 step time, its solve part (the floor loop above) and the rest [s per step]."""
+    system = slipstep.load_system("paper")
+    sim = slipstep.Simulation(system, "quasi-static", periods=1, steps_per_period=QS_STEPS_PER_PERIOD)
+    for _ in range(3):
+        sim.march()
+    cs = sim.compiled
+    n_steps = int(sim.out.counters[K.C_STEPS])
+    k = np.arange(n_steps + 1)
+    q, w = sim.out.q[k[-1]].copy(), sim.out.w[k[-1]].copy()
+    state = sim.out.state[n_steps].copy()
+    J = cs.K.copy()
+    from slipstep.kernels.contact import add_contact_stiffness
+
+    add_contact_stiffness(cs, state, 1.0, J)
+    lu, piv = np.empty_like(J), np.empty(J.shape[0], np.int64)
+    lu_factor(J, lu, piv, 1e-13)
+    r0 = cs.K @ sim.out.x[k[-1]]
+    args = (
+        cs.A,
+        cs.AT,
+        cs.normal_row,
+        cs.law,
+        cs.law_par,
+        cs.first_direction,
+        cs.n_directions,
+        cs.tangential_row,
+        cs.kt,
+        lu,
+        piv,
+        q,
+        w,
+        state,
+        r0,
+        sim.options.state_tolerance,
+        cs.length_scale,
+        n_steps,
+    )
+    _solve_floor(*args)
+    step_times, floor_times = [], []
+    for _ in range(repeats):  # interleaved: machine load hits both alike
+        sim.march()
+        step_times.append(sim.kernel_time / n_steps)
+        t0 = time.perf_counter()
+        _solve_floor(*args)
+        floor_times.append((time.perf_counter() - t0) / n_steps)
+    step, solve = min(step_times), min(floor_times)
+    row = {
+        "steps": n_steps,
+        "step_s": step,
+        "step_median_s": statistics.median(step_times),
+        "solve_s": solve,
+        "rest_s": step - solve,
+    }
+    print(
+        f"Method 4 on the paper case ({QS_STEPS_PER_PERIOD} steps/period), min of {repeats} marches "
+        f"(slipstep from {os.path.dirname(slipstep.__file__)}):"
+    )
+    print(
+        f"   step {step * 1e9:7.0f} ns (median {row['step_median_s'] * 1e9:.0f}),  of which the solve "
+        f"{solve * 1e9:5.0f} ns,  the rest (loads and motions, r0, bookkeeping, outputs) {row['rest_s'] * 1e9:5.0f} ns"
+    )
+    return row
+
+
 def fmt_us(s: float) -> str:
     return f"{s * 1e6:10.1f}"
 
@@ -140,7 +275,10 @@ def main(argv=None) -> list[dict]:
         metavar="FILE",
         help="dump the results as a JSON list (to FILE, or stdout if no FILE)",
     )
+    ap.add_argument("--per-step", action="store_true", help="only the per-step cost split of Method 4")
     args = ap.parse_args(argv)
+    if args.per_step:
+        return [per_step(args.repeats or (30 if args.quick else 200))]
     rep200 = args.repeats or (15 if args.quick else 300)
     rep100 = max(rep200 // 3, 5)
 

@@ -235,6 +235,26 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "RunSpec.step_ratio": ("1", "r in dt = r T_min / pi of the dynamic methods (default 1)"),
     "RunSpec.steps_per_period": ("1", "steps per period of the quasi-static method (default 300)"),
     "RunSpec.ramp_time_s": ("", "smooth start (1 - cos) / 2 of forces and motions"),
+    "RunSpec.save": (
+        "-",
+        "`[run.save]`: what the march stores (default: everything up to 200 DOFs, above it the contacts and "
+        "the response DOFs, every step); command line `--save-dofs`, `--save-contacts`, `--save-every`, "
+        "`--save-last-periods`, `--save-times`",
+    ),
+    "SaveSpec.dofs": (
+        "-",
+        '"all", "none", "response" (the DOFs the contacts see, the forced DOFs and `response`) or DOF names / '
+        'shell patterns (`["blade*"]`)',
+    ),
+    "SaveSpec.contacts": ("-", '"all", "none" or contact names: their q, f, sliders and states'),
+    "SaveSpec.every": ("1", "save every k-th step and the last one (default 1: every step)"),
+    "SaveSpec.last_periods": ("1", "save only the last P >= 1 excitation periods (from the step at or before)"),
+    "SaveSpec.times_s": (
+        "s",
+        "save at these times instead (x by the cubic Hermite of x, v; v, a by the Newmark relations; contacts "
+        "linear, states of the nearest step end)",
+    ),
+    "SaveSpec.response": ("-", "DOF names / patterns added to the response DOFs (the large-model default)"),
 }
 
 # Units and meanings that depend on the kind of case and the table: (kind, table, key) -> (unit, meaning);
@@ -499,6 +519,7 @@ COORD_DOCS: dict[str, tuple[str, str]] = {
     "friction_coefficient": ("1", "mu of each contact"),
     "normal_stiffness": ("N/m", "k_n of each contact"),
     "tangential_stiffness": ("N/m", "k_t of each direction"),
+    "step": ("1", "the march's step number of each saved time (absent for outputs at given times)"),
 }
 
 ATTR_DOCS: dict[str, tuple[str, str]] = {
@@ -545,6 +566,14 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "tolerance": ("1", "Newton tolerance, relative to length_scale_m"),
     "state_tolerance": ("1", "relative tolerance of the contact-state compatibility check"),
     "kernel_time_s": ("s", "time spent in the compiled march (excludes set-up and the Dataset)"),
+    "save": ("-", "what the run saved (the save option): DOFs, contacts and time grid, in words"),
+    "save_all_dofs": ("1", "1 when every DOF was saved (dof coordinate: the saved ones)"),
+    "save_all_contacts": ("1", "1 when every contact was saved"),
+    "save_every_step": (
+        "1",
+        "1 when every step was saved (from the first saved time), 0 for every k-th or given times",
+    ),
+    "save_whole_run": ("1", "1 when the saved times start at the start of the march (not the last periods only)"),
     "wall_time_s": ("s", "time of the whole run() call"),
     "length_scale_m": (
         "m",
@@ -1051,7 +1080,8 @@ def validation_report() -> str:
     system = ss.load_system("paper")
     cs = system.compile()
     nd = cs.kt.shape[0]
-    t_min, ev = ss.state_t_min(cs, np.ones(nd, np.int8))
+    t_min = ss.state_t_min(cs, np.ones(nd, np.int8))
+    ev = ss.state_eigenvalues(cs, np.ones(nd, np.int8))
     f_khz = np.sort(np.sqrt(np.real(ev))) / (2 * math.pi) / 1e3
     sim = ss.Simulation(system, "newmark", periods=1)
     qs = ss.run(system, "quasi-static", periods=3)

@@ -765,6 +765,76 @@ CASES = [
     Bad(
         "cli-report-output-is-directory", "`slipstep report paper -o .`", "--output", cli=("report", "paper", "-o", ".")
     ),
+    # -- the save option (slipstep.methods.save) ---------------------------------------------
+    Bad(
+        "api-save-unknown-dof",
+        "`ss.run(system, save={'dofs': ['x_g']})` (a DOF name that does not exist)",
+        "save.dofs",
+        api=lambda: ss.run(ss.load_system("paper"), periods=1, save={"dofs": ["x_g"]}),
+    ),
+    Bad(
+        "api-save-unknown-contact",
+        "`ss.run(system, save=ss.Save(contacts=['P9']))`",
+        "save.contacts",
+        api=lambda: ss.run(ss.load_system("paper"), periods=1, save=ss.Save(contacts=["P9"])),
+    ),
+    Bad(
+        "api-save-unknown-key",
+        "`ss.run(system, save={'step': 10})` (not a save key)",
+        "save.step",
+        api=lambda: ss.run(ss.load_system("paper"), periods=1, save={"step": 10}),
+    ),
+    Bad(
+        "api-save-every-zero",
+        "`ss.run(system, save=ss.Save(every=0))`",
+        "save.every",
+        api=lambda: ss.run(ss.load_system("paper"), periods=1, save=ss.Save(every=0)),
+    ),
+    Bad(
+        "api-save-times-outside",
+        "`ss.run(system, periods=1, save={'times': [0.0, 1.0]})` (beyond the run)",
+        "save.times",
+        api=lambda: ss.run(ss.load_system("paper"), periods=1, save={"times": [0.0, 1.0]}),
+    ),
+    Bad(
+        "api-save-energy-balance",
+        "`energy_balance(ds, system)` of a run with `save={'dofs': ['x_G']}`",
+        "save",
+        api=lambda: ss.post.energy_balance(
+            ss.run(ss.load_system("paper"), periods=1, save={"dofs": ["x_G"]}), ss.load_system("paper")
+        ),
+    ),
+    Bad(
+        "toml-save-unknown-key",
+        "`[run.save]` with `every_k = 10`",
+        "[run.save] every_k",
+        toml=edit(PAPER, "[run]\n", "[run.save]\nevery_k = 10\n\n[run]\n"),
+    ),
+    Bad(
+        "toml-save-no-match",
+        '`[run.save]` with `dofs = ["blade*"]` (matches no DOF)',
+        "[run.save] dofs",
+        cli=("run", "save.toml"),
+        files=(("save.toml", edit(PAPER, "[run]\n", '[run.save]\ndofs = ["blade*"]\n\n[run]\n').encode()),),
+    ),
+    Bad(
+        "cli-save-dofs-no-match",
+        "`slipstep run paper --save-dofs 'blade*'`",
+        "--save-dofs",
+        cli=("run", "paper", "--save-dofs", "blade*"),
+    ),
+    Bad(
+        "cli-save-last-periods",
+        "`slipstep run paper --save-last-periods 0.5` (P < 1)",
+        "--save-last-periods",
+        cli=("run", "paper", "--save-last-periods", "0.5"),
+    ),
+    Bad(
+        "cli-save-times",
+        "`slipstep run paper --save-times 0:0.01` (no count)",
+        "--save-times",
+        cli=("run", "paper", "--save-times", "0:0.01"),
+    ),
 ]
 
 CASE_FILE = "bad_case.toml"

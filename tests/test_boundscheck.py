@@ -56,6 +56,20 @@ SCRIPT = textwrap.dedent("""
             ds = slipstep.run(ring, method, periods=0.5, linear_solver=solver)
             assert ds.attrs["status"] == "OK", (method, solver)
             assert (ds.contact_state.values == 4).any(), (method, solver)
+    # the T_min routine of kernels/eigen.py: dense B (diagonal, Cholesky and zero-pivot factors)
+    # and the restarted Krylov iteration (n above DENSE_LIMIT and MAX_BASIS), symmetric or not
+    from slipstep.kernels import eigen as KE
+    from slipstep.methods.eigen import mass_factor
+    rng = np.random.default_rng(0)
+    for n in (5, KE.DENSE_LIMIT + 6):
+        R = rng.standard_normal((n, n))
+        Kr = R @ R.T + n * np.eye(n)
+        Mr = np.eye(n) + 0.1 * (R + R.T) / n
+        Mz = Mr.copy(); Mz[-2:, :] = 0.0; Mz[:, -2:] = 0.0
+        for Ke in (Kr, Kr + 0.2 * rng.standard_normal((n, n))):
+            for L in (mass_factor(np.diag(np.diag(Mr))), mass_factor(Mr), mass_factor(Mz)):
+                for f in (KE.largest_eigenvalue_modulus, KE.krylov_largest_modulus):
+                    assert f(Ke, L, KE.EIG_RTOL, KE.MAX_BASIS, KE.MAX_RESTARTS) > 0
     print("all kernel paths ran with bounds checking")
 """)
 

@@ -16,6 +16,7 @@ import pytest
 import scipy.linalg
 
 import slipstep as ss
+from slipstep.kernels.contact import add_contact_stiffness
 from slipstep.methods import massless as ML
 from slipstep.model.excitation import Harmonic, Signal
 from slipstep.post.filtering import filter_dataset
@@ -72,7 +73,7 @@ def test_t_min_is_that_of_the_finite_eigenvalues_of_the_singular_mass_problem():
     assert [system.structure.dof_names[i] for i in idx] == ["damper.x_G", "damper.y_G", "damper.phi"]
     assert not cs.M[idx].any() and not cs.C[:, idx].any()
     Keff = cs.K.copy()
-    ss.methods.simulation.add_contact_stiffness(cs, sim.stick, 1.0, Keff)
+    add_contact_stiffness(cs, sim.stick, 1.0, Keff)
     lam = scipy.linalg.eigvals(Keff, cs.M)  # three infinite eigenvalues: the massless DOFs
     finite = lam[np.isfinite(lam)]
     assert finite.size == cs.M.shape[0] - 3

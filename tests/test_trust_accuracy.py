@@ -148,3 +148,16 @@ def test_cli_rtol_and_error_estimate(tmp_path):
     assert dt.max() / dt.min() > 1.5  # the accuracy control varies the step
     bad = CliRunner().invoke(app, ["run", "paper", "--rtol", "2", "--output-dir", str(tmp_path)])
     assert bad.exit_code == 2 and "rtol" in bad.output
+
+
+def test_pilot_step_keeps_the_step_when_the_fine_twin_dissipates_nothing(monkeypatch):
+    """A fine twin with no loop energy (nothing slips at dt) and a coarse one that slips gives
+    an infinite relative estimate: there is nothing to refine on, the step is kept (it used to
+    end in a ZeroDivisionError from a zero max_step)."""
+    from slipstep.methods import accuracy
+
+    sim = ss.Simulation(ss.load_system("paper"), "newmark", periods=1, error_estimate=False)
+    energies = {sim.dt: 0.0, 2 * sim.dt: 5e-7}
+    monkeypatch.setattr(accuracy, "twin", lambda s, method, dt, duration: (None, energies[dt]))
+    assert accuracy.pilot_step(sim, sim.dt) == sim.dt
+    assert sim.max_step > 0

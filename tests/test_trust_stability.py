@@ -66,7 +66,7 @@ def test_step_beyond_stability_is_refused(paper):
 
 def test_highest_frequency_covers_full_stick(paper):
     cs = paper.compile()
-    t_min, _ = ss.state_t_min(cs, np.ones(3, np.int8))
+    t_min = ss.state_t_min(cs, np.ones(3, np.int8))
     assert highest_frequency(cs) >= 2 * math.pi / t_min * (1 - 1e-12)
 
 
@@ -103,6 +103,12 @@ def test_energy_criterion():
             np.ones((k, 1), np.int8),
             np.zeros(k, np.int64),
             np.zeros(9, np.int64),
+            np.arange(k),  # every step saved (slipstep.methods.save): step, dofs, rows, dirs, plan, times
+            np.arange(1),
+            np.arange(2),
+            np.arange(1),
+            np.array([k - 1, 1, k, k - 1, 0, 0]),
+            np.array([-np.inf, np.nan, np.inf]),
         )
 
     zero = np.zeros((t.size, 1))

@@ -50,7 +50,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError, SolverError
-from slipstep.methods.simulation import default_max_step
+from slipstep.methods import step_control as SC
+from slipstep.methods.schemes import newmark
 from slipstep.kernels.codes import LAW_CIRCLE, LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
 
 
@@ -102,17 +103,14 @@ class StateInfo:
 
 def analyse_state(cs, state) -> StateInfo:
     """Eigenvalues of M^-1 (K + K_D(S)) for one state; see the module docstring."""
-    from slipstep.methods.simulation import state_t_min
-
     st = np.asarray(state, np.int8)
-    _, ev = state_t_min(cs, st)
-    ev = np.asarray(ev, complex)
+    ev = np.asarray(SC.state_eigenvalues(cs, st), complex)
     big = float(np.abs(ev).max(initial=0.0))
     singular = big == 0 or float(np.abs(ev).min()) < 1e-9 * big
     imag = float(np.abs(ev.imag).max(initial=0.0)) / big if big > 0 else 0.0
     nz = ev[np.abs(ev) > 1e-9 * big] if big > 0 else ev[:0]
     freqs = sorted(float(np.sqrt(abs(lam.real)) / (2 * math.pi)) for lam in nz)
-    t_min = 2 * math.pi / math.sqrt(big) if big > 0 else math.inf
+    t_min = SC.t_min_of(big)
     return StateInfo(tuple(int(s) for s in st), freqs, t_min, bool(singular), imag > 1e-6, imag)
 
 
@@ -307,11 +305,12 @@ def advise(
     fe = [float(f) for f in excitation_frequencies(system)]
     period = system.period
     stick = analyse_state(cs, (1,) * nd)
-    # the steps Simulation takes: dt = T_min/pi (Newmark's convergence limit, paper 4.2),
-    # capped for accuracy at max_step (default period / 50)
-    max_step = default_max_step(period, stick.t_min_s / math.pi)
-    fixed_dt = min(stick.t_min_s / math.pi, max_step)
-    fixed_n = math.ceil(period / fixed_dt * (1 - 1e-12)) if period and math.isfinite(fixed_dt) else None
+    # the steps Simulation takes (methods/step_control.py): dt = T_min/pi (the Newmark default's
+    # convergence limit, paper 4.2), capped for accuracy at max_step (default period / 50)
+    factor = newmark().step_limit_factor
+    max_step = SC.default_max_step(period, factor * stick.t_min_s)
+    fixed_dt = min(factor * stick.t_min_s, max_step)
+    fixed_n = SC.whole_step_count(period, fixed_dt) if period and math.isfinite(fixed_dt) else None
 
     rho = f5 = None
     given = [v is not None for v in (rotor_speed_rpm, radius_m, displacement_amplitude_m)]
@@ -354,7 +353,7 @@ def advise(
         n = 0.0
         for row, h in zip(S, dt):
             info = lookup.get(tuple(int(v) for v in row)) or analyse_state(cs, row)
-            limit = info.t_min_s / math.pi if math.isfinite(info.t_min_s) and not info.singular else max_step
+            limit = factor * info.t_min_s if math.isfinite(info.t_min_s) and not info.singular else max_step
             n += h / min(limit, max_step)
         adaptive_n = n * period / float(dt.sum())
 
@@ -456,7 +455,7 @@ def _massless_analysis(system, cs, t_min_stick: float, fe: list[float], rho, rho
     stick = np.ones(cs.kt.shape[0], np.int8)
     internal = [float(f) for f in ML.internal_frequencies(cs, stick, idx)]
     try:
-        t_min = ML.condensed_t_min(ML.inertia_free(cs, idx), stick, idx)[0]
+        t_min = SC.state_t_min(ML.inertia_free(cs, idx), stick)
     except InputError:
         return {
             "dofs": dofs,

@@ -21,7 +21,7 @@ import os
 import sys
 import warnings
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
@@ -30,7 +30,7 @@ from typer.exceptions import TyperException
 
 from slipstep.casefiles import CASES_DIR, builtin_cases, case_stem, read_toml
 from slipstep.errors import InputError, OutputError, SolverError
-from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS
+from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, method_choices, scheme_choices
 from slipstep.text import escape_text
 
 EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
@@ -48,9 +48,10 @@ class _Group(TyperGroup):
             print(f"slipstep {version()}")
             ctx.exit(0)
         command = self.commands.get(args[0]) if len(args) == 1 and args[0] in _FAST_COMMANDS else None
-        if command is not None and not command.params and command.callback is not None:
-            # a listing without options (cases, methods): called directly, without typer's parameter
-            # machinery, which imports pydantic (150 ms) to coerce the implicit --help flag
+        if command is not None and not any(p.required for p in command.params) and command.callback is not None:
+            # a listing called without arguments (cases, methods; options keep their Python defaults):
+            # called directly, without typer's parameter machinery, which imports pydantic (150 ms) to
+            # coerce the implicit --help flag
             try:
                 command.callback()
             except _PASS_THROUGH:
@@ -275,7 +276,9 @@ def _method(cli_value: Optional[str], spec):
         raise InputError(field, exc.problem, exc.fix) from None
 
 
-def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None) -> tuple[dict, dict]:
+def _run_options(
+    spec, periods, step_ratio, steps_per_period, max_memory=None, duration=None, save=None
+) -> tuple[dict, dict]:
     """Command-line options over the case's \\[run] table; unset ones keep RunOptions defaults.
     Returns (options, where each option came from: the flag or the case key). --duration wins
     over --periods, as duration does in RunOptions; a --periods given on the command line wins
@@ -304,7 +307,48 @@ def _run_options(spec, periods, step_ratio, steps_per_period, max_memory=None, d
 
         opts["max_memory"] = parse_size("--max-memory", max_memory)
     origin["max_memory"] = "--max-memory"
+    _save_options(spec, save or {}, opts, origin)
     return opts, origin
+
+
+SAVE_FLAGS = {"dofs": "--save-dofs", "contacts": "--save-contacts", "every": "--save-every"}
+SAVE_FLAGS.update(last_periods="--save-last-periods", times="--save-times")
+
+
+def _save_options(spec, flags: dict, opts: dict, origin: dict) -> None:
+    """The ``save`` option: the case's [run.save] table, each key overridden by its --save-* flag
+    (flags: {key: command-line text}); origins per key for messages ('save.dofs' -> the flag)."""
+    table = spec.save.options() if getattr(spec, "save", None) is not None else {}
+    origin["save"] = "[run.save]" if table else "--save-dofs"
+    for key in ("dofs", "contacts", "every", "last_periods", "times", "response"):
+        origin[f"save.{key}"] = f"[run.save] {'times_s' if key == 'times' else key}"
+    for key, text in flags.items():
+        if text is None:
+            continue
+        flag = SAVE_FLAGS[key]
+        origin[f"save.{key}"] = flag
+        if key in ("dofs", "contacts"):
+            names = [p.strip() for p in str(text).split(",") if p.strip()]
+            table[key] = names[0] if len(names) == 1 and names[0] in ("all", "none", "response") else names
+        elif key == "times":
+            table[key] = _times(flag, text)
+        else:
+            table[key] = text
+    if table:
+        opts["save"] = table
+
+
+def _times(flag: str, text: str) -> list[float]:
+    """'0.1:0.2:101' (start:stop:count, seconds) or '0.1,0.15,0.2' -> times [s]."""
+    import numpy as np
+
+    try:
+        if ":" in text:
+            start, stop, count = text.split(":")
+            return np.linspace(float(start), float(stop), int(count)).tolist()
+        return [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise InputError(flag, f"is {text!r}", "give start:stop:count (seconds) or a comma-separated list") from None
 
 
 @contextlib.contextmanager
@@ -340,6 +384,14 @@ def _table(title, *columns, show_header: bool = True):
     return table
 
 
+def _error_estimate_text(a: dict) -> str:
+    """The step-doubling estimates in percent, or why there are none (error_estimate_method)."""
+    energy, peak = a["energy_error_estimate"], a["peak_force_error_estimate"]
+    if math.isnan(energy) and math.isnan(peak):
+        return f"not estimated: {a.get('error_estimate_method', 'none')}"
+    return f"{100 * energy:.2g} % / {100 * peak:.2g} %"
+
+
 def _row(table, *cells):
     from rich.text import Text
 
@@ -359,9 +411,13 @@ def run(
         None,
         "--method",
         "-m",
-        help="Method name or paper number: newmark|1, newmark-adaptive|2, piecewise-linear|3, "
-        "piecewise-linear-adaptive|2+3, quasi-static|4, full-newton. Default: the case's \\[run] method, "
-        "else newmark.",
+        help=f"Method name or paper number: {method_choices()}. Default: the case's \\[run] method, else newmark.",
+    ),
+    scheme: Optional[str] = typer.Option(
+        None,
+        "--scheme",
+        help=f"Time-integration scheme (paper App. A), with parameters in parentheses: {scheme_choices()}. "
+        "Default newmark. Explicit schemes run the method's variant: newmark (fixed step) or newmark-adaptive.",
     ),
     periods: Optional[float] = typer.Option(
         None,
@@ -383,6 +439,17 @@ def run(
         help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
         "the local error estimate, never beyond the method's step limit.",
     ),
+    save_dofs: Optional[str] = typer.Option(
+        None,
+        help="DOFs to save: all, none, response (those the contacts see, the forced ones) or "
+        "comma-separated names / patterns ('blade*'). Default: all up to 200 DOFs, else response.",
+    ),
+    save_contacts: Optional[str] = typer.Option(None, help="Contacts to save: all, none or comma-separated names."),
+    save_every: Optional[int] = typer.Option(None, help="Save every k-th step (and the last one)."),
+    save_last_periods: Optional[float] = typer.Option(None, help="Save only the last P >= 1 excitation periods."),
+    save_times: Optional[str] = typer.Option(
+        None, help="Save at given times \\[s]: start:stop:count or a comma-separated list (interpolated)."
+    ),
 ):
     """Simulate CASE with one method; print a summary and write the result Dataset (netCDF).
 
@@ -394,21 +461,23 @@ def run(
     with user_errors():
         from slipstep.config import load_case
         from slipstep.live import deferred_interrupt
-        from slipstep.methods.simulation import Simulation
         from slipstep.results import save
 
         system, spec = load_case(case)
         chosen = _method(method, spec)
-        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration)
+        flags = dict(
+            dofs=save_dofs, contacts=save_contacts, every=save_every, last_periods=save_last_periods, times=save_times
+        )
+        opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration, flags)
         if rtol is not None:
             opts["rtol"], origin["rtol"] = rtol, "--rtol"
         directory = output_dir_option(output_dir)
         with option_names(origin):
-            sim = Simulation(system, chosen, **opts)
+            sim, label = _simulation(system, chosen, scheme, opts, origin)
         sim.progress = err.is_terminal and not as_json
         sim.keep_interrupted = True
         ds = sim.run()
-        path = directory / f"{case_stem(case)}_{chosen.name}.nc"
+        path = directory / f"{case_stem(case)}_{label}.nc"
         with deferred_interrupt(
             lambda: say("saving the result: Ctrl-C again aborts the save (the previous file is kept)", err, "yellow"),
             armed=ds.attrs["status"] == "INTERRUPTED",
@@ -451,10 +520,7 @@ def run(
             ("state changes", a["state_changes"]),
             ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
             ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
-            (
-                "est. error, loop energy / peak force",
-                f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %",
-            ),
+            ("est. error, loop energy / peak force", _error_estimate_text(a)),
             ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
             ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"),
             ("output", str(path)),
@@ -465,6 +531,42 @@ def run(
     if a["status"] != "OK":
         say(f"solver stopped early: {a['status_message']}; the partial result is in {path}", err, "bold red")
         raise typer.Exit(EXIT_STOPPED)
+
+
+def _simulation(system, method, scheme: Optional[str], opts: dict, origin: dict):
+    """(the runner of METHOD with --scheme, the result file's label): implicit schemes run the
+    method itself with that scheme; explicit ones the variant the method is (fixed: newmark,
+    adaptive: newmark-adaptive), with the options an explicit run understands (options from the
+    case's \\[run] table that do not apply are left out; command-line ones are refused)."""
+    from slipstep.methods.simulation import Simulation
+
+    if scheme is None:
+        return Simulation(system, method, **opts), method.name
+    from slipstep.integrators import get_integrator
+
+    if not scheme.strip():
+        raise InputError("--scheme", "is empty", f"give a scheme, e.g. {scheme_choices()}")
+    try:
+        integ = get_integrator(scheme)
+    except InputError as exc:
+        raise InputError("--scheme", exc.problem, exc.fix) from None
+    label = f"{method.name}_{integ.name}"
+    if integ.kind == "implicit":
+        return Simulation(system, method, scheme=integ.scheme(), **opts), label
+    from slipstep.integrators.explicit_simulation import EXPLICIT_OPTIONS
+
+    if method.variant not in integ.variants:
+        raise InputError(
+            "--scheme",
+            f"{integ.name} is explicit: it marches a fixed or adaptive step with nothing solved for the "
+            f"contacts, not method {method.name}",
+            "use --method newmark (fixed step) or newmark-adaptive (adaptive step), or an implicit scheme",
+        )
+    for key in [k for k in opts if k not in EXPLICIT_OPTIONS]:
+        if origin.get(key, "").startswith("--"):
+            raise InputError(origin[key], f"does not apply to the explicit scheme {integ.name}", "drop it")
+        opts = {k: v for k, v in opts.items() if k != key}
+    return integ.simulation(system, method.variant, **opts), label
 
 
 COMPARE_ROWS = (  # (label, key, scale or None for integers/text)
@@ -511,7 +613,7 @@ def compare(
     schemes: Optional[str] = typer.Option(
         None,
         help="Compare integration schemes instead (paper App. A): 'all' or "
-        "a comma list, e.g. 'newmark,hht(0.1),rk4'; every scheme in "
+        f"a comma list of {scheme_choices()}; every scheme in "
         "every variant it supports (fixed, adaptive, "
         "piecewise-linear, both).",
     ),
@@ -605,14 +707,27 @@ def cases():
 
 
 @app.command()
-def methods():
-    """List the time-marching methods and their paper numbers."""
-    from slipstep.methods.registry import ALIASES, METHODS
+def methods(
+    markdown: Annotated[
+        bool, typer.Option("--markdown", help="Print the README's method and scheme tables (markdown).")
+    ] = False,
+):
+    """List the time-marching methods (with their paper numbers) and the time-integration schemes."""
+    from slipstep.methods import registry as R
 
-    numbers = {v: k for k, v in ALIASES.items() if k != "23"}
+    if markdown:
+        print(f"{R.README_BLOCKS[0][0]}\n{R.methods_markdown()}\n{R.README_BLOCKS[0][1]}\n")
+        print(f"{R.README_BLOCKS[1][0]}\n{R.schemes_markdown()}\n{R.README_BLOCKS[1][1]}")
+        return
     table = _table("methods (use the name or the paper number with --method)", "name", "paper", "number", "description")
-    for m in METHODS.values():
-        _row(table, m.name, m.paper_label, numbers.get(m.name, "-"), m.description)
+    for row in R.methods_rows():
+        _row(table, *row)
+    out.print(table)
+    table = _table(
+        "schemes (--scheme; parameters in parentheses, defaults shown)", "scheme", "kind", "variants", "what it is"
+    )
+    for e in R.SCHEMES.values():
+        _row(table, R.scheme_spec(e), e.kind, ", ".join(e.variants), e.summary)
     out.print(table)
 
 

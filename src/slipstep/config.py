@@ -105,6 +105,24 @@ class TableSpec(_Strict):
     values: list[float]
 
 
+class SaveSpec(_Strict):
+    """``[run.save]``: what a march stores (slipstep.methods.save; times in seconds)."""
+
+    dofs: Optional[str | list[str]] = None
+    contacts: Optional[str | list[str]] = None
+    every: Optional[int] = None
+    last_periods: Optional[float] = None
+    times_s: Optional[list[float]] = None
+    response: Optional[list[str]] = None
+
+    def options(self) -> dict:
+        """The ``save`` run option (a dict of slipstep.Save keys) of this table."""
+        out = {k: v for k, v in self.model_dump().items() if v is not None}
+        if "times_s" in out:
+            out["times"] = out.pop("times_s")
+        return out
+
+
 class RunSpec(_Strict):
     method: Optional[str] = None
     periods: Optional[float] = None
@@ -112,6 +130,7 @@ class RunSpec(_Strict):
     step_ratio: Optional[float] = None
     steps_per_period: Optional[int] = None
     ramp_time_s: Optional[float] = None
+    save: Optional[SaveSpec] = None
 
 
 class CaseSpec(_Strict):

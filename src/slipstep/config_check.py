@@ -480,3 +480,11 @@ def _check_run(c: _Checker, data: dict) -> None:
     c.number(("run", "ramp_time_s"), ">=0")
     if "steps_per_period" in run and run["steps_per_period"] < 1:
         raise InputError(c.path("run", "steps_per_period"), f"is {run['steps_per_period']}", "give a whole number >= 1")
+    save = run.get("save") or {}
+    if "every" in save and save["every"] < 1:
+        raise InputError(c.path("run", "save", "every"), f"is {save['every']}", "give a whole number of steps >= 1")
+    c.number(("run", "save", "last_periods"), ">0")
+    c.numbers(("run", "save", "times_s"))
+    for key in ("dofs", "contacts", "response"):
+        for i, name in enumerate([save[key]] if isinstance(save.get(key), str) else save.get(key) or []):
+            check_name(c.path("run", "save", key) + ("" if isinstance(save.get(key), str) else f"[{i + 1}]"), name)

@@ -212,7 +212,8 @@ def plot_step_size(ds: xr.Dataset):
     ax.set_ylabel("time step [us]")
     ax.set_title(f"Step size and contact states - {_label(ds)}")
     ax.grid(alpha=0.3)
-    _state_strip(ax2, ds)
+    if ds.sizes.get("direction", 0):
+        _state_strip(ax2, ds)
     ax2.set_xlabel("time [ms]")
     fig.tight_layout()
     return fig
@@ -288,8 +289,14 @@ def write_figures(
     out = Path(output_dir)
     paths = []
     sets = [ds] if reference is None else [reference, ds]
-    paths.append(save_figure(plot_time_histories(sets), out / f"{prefix}time_histories.png"))
+    contacts = ds.sizes.get("direction", 0) > 0  # the save option may have left them out
+    if max(ds.sizes.get("direction", 0), ds.sizes.get("contact", 0), ds.sizes.get("dof", 0)) > 0:
+        paths.append(save_figure(plot_time_histories(sets), out / f"{prefix}time_histories.png"))
     filtered = None
+    if not contacts:
+        paths.append(save_figure(plot_step_size(ds), out / f"{prefix}step_size.png"))
+        paths.append(save_figure(plot_iterations(sets), out / f"{prefix}iterations.png"))
+        return paths
     if system is not None and not ds.attrs.get("quasi_static") and ds.attrs.get("period_s"):
         import warnings
 

@@ -36,25 +36,49 @@ SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
 DYNAMIC_ONLY = ("velocity", "acceleration")
 
 
-def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, dynamic: bool, compiled) -> xr.Dataset:
-    """Assemble the Dataset of the first ``n_stored`` + 1 points from kernel outputs."""
+def build_dataset(
+    system,
+    out,
+    n_stored: int,
+    motion: np.ndarray,
+    attrs: dict,
+    dynamic: bool,
+    compiled,
+    plan=None,
+    grid=None,
+    gamma=None,
+) -> xr.Dataset:
+    """Assemble the Dataset of the first ``n_stored`` + 1 rows of kernel outputs: the saved DOFs
+    (coordinate ``dof``), contacts and directions of ``plan`` (slipstep.methods.save.Plan;
+    None: all), at the saved steps (coordinate ``step``), or interpolated at the given times
+    ``grid`` (slipstep.methods.save.interpolate; ``gamma``: the Newmark gamma of the march)."""
+    from slipstep.methods.save import interpolate
+
     k = n_stored + 1
     cs = compiled
-    tan_rows = np.asarray(cs.tangential_row)
-    nrm_rows = np.asarray(cs.normal_row)
+    n, nc = len(system.structure.dof_names), len(system.contact_names)
+    dofs = np.arange(n) if plan is None else plan.dofs
+    contacts = np.arange(nc) if plan is None else plan.contacts
+    dirs = np.asarray(out.dirs)
+    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
+    tan_cols = np.array([column[int(r)] for r in np.asarray(cs.tangential_row)[dirs]], np.int64)
+    nrm_cols = np.array([column[int(r)] for r in np.asarray(cs.normal_row)[contacts]], np.int64)
+    rows = {key: getattr(out, key)[:k] for key in ("t", "x", "v", "a", "q", "f", "w", "state", "solves", "dt", "step")}
+    if grid is not None:
+        rows = interpolate(rows, grid, dynamic, gamma)
     data = {
-        "displacement": out.x[:k],
-        "velocity": out.v[:k],
-        "acceleration": out.a[:k],
-        "prescribed_motion": motion[:k],
-        "tangential_displacement": out.q[:k][:, tan_rows],
-        "normal_displacement": out.q[:k][:, nrm_rows],
-        "tangential_force": out.f[:k][:, tan_rows],
-        "normal_force": out.f[:k][:, nrm_rows],
-        "slider": out.w[:k],
-        "contact_state": out.state[:k],
-        "solves": out.solves[:k],
-        "step_size": out.dt[:k],
+        "displacement": rows["x"],
+        "velocity": rows["v"],
+        "acceleration": rows["a"],
+        "prescribed_motion": motion[: rows["t"].shape[0]],
+        "tangential_displacement": rows["q"][:, tan_cols],
+        "normal_displacement": rows["q"][:, nrm_cols],
+        "tangential_force": rows["f"][:, tan_cols],
+        "normal_force": rows["f"][:, nrm_cols],
+        "slider": rows["w"],
+        "contact_state": rows["state"],
+        "solves": rows["solves"],
+        "step_size": rows["dt"],
     }
     variables = {}
     for name, values in data.items():
@@ -66,21 +90,33 @@ def build_dataset(system, out, n_stored: int, motion: np.ndarray, attrs: dict, d
         flag_values=np.arange(len(STATE_NAMES), dtype=np.int8),
         flag_meanings=" ".join(s.replace("-", "_").replace("+", "_pos") for s in STATE_NAMES),
     )
+    names, units = system.structure.dof_names, system.structure.dof_units
+    cnames, dnames = system.contact_names, system.direction_names()
+    owner = np.asarray(cs.direction_contact)
     coords = {
-        "time": ("time", np.array(out.t[:k]), {"units": "s", "long_name": "time after the static preload"}),
-        "dof": ("dof", list(system.structure.dof_names)),
-        "dof_unit": ("dof", list(system.structure.dof_units)),
+        "time": ("time", np.array(rows["t"]), {"units": "s", "long_name": "time after the static preload"}),
+        "dof": ("dof", [names[i] for i in dofs]),
+        "dof_unit": ("dof", [units[i] for i in dofs]),
         "motion": ("motion", list(system.motion_names)),
-        "contact": ("contact", list(system.contact_names)),
-        "direction": ("direction", system.direction_names()),
-        "direction_contact": ("direction", [system.contact_names[i] for i in np.asarray(cs.direction_contact)]),
-        "friction_coefficient": ("contact", np.asarray(cs.mu), {"units": "1"}),
-        "contact_law": ("contact", [c.law for c in system.contacts]),
-        "normal_stiffness": ("contact", np.asarray(cs.kn), {"units": "N/m"}),
-        "tangential_stiffness": ("direction", np.asarray(cs.kt), {"units": "N/m"}),
+        "contact": ("contact", [cnames[i] for i in contacts]),
+        "direction": ("direction", [dnames[d] for d in dirs]),
+        "direction_contact": ("direction", [cnames[owner[d]] for d in dirs]),
+        "friction_coefficient": ("contact", np.asarray(cs.mu)[contacts], {"units": "1"}),
+        "contact_law": ("contact", [system.contacts[i].law for i in contacts]),
+        "normal_stiffness": ("contact", np.asarray(cs.kn)[contacts], {"units": "N/m"}),
+        "tangential_stiffness": ("direction", np.asarray(cs.kt)[dirs], {"units": "N/m"}),
     }
+    if "step" in rows:
+        coords["step"] = ("time", np.array(rows["step"]), {"units": "1", "long_name": "step number of the march"})
     clean = {key: (int(v) if isinstance(v, (bool, np.bool_)) else v) for key, v in attrs.items() if v is not None}
     return xr.Dataset(variables, coords=coords, attrs=clean)
+
+
+def saved(ds: xr.Dataset, what: str) -> bool:
+    """Whether ``ds`` saved ``what`` (attrs of slipstep.methods.save.Plan.attrs; a result
+    without them saved everything): 'all_dofs', 'all_contacts', 'every_step' (every step from
+    its first time: not every k-th, not interpolated at given times), 'whole_run' (from t = 0)."""
+    return bool(ds.attrs.get(f"save_{what}", 1))
 
 
 def save(ds: xr.Dataset, path) -> None:

@@ -35,6 +35,7 @@ from dataclasses import replace
 import numpy as np
 
 from slipstep.errors import InputError, SolverError
+from slipstep.methods.eigen import omega_max
 from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, Harmonic, Signal
 from slipstep.model.structure import Structure
@@ -100,7 +101,7 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
         Keff += cs.kn[c] * np.outer(cs.A[cs.normal_row[c]], cs.A[cs.normal_row[c]])
     for d in range(cs.kt.shape[0]):
         Keff += cs.kt[d] * np.outer(cs.A[cs.tangential_row[d]], cs.A[cs.tangential_row[d]])
-    wmax = math.sqrt(np.abs(np.linalg.eigvals(np.linalg.solve(M, Keff))).max())
+    wmax = omega_max(M, Keff)  # the largest eigenvalue alone (methods/eigen.py)
     dt_limit = 2.0 / wmax
     frequency = 1.0 / (dt_limit * 10 ** rng.uniform(math.log10(20), math.log10(400)))
     force = motion = None

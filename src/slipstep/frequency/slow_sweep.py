@@ -25,6 +25,7 @@ import xarray as xr
 
 from slipstep.errors import InputError, Status
 from slipstep.frequency.dataset import empty_frf, finalise
+from slipstep.methods.save import Save
 from slipstep.model.excitation import Signal, Tabulated
 from slipstep.model.validate import positive
 from slipstep.system import System
@@ -131,10 +132,18 @@ def sine_sweep(
     )
     opts = dict(run_options)
     opts.setdefault("max_step", 1.0 / (f[-1] * r_max * min_steps_per_period))
-    sim = Simulation(swept, method, duration=D, **opts)
-    ds_t = sim.run()
     names = list(system.structure.dof_names)
     responses = names if responses is None else list(responses)
+    opts.setdefault("save", Save(dofs=[r for r in responses if r in names] or "all"))  # the responses, every step
+    sim = Simulation(swept, method, duration=D, **opts)
+    saved = set(sim.save_plan.dofs.tolist())
+    if not sim.save_plan.every_step or any(names.index(r) not in saved for r in responses if r in names):
+        raise InputError(
+            "save",
+            f"is {sim.save_plan.text!r}: the sine sweep needs its responses at every step",
+            "drop the save option",
+        )
+    ds_t = sim.run()
     units = [system.structure.dof_units[names.index(r)] for r in responses]
     grid = f if direction == "up" else f[::-1]
     out = empty_frf(grid, responses, units, system.contact_names, 0)

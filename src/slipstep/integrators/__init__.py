@@ -3,9 +3,10 @@
     ds = simulate(system, "hht(0.1)", variant="both", periods=2)
     rows = compare_schemes(system, schemes="all", periods=2)
 
-Registry: one line per scheme. To add a scheme, write one module with an
+Registry: :data:`slipstep.methods.registry.SCHEMES` (one entry per scheme, with its parameter
+defaults). To add a scheme, write one module with an
 :class:`~slipstep.integrators.base.Integrator` subclass (the contract is in its docstring)
-and add its line here.
+and add its entry there; :data:`INTEGRATORS` is built from it.
 """
 
 from __future__ import annotations
@@ -19,27 +20,14 @@ from slipstep.integrators.generalized_alpha import GeneralizedAlpha
 from slipstep.integrators.hht import HHT
 from slipstep.integrators.newmark import LinearAcceleration, Newmark
 from slipstep.integrators.rk4 import RK4
+from slipstep.methods.registry import SCHEME_ALIASES, SCHEMES
 
-INTEGRATORS: dict[str, type[Integrator]] = {
-    "newmark": Newmark,  # beta, gamma (default 1/4, 1/2: average acceleration)
-    "linear-acceleration": LinearAcceleration,  # Newmark beta = 1/6, gamma = 1/2
-    "hht": HHT,  # alpha in [0, 1/3]
-    "generalized-alpha": GeneralizedAlpha,  # rho_inf in [0, 1]
-    "central-difference": CentralDifference,  # explicit, dt <= T_min / pi
-    "rk4": RK4,  # explicit, first-order form, dt <= 2.785 / omega_max
-}
-
-ALIASES = {
-    "generalised-alpha": "generalized-alpha",
-    "gen-alpha": "generalized-alpha",
-    "alpha": "generalized-alpha",
-    "hht-alpha": "hht",
-    "cd": "central-difference",
-    "central": "central-difference",
-    "runge-kutta": "rk4",
-    "runge-kutta-4": "rk4",
-    "average-acceleration": "newmark",
-}
+#: name -> integrator class, in the order of slipstep.methods.registry.SCHEMES
+INTEGRATORS: dict[str, type[Integrator]] = {name: entry.integrator_class() for name, entry in SCHEMES.items()}
+ALIASES = SCHEME_ALIASES
+for _name, _cls in INTEGRATORS.items():  # the registry's kind is the class's (its variants follow from it)
+    if _cls.kind != SCHEMES[_name].kind:
+        raise RuntimeError(f"scheme {_name}: registry kind {SCHEMES[_name].kind}, class kind {_cls.kind}")
 
 _CALL = re.compile(r"^\s*([A-Za-z0-9_\- ]+?)\s*(?:\((.*)\))?\s*$")
 

@@ -10,8 +10,7 @@ import abc
 import math
 
 from slipstep.errors import InputError
-
-VARIANTS = ("fixed", "adaptive", "piecewise-linear", "both")
+from slipstep.methods.registry import EXPLICIT_VARIANTS, VARIANT_METHODS, VARIANTS  # noqa: F401  (re-exported)
 
 
 class Integrator(abc.ABC):
@@ -101,12 +100,7 @@ class ImplicitIntegrator(Integrator):
     kind = "implicit"
     order = 2
     variants = VARIANTS
-    _METHOD = {
-        "fixed": "newmark",
-        "adaptive": "newmark-adaptive",
-        "piecewise-linear": "piecewise-linear",
-        "both": "piecewise-linear-adaptive",
-    }
+    _METHOD = VARIANT_METHODS  # variant -> method (slipstep.methods.registry)
 
     @abc.abstractmethod
     def scheme(self):
@@ -145,14 +139,17 @@ class ExplicitIntegrator(Integrator):
     nothing is solved for the contacts)."""
 
     kind = "explicit"
-    variants = ("fixed", "adaptive")
+    variants = EXPLICIT_VARIANTS
     omega_crit: float = math.nan  # omega_max dt at the stability limit
     #: default step_ratio of the adaptive variant (the fixed one rounds dt down to whole steps per period)
     adaptive_step_ratio: float = 1.0
 
     @property
     def step_limit_factor(self) -> float:
-        return self.omega_crit / (2.0 * math.pi)
+        """Omega_crit / (2 pi): the stability limit is the step limit (step_control.stability_factor)."""
+        from slipstep.methods.step_control import stability_factor
+
+        return stability_factor(self.omega_crit)
 
     def simulation(self, system, variant: str = "fixed", **options):
         from slipstep.integrators.explicit_simulation import ExplicitSimulation

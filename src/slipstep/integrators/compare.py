@@ -21,8 +21,9 @@ import numpy as np
 
 from slipstep.errors import InputError
 from slipstep.integrators.base import VARIANTS
+from slipstep.methods.registry import SCHEMES
 
-DEFAULT_SCHEMES = ("newmark", "linear-acceleration", "hht(0.1)", "generalized-alpha(0.8)", "central-difference", "rk4")
+DEFAULT_SCHEMES = tuple(SCHEMES)  # every registered scheme with its defaults (hht(alpha=0.1), ...)
 
 
 def _last_period_errors(ds, ref, system, t_from: float) -> tuple[float, float]:

@@ -16,18 +16,14 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.kernels.settings import march_settings
-from slipstep.methods.simulation import (
-    RunOptions,
-    Runner,
-    Simulation,
-    _allocate_outputs,
-    check_divergence,
-    default_max_step,
-)
+from slipstep.methods.simulation import RunOptions, Runner, Simulation, _allocate_outputs, check_divergence
 from slipstep.methods import accuracy
-from slipstep.methods.accuracy import highest_frequency
+from slipstep.methods import step_control as SC
+from slipstep.methods.eigen import mass_factor
 from slipstep.model.validate import positive
 from slipstep.system import System
+
+DEFAULT_STEP_RATIO = RunOptions.step_ratio  # the one default (RunOptions)
 
 #: options an explicit run understands (the rest of RunOptions is for implicit solvers)
 EXPLICIT_OPTIONS = (
@@ -70,7 +66,7 @@ class ExplicitSimulation(Runner):
         if integrator.kind != "explicit" or integrator.kernel_kind is None:
             raise InputError("scheme", f"{integrator.name} is not an explicit scheme", "use central-difference or rk4")
         self.system, self.integrator, self.adaptive = system, integrator, bool(adaptive)
-        ratio = positive("step_ratio", options.get("step_ratio", 1.0))
+        ratio = positive("step_ratio", options.get("step_ratio", DEFAULT_STEP_RATIO))
         self._options_given, self._accuracy = dict(options), None
         if ratio > 1.0:
             raise InputError(
@@ -97,14 +93,14 @@ class ExplicitSimulation(Runner):
         self.q0, self.f0 = pre.q0, pre.f0
         self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end
         factor = ratio * integrator.step_limit_factor
-        # the stability limit over every visitable contact state (methods/accuracy.highest_frequency)
-        w_max = highest_frequency(cs)
-        self.dt_limit = ratio * integrator.omega_crit / w_max if w_max > 0 else factor * self.t_min_stick
+        # the stability limit over every visitable contact state (methods/step_control.py)
+        self.dt_limit = SC.stability_limit(ratio * integrator.omega_crit, SC.highest_frequency(cs))
         period, t_end = self.period, self.t_end
         opt = self.options
-        self.max_step = dt_max = opt.max_step if opt.max_step is not None else default_max_step(period, self.dt_limit)
-        limit = min(self.dt_limit, dt_max)
-        dt = period / math.ceil(period / limit * (1 - 1e-12)) if period is not None else limit
+        self.max_step = dt_max = (
+            opt.max_step if opt.max_step is not None else SC.default_max_step(period, self.dt_limit)
+        )
+        dt = SC.fixed_step(self.dt_limit, dt_max, period, t_end)
         if dt > t_end:
             raise InputError(
                 "duration",
@@ -112,10 +108,7 @@ class ExplicitSimulation(Runner):
                 "simulate longer or use a smaller step",
             )
         self.dt = dt
-        if self.adaptive:
-            capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
-        else:
-            capacity = math.ceil(t_end / dt * (1 + 1e-12)) + 1
+        capacity = SC.capacity(t_end, dt, self.dt_limit, dt_max, self.adaptive)
         if capacity > 50_000_000:
             raise InputError("duration", f"needs {capacity} steps", "shorten the run")
         self.settings = march_settings(
@@ -161,7 +154,7 @@ class ExplicitSimulation(Runner):
             return nan
         opts = dict(
             self._options_given,
-            step_ratio=self._options_given.get("step_ratio", 1.0) / 2,
+            step_ratio=self._options_given.get("step_ratio", DEFAULT_STEP_RATIO) / 2,
             max_step=self.max_step / 2,
             duration=self.t_end,
         )
@@ -232,7 +225,7 @@ def _allocate_explicit_workspace(cs) -> E.ExplicitWorkspace:
         ss=i8(nd),
         lu=z(n, n),
         piv=np.zeros(n, np.int64),
-        Minv=np.linalg.inv(cs.M),
+        mass_factor=mass_factor(cs.M),
         tmin_keys=i8(cap, nd),
         tmin_used=np.zeros(cap, np.bool_),
         tmin_value=z(cap),

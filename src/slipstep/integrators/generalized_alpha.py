@@ -13,13 +13,14 @@ Run by kernels.march. Step limit: dt < T_min / (2 pi sqrt(beta)).
 from __future__ import annotations
 
 from slipstep.integrators.base import ImplicitIntegrator
+from slipstep.methods.registry import scheme_default
 from slipstep.methods.schemes import generalized_alpha
 
 
 class GeneralizedAlpha(ImplicitIntegrator):
     name = "generalized-alpha"
 
-    def __init__(self, rho_inf: float = 0.8, rho: float | None = None):
+    def __init__(self, rho_inf: float = scheme_default("generalized-alpha", "rho_inf"), rho: float | None = None):
         self._scheme = generalized_alpha(float(rho_inf if rho is None else rho))
 
     def scheme(self):

@@ -13,13 +13,14 @@ the damper's ~10 kHz ringing while keeping the 200 Hz response. Run by kernels.m
 from __future__ import annotations
 
 from slipstep.integrators.base import ImplicitIntegrator
+from slipstep.methods.registry import scheme_default
 from slipstep.methods.schemes import hht
 
 
 class HHT(ImplicitIntegrator):
     name = "hht"
 
-    def __init__(self, alpha: float = 0.1):
+    def __init__(self, alpha: float = scheme_default("hht", "alpha")):
         self._scheme = hht(float(alpha))
 
     def scheme(self):

@@ -16,13 +16,16 @@ from __future__ import annotations
 from fractions import Fraction
 
 from slipstep.integrators.base import ImplicitIntegrator
+from slipstep.methods.registry import scheme_default
 from slipstep.methods.schemes import newmark
 
 
 class Newmark(ImplicitIntegrator):
     name = "newmark"
 
-    def __init__(self, beta: float = 0.25, gamma: float = 0.5):
+    def __init__(
+        self, beta: float = scheme_default("newmark", "beta"), gamma: float = scheme_default("newmark", "gamma")
+    ):
         self._scheme = newmark(float(beta), float(gamma))  # validates (InputError)
         self.order = 2 if abs(gamma - 0.5) < 1e-12 else 1
 
@@ -33,7 +36,7 @@ class Newmark(ImplicitIntegrator):
     def label(self) -> str:
         """'newmark' or 'newmark(beta=1/6,gamma=1/2)' (exact fractions when they are simple)."""
         b, g = self._scheme.beta, self._scheme.gamma
-        if (b, g) == (0.25, 0.5):
+        if (b, g) == (scheme_default("newmark", "beta"), scheme_default("newmark", "gamma")):
             return "newmark"
         frac = lambda v: (
             str(Fraction(v).limit_denominator(1000))

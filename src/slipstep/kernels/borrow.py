@@ -41,3 +41,20 @@ def borrowed(typingctx, value):
         return _borrow_value(context, builder, signature.args[0], args[0])
 
     return value(value), codegen
+
+
+@intrinsic
+def keep_alive(typingctx, value):
+    """Does nothing with ``value``: a use that keeps the variables it names alive up to this
+    point. A kernel may borrow an array it allocated (numba frees an array once its variable
+    is dead) if it calls keep_alive on the owning variable after the last use of the view:
+
+        own = np.zeros(n); buf = borrowed(own)
+        ... loops using buf ...
+        keep_alive(own)
+    """
+
+    def codegen(context, builder, signature, args):
+        return context.get_dummy_value()
+
+    return types.none(value), codegen

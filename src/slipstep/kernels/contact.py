@@ -157,6 +157,45 @@ def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, l
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale, f, w_new):
+    """:func:`compatible` and, when the postulated state holds, :func:`piecewise_law` at q in
+    the same pass over the contacts (the piecewise-linear step's accept test). Returns the
+    compatibility; f and w_new are meaningful only when it is True."""
+    tol_v = rtol * length_scale
+    for c in range(nrow.shape[0]):
+        nr = nrow[c]
+        v = q[nr]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            if v > tol_v:
+                return False
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]] = 0.0
+                w_new[d] = q[trow[d]]
+            continue
+        if v < -tol_v:
+            return False
+        N = lpar[c, P_KN] * v
+        limit = lpar[c, P_MU] * N
+        f[nr] = N
+        if lcode[c] == LAW_CIRCLE:
+            climit = lpar[c, P_MU] * lpar[c, P_KN] * v
+            if not _circle_compatible(trow, kt, d0, climit, state, q, w_old, rtol * (abs(climit) + kt[d0] * length_scale)):
+                return False
+            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
+            continue
+        climit = lpar[c, P_MU] * lpar[c, P_KN] * v
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            tol_t = rtol * (abs(climit) + kt[d] * length_scale)
+            if not uncoupled.compatible(kt[d], climit, state[d], q[tr], w_old[d], tol_t):
+                return False
+            f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
     """True if some contact is in a state without a piecewise-linear form (coupled slip)."""
     for c in range(nrow.shape[0]):

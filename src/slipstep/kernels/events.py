@@ -41,6 +41,7 @@ from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
+from slipstep.kernels.march import S_CAPACITY, S_FAIL, S_ROWS, _store
 
 # margin kinds
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
@@ -116,9 +117,14 @@ def _first_root_1h(c, om, ta, t_end, tol):
     r0 = -c0 / R
     r1 = max(-1.0, (-c0 - tol) / R)
     e0 = np.pi - np.arcsin(r0)  # sin(psi) decreasing through r0: the zero crossing
-    e1 = np.pi - np.arcsin(r1)  # ... and through the tolerance band's edge, just after it
+    dr = r0 - r1
+    if dr <= 1e-6 and abs(r0) < 0.9:  # ... and through the tolerance band's edge, just after it:
+        e1 = e0 + dr / np.sqrt(1.0 - r0 * r0)  # first order in dr (the next term below 6 dr^2 < 6e-12)
+    else:
+        e1 = np.pi - np.arcsin(r1)
     psi_a = om[0] * ta + phi
-    d1 = (e1 - psi_a) % two_pi
+    x1 = e1 - psi_a
+    d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
     d0 = d1 - (e1 - e0)
     t = ta + max(d0, 0.0) / om[0]
     return t if t <= t_end else t_end + 1.0
@@ -278,24 +284,22 @@ def event_march(sys, st, ws, out, q0, f0):
     t = st.t_start
     t_end = st.t_end
     dt_out = st.dt
-    for r in range(nq):
-        out.q[0, r] = q0[r]
-        out.f[0, r] = f0[r]
-    out.t[0] = t
-    out.dt[0] = 0.0
-    for i in range(n):
-        out.x[0, i] = x[i]
-    for d in range(nd):
-        out.w[0, d] = w[d]
-        out.state[0, d] = state[d]
-    cap = out.t.shape[0] - 1
+    zero = np.zeros(n)  # v = a = 0 of every output
+    xo, wo, prev = np.empty(n), np.empty(nd), state.copy()
+    o_rows, n_rows = out.rows, out.t.shape[0]
+    row = _store(x, zero, zero, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        out.q[row, ii] = q0[o_rows[ii]]
+        out.f[row, ii] = f0[o_rows[ii]]
+    cap = out.plan[S_CAPACITY]
+    t_prev = t
     k = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
     status = OK
     pending = 0  # solves of the phases since the last output
     flips = 0
     t0 = st.t_start
-    o_t, o_dt, o_x, o_q, o_f, o_w, o_state, o_solves = out.t, out.dt, out.x, out.q, out.f, out.w, out.state, out.solves
+    o_q, o_f = out.q, out.f
     while t < t_end - tiny:
         k_phase = k
         ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
@@ -346,7 +350,7 @@ def event_march(sys, st, ws, out, q0, f0):
             ta = tb
         # ---- outputs in (t, t_ev] (v = a = 0 stay as allocated) ----
         n_out = 0
-        while k < cap and (k + 1) * dt_out + t0 <= t_ev + tiny:
+        while k < cap and out.plan[S_ROWS] + 2 <= n_rows and (k + 1) * dt_out + t0 <= t_ev + tiny:
             tk = min((k + 1) * dt_out + t0, t_end)
             if n_out % 64 == 0:  # exact basis, then advanced by rotation (a few ulps per output)
                 _basis(tk, om, bb)
@@ -365,27 +369,27 @@ def event_march(sys, st, ws, out, q0, f0):
                 for c in range(ncol):
                     vec[c] += bj * G[j, c]
             for i in range(n):
-                o_x[k, i] = vec[i]
-            for r in range(nq):
-                o_q[k, r] = vec[n + r]
-                o_f[k, r] = vec[n + nq + r]
+                xo[i] = vec[i]
             for d in range(nd):
-                o_w[k, d] = vec[n + 2 * nq + d]
-                o_state[k, d] = state[d]
+                wo[d] = vec[n + 2 * nq + d]
             if k == k_phase + 1:  # the first output of a phase: did the state change?
                 for d in range(nd):
-                    if o_state[k, d] != o_state[k - 1, d]:
+                    if state[d] != prev[d]:
                         counters[C_STATE_CHANGES] += 1
                         break
-            o_t[k] = tk
-            o_dt[k] = tk - o_t[k - 1]
-            o_solves[k] = pending
+            for d in range(nd):
+                prev[d] = state[d]
+            row = _store(xo, zero, zero, wo, state, out, k, tk, tk - t_prev, pending)
+            for ii in range(o_rows.shape[0]):
+                o_q[row, ii] = vec[n + o_rows[ii]]
+                o_f[row, ii] = vec[n + nq + o_rows[ii]]
+            t_prev = tk
             pending = 0
+        if (k >= cap or out.plan[S_ROWS] + 2 > n_rows) and (k + 1) * dt_out + t0 <= t_ev + tiny:
+            status = 4  # CAPACITY: out of output points or rows
+            break
         if hit < 0:
             t = t_end
-            break
-        if k >= cap and t_ev < t_end - tiny:
-            status = 4  # CAPACITY
             break
         # ---- the transition at t_ev: every margin reaching zero with a negative slope ----
         _basis(t_ev, om, bb)
@@ -430,7 +434,6 @@ def event_march(sys, st, ws, out, q0, f0):
         t = t_ev
     if status != OK:
         counters[C_FAIL_STEP] = k + 1
-        if k + 1 <= cap:
-            out.t[k + 1] = t
+        out.times[S_FAIL] = t
     counters[C_STEPS] = k
     return status

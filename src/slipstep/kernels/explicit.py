@@ -38,7 +38,7 @@ from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
-    CAPACITY, NON_FINITE, OK, SINGULAR, _accept_contacts, _state_step_limit, _store,
+    CAPACITY, NON_FINITE, OK, S_CAPACITY, S_FAIL, S_ROWS, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
 from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.signals import evaluate_signal
@@ -76,7 +76,7 @@ class ExplicitWorkspace(NamedTuple):
     ss: np.ndarray  # stage states (discarded), int8
     lu: np.ndarray  # (n, n) factorised M (RK4) or M + dt/2 C (central difference)
     piv: np.ndarray  # int64 (n)
-    Minv: np.ndarray
+    mass_factor: np.ndarray  # L with M = L L^T (kernels/eigen.py)
     tmin_keys: np.ndarray  # int8 (cap, nd)
     tmin_used: np.ndarray  # bool (cap)
     tmin_value: np.ndarray  # (cap,) s
@@ -117,20 +117,21 @@ def explicit_march(sys, st, ws, out, q0, f0):
     x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
     gf, fe, p, rhs, xs, vs, kx, kv = ws.gf, ws.fe, ws.p, ws.rhs, ws.xs, ws.vs, ws.kx, ws.kv
     fs, w_s, ss, lu, piv = ws.fs, ws.ws_, ws.ss, ws.lu, ws.piv
-    tkeys, tused, tvalue, Minv = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.Minv
+    tkeys, tused, tvalue, mass_factor = ws.tmin_keys, ws.tmin_used, ws.tmin_value, ws.mass_factor
     counters = out.counters
     n = x.shape[0]
     nq = q1.shape[0]
     rk4 = st.solver == RK4
     adaptive = st.adaptive
     bound = st.divergence
-    cap = out.t.shape[0] - 1
-    for r in range(nq):
-        out.q[0, r] = q0[r]
-        out.f[0, r] = f0[r]
+    cap = out.plan[S_CAPACITY]
     t = st.t_start
     t_end = st.t_end
-    _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, 0, t, 0.0, 0)
+    o_rows = out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        out.q[row, ii] = q0[o_rows[ii]]
+        out.f[row, ii] = f0[o_rows[ii]]
     k = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
     lu_dt = np.nan
@@ -140,11 +141,11 @@ def explicit_march(sys, st, ws, out, q0, f0):
             status = INTERRUPTED
             counters[C_FAIL_STEP] = k
             break
-        if k >= cap:
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
             status = CAPACITY
             break
         if adaptive:
-            dt = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+            dt = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                                    st.step_factor, st.dt_max)
         else:
             dt = st.dt
@@ -208,7 +209,7 @@ def explicit_march(sys, st, ws, out, q0, f0):
             if status != OK or not adaptive or attempt == st.max_redo:
                 break
             # ---- redo rule: the state reached needs a smaller step ----
-            limit = _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
+            limit = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state1, tkeys, tused,
                                       tvalue, st.step_factor, st.dt_max)
             if limit >= dt * (1.0 - 1e-9):
                 break
@@ -217,7 +218,7 @@ def explicit_march(sys, st, ws, out, q0, f0):
         counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
-            out.t[k + 1] = t + dt
+            out.times[S_FAIL] = t + dt
             break
         # ---- accept ----
         for i in range(n):
@@ -228,10 +229,10 @@ def explicit_march(sys, st, ws, out, q0, f0):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        _store(x, v, a, w, state, out.t, out.dt, out.x, out.v, out.a, out.w, out.state, out.solves, k, t, dt, solves)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
         counters[C_PROGRESS] = k
-        for r in range(nq):
-            out.q[k, r] = q1[r]
-            out.f[k, r] = f1[r]
+        for ii in range(o_rows.shape[0]):
+            out.q[row, ii] = q1[o_rows[ii]]
+            out.f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status

@@ -64,7 +64,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.banded import band_contact_stiffness, band_is_diagonal, band_lambda_max, band_to_lu_storage
-from slipstep.kernels.borrow import borrowed
+from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
@@ -75,10 +75,11 @@ from slipstep.kernels.codes import (  # noqa: F401
     PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import contact_stiffness
+from slipstep.kernels.eigen import EIG_RTOL, MAX_BASIS, MAX_RESTARTS, largest_eigenvalue_modulus
 from slipstep.kernels.settings import (  # noqa: F401  (re-exported: the settings)
     MarchSettings, contact_table, march_settings, replace_settings, state_cache, step_vectors,
 )
-from slipstep.kernels.signals import evaluate_signal
+from slipstep.kernels.signals import evaluate_signal, harmonic_basis, signal_from_basis
 from slipstep.kernels import structure_ops as so
 from slipstep.kernels.structure_ops import BANDED, DENSE, LOW_RANK  # noqa: F401
 from slipstep.kernels.step_solvers import (  # noqa: F401
@@ -114,7 +115,7 @@ class Workspace(NamedTuple):
     qbase: np.ndarray
     Lin: np.ndarray
     J: np.ndarray
-    Minv: np.ndarray
+    mass_factor: np.ndarray  # L with M = L L^T (zero pivots: DOFs without mass), kernels/eigen.py
     key: np.ndarray  # int8 (2 nd): [S for K_D, S for dt]
     dt_state: np.ndarray  # int8 (nd)
     stick: np.ndarray  # int8 (nd) all STICK
@@ -128,7 +129,9 @@ class Workspace(NamedTuple):
     tmin_value: np.ndarray  # (cap,) s
     lin_dt: np.ndarray  # (1,) dt of the current Lin
     visited: np.ndarray  # int8 (max_state_iter + 1, nd): states of the last state iteration
-    mpiv: np.ndarray  # int64 (n) banded backend (issue 10): pivots of M's banded LU (held in Minv); (0,) otherwise
+    basis: np.ndarray  # (4, nh) the harmonic basis of the loads and motions (signals.harmonic_basis)
+    clock: np.ndarray  # (4,) its time, rotation step, rotations since the exact anchor, previous step
+    mpiv: np.ndarray  # int64 (n) banded backend (issue 10): pivots of M's banded LU (held in mass_factor); (0,) otherwise
     lr: LowRank  # the low-rank solve's arrays (placeholders in direct mode), see state_solve.py
 
 
@@ -144,6 +147,19 @@ class Outputs(NamedTuple):
     state: np.ndarray
     solves: np.ndarray
     counters: np.ndarray
+    step: np.ndarray  # int64 (rows,): the step stored in each row
+    dofs: np.ndarray  # int64: the kernel DOF of each x, v, a column (methods/save.py kernel_dofs)
+    rows: np.ndarray  # int64: the contact row of each q, f column
+    dirs: np.ndarray  # int64: the direction of each w, state column
+    plan: np.ndarray  # int64 (6,): S_CAPACITY steps, S_EVERY k; kept by _store: S_ROWS, S_LAST, S_GRID, S_NEXT
+    times: np.ndarray  # (3 + G,): S_FROM window start [s], S_FAIL time of a failed step [s], G given times, +inf
+
+
+# Outputs.plan and Outputs.times (the save plan of methods/save.py). S_ROWS rows kept, S_LAST the last
+# kept step, S_GRID the next given time, S_NEXT the next multiple of S_EVERY: set by Python before each
+# march (methods/simulation.reset_outputs: 0, -1, 0, 0; times[S_FAIL] = nan), then kept by _store.
+S_CAPACITY, S_EVERY, S_ROWS, S_LAST, S_GRID, S_NEXT = range(6)
+S_FROM, S_FAIL = 0, 1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -233,14 +249,24 @@ def _convergence_parameters(backend, sys, tol):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _loads_and_motions(sys, t1, signals, load_factor, fe1, p):
-    """f_e(t1) = f_var(t1) + load_factor f_const and p(t1) (p = 0 and f_var = 0 without signals)."""
+def _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p):
+    """f_e(t1) = f_var(t1) + load_factor f_const and p(t1) (p = 0 and f_var = 0 without signals).
+    Harmonic signals (no table, outside the ramp) from the rotated harmonic basis of
+    signals.harmonic_basis (no sin / cos call on a march of equal steps), others by
+    signals.evaluate_signal."""
     n = fe1.shape[0]
     if signals:
-        evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
-                        sys.force_table_value, sys.force_ramp, fe1)
-        evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
-                        sys.motion_table_value, sys.motion_ramp, p)
+        harmonic_basis(t1, sys.force_frequency, sys.motion_frequency, basis, clock)
+        if sys.force_table_time.shape[0] == 0 and not (sys.force_ramp > 0.0 and t1 < sys.force_ramp):
+            signal_from_basis(sys.force_sin, sys.force_cos, basis, 0, fe1)
+        else:
+            evaluate_signal(t1, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
+                            sys.force_table_value, sys.force_ramp, fe1)
+        if sys.motion_table_time.shape[0] == 0 and not (sys.motion_ramp > 0.0 and t1 < sys.motion_ramp):
+            signal_from_basis(sys.motion_sin, sys.motion_cos, basis, sys.force_frequency.shape[0], p)
+        else:
+            evaluate_signal(t1, sys.motion_frequency, sys.motion_sin, sys.motion_cos, sys.motion_table_time,
+                            sys.motion_table_value, sys.motion_ramp, p)
     else:
         for i in range(n):
             fe1[i] = 0.0
@@ -308,19 +334,16 @@ def _same(s1, s2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
+def _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
                       step_factor, dt_max):
     """dt limit of a state: step_factor * T_min(S), capped at dt_max; T_min cached per state,
-    T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8)."""
+    T_min = 2 pi / sqrt(max |eig(M^-1 (K + K_D(S)))|) (paper Eq. 8), the largest |eigenvalue| alone
+    to EIG_RTOL (kernels/eigen.py; mass_factor: L with M = L L^T)."""
     slot, found = find_slot(tkeys, tused, state)
     if not found:
         Keff = Kst.copy()
         contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, np.empty(0), np.empty(0), 1.0, Keff)
-        ev = np.linalg.eigvals(np.dot(Minv, Keff).astype(np.complex128))
-        wmax2 = 0.0
-        for i in range(ev.shape[0]):
-            if abs(ev[i]) > wmax2:
-                wmax2 = abs(ev[i])
+        wmax2 = largest_eigenvalue_modulus(Keff, mass_factor, EIG_RTOL, MAX_BASIS, MAX_RESTARTS)
         tvalue[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
     return min(step_factor * tvalue[slot], dt_max)
 
@@ -328,7 +351,7 @@ def _state_step_limit(Kst, Minv, A, nrow, lcode, lpar, fdir, ndir, trow, kt, sta
 @njit(cache=True, nogil=True, error_model="numpy")
 def _state_step_limit_banded(sys, ws, cl, state, step_factor, dt_max):
     """:func:`_state_step_limit` for the banded backend: omega_max^2 of K + K_D(S) against M by
-    Arnoldi on the band (kernels.banded.band_lambda_max; M^-1 by its banded LU in ws.Minv,
+    Arnoldi on the band (kernels.banded.band_lambda_max; M^-1 by its banded LU in ws.mass_factor,
     pivots ws.mpiv), cached per state."""
     slot, found = find_slot(ws.tmin_keys, ws.tmin_used, state)
     if not found:
@@ -338,7 +361,7 @@ def _state_step_limit_banded(sys, ws, cl, state, step_factor, dt_max):
         band_to_lu_storage(sys.Kb, kl, ku, Keff)
         band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, sys.A_ptr, sys.A_idx, sys.A_val, state,
                                np.empty(0), np.empty(0), 1.0, Keff, kl + ku)
-        wmax2 = band_lambda_max(sys.Mb, Keff, kl, ku, ws.Minv, ws.mpiv, band_is_diagonal(sys.Mb, ku))
+        wmax2 = band_lambda_max(sys.Mb, Keff, kl, ku, ws.mass_factor, ws.mpiv, band_is_diagonal(sys.Mb, ku))
         ws.tmin_value[slot] = 2.0 * np.pi / np.sqrt(wmax2) if wmax2 > 0.0 else np.inf
     return min(step_factor * ws.tmin_value[slot], dt_max)
 
@@ -349,7 +372,7 @@ def _limit_of(sys, ws, cl, state, st):
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
     if st.structure == so.BANDED:  # banded backend (issue 10): T_min by Arnoldi on the band
         return _state_step_limit_banded(sys, ws, cl, state, st.step_factor, st.dt_max)
-    return _state_step_limit(sys.K, ws.Minv, sys.A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, ws.tmin_keys,
+    return _state_step_limit(sys.K, ws.mass_factor, sys.A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, ws.tmin_keys,
                              ws.tmin_used, ws.tmin_value, st.step_factor, st.dt_max)
 
 
@@ -386,16 +409,15 @@ def march(sys, st, ws, out, q0, f0):
     backend = st.structure
     counters = out.counters
     n = x.shape[0]
-    nq = A.shape[0]
     nd = state.shape[0]
     beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
-    conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
+    own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
     if backend == so.BANDED:  # banded backend (issue 10): A in CSR, M in band storage
-        kd_stick = so.stick_diagonal_banded(sys)
+        own_kd = so.stick_diagonal_banded(sys)
     else:
-        kd_stick = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
-                                   sys.tangential_row, sys.kt)
-    mdiag = so.mass_diagonal(backend, sys)
+        own_kd = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
+                                 sys.tangential_row, sys.kt)
+    own_mdiag = so.mass_diagonal(backend, sys)
     state_rtol = st.state_rtol
     singular_rtol = st.singular_rtol
     solver = st.solver
@@ -408,18 +430,16 @@ def march(sys, st, ws, out, q0, f0):
     has_damping = so.has_nonzero(backend, sys, 1)
     has_circle = np.any(cl.lcode == LAW_CIRCLE)
     has_stiffness = so.has_nonzero(backend, sys, 2)
-    acc_pred = np.empty(n)
-    vel_pred = np.empty(n)
-    cap = out.t.shape[0] - 1
+    own_pred = np.empty((2, n))
+    cap = out.plan[S_CAPACITY]
     # ---- initial point ----
-    for rr in range(nq):
-        out.q[0, rr] = q0[rr]
-        out.f[0, rr] = f0[rr]
     t = st.t_start
     t_end = st.t_end
-    o_t, o_dt, o_x, o_v, o_a, o_q, o_f, o_w, o_state, o_solves = (out.t, out.dt, out.x, out.v, out.a, out.q, out.f,
-                                                                  out.w, out.state, out.solves)
-    _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, 0, t, 0.0, 0)
+    o_q, o_f, o_rows = out.q, out.f, out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        o_q[row, ii] = q0[o_rows[ii]]
+        o_f[row, ii] = f0[o_rows[ii]]
     for d in range(nd):
         dt_state[d] = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
@@ -428,7 +448,10 @@ def march(sys, st, ws, out, q0, f0):
     last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
     stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
     tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
-    tan_state = np.full(nd, -1, np.int8)
+    own_tan = np.full(nd, -1, np.int8)
+    # the arrays allocated here, borrowed too (kernels/borrow.py; kept alive to the end below)
+    conv, kd_stick, mdiag, tan_state = borrowed(own_conv), borrowed(own_kd), borrowed(own_mdiag), borrowed(own_tan)
+    acc_pred, vel_pred = borrowed(own_pred[0]), borrowed(own_pred[1])
     okS = False
     luS = lus[0]
     pivS = pivs[0]
@@ -438,6 +461,8 @@ def march(sys, st, ws, out, q0, f0):
     dt_state_limit = 0.0  # step limit of dt_state (adaptive)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
     ws.lin_dt[0] = np.nan
+    basis, clock = ws.basis, ws.clock
+    clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
     accuracy = st.rtol > 0.0 and n_preload == 0 and inertia
     err_tol = st.rtol * st.err_scale
     dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
@@ -447,7 +472,7 @@ def march(sys, st, ws, out, q0, f0):
             status = INTERRUPTED
             counters[C_FAIL_STEP] = k
             break
-        if k >= cap:
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
             status = CAPACITY
             break
         # ---- step size (fixed, or by contact state; the accuracy step) ----
@@ -479,7 +504,7 @@ def march(sys, st, ws, out, q0, f0):
                 ws.lin_dt[0] = dt
                 conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, Lin, kfac, kd_stick)
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
-            _loads_and_motions(sys, t1, signals, load_factor, fe1, p)
+            _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p)
             so.gather_state(backend, sys, x, p, qbase)
             _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf,
                            fe1, acc_pred, vel_pred, r0)
@@ -527,7 +552,7 @@ def march(sys, st, ws, out, q0, f0):
             dt_acc = dt_next
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
-            out.t[k + 1] = t + dt if n_preload == 0 else t
+            out.times[S_FAIL] = t + dt if n_preload == 0 else t
             break
         # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
         _accept(mdiag, inertia, a0, c1, a2, a3, b1, b2, dt, dx, x, v, a, fe, gf, fe1, gf1)
@@ -536,25 +561,53 @@ def march(sys, st, ws, out, q0, f0):
         if n_preload == 0:
             t += dt
         k += 1
-        _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
         counters[C_PROGRESS] = k
-        for rr in range(nq):
-            o_q[k, rr] = q1[rr]
-            o_f[k, rr] = f1[rr]
+        for ii in range(o_rows.shape[0]):
+            o_q[row, ii] = q1[o_rows[ii]]
+            o_f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
+    keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
     return status
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _store(x, v, a, w, state, o_t, o_dt, o_x, o_v, o_a, o_w, o_state, o_solves, k, t, dt, solves):
-    """Write the carried state as output point k."""
-    o_t[k] = t
-    o_dt[k] = dt
-    o_solves[k] = solves
-    for i in range(x.shape[0]):
-        o_x[k, i] = x[i]
-        o_v[k, i] = v[i]
-        o_a[k, i] = a[i]
-    for d in range(w.shape[0]):
-        o_w[k, d] = w[d]
-        o_state[k, d] = state[d]
+def _store(x, v, a, w, state, out, k, t, dt, solves):
+    """Write the carried state of step k (time t) into the pending row out.plan[S_ROWS] (the
+    saved DOFs and directions) and keep it, or leave it pending (overwritten by the next step),
+    by the save plan (methods/save.py): every S_EVERY-th step from the window start
+    times[S_FROM] (the pending step before the window is kept with its first step), or, with
+    given times, the two step ends around each given time (one given time passed per step: a
+    step holding several keeps the following pairs too, at most two rows per given time).
+    Returns the row written."""
+    # branch-free (a branch here costs 0.2 us per step: numba then keeps the loop's array refcounts)
+    plan, times = out.plan, out.times
+    given = np.int64(times.shape[0] > 3)  # given times (the last entry is an +inf sentinel)
+    g = plan[S_GRID]
+    cross = np.int64(times[2 + g] <= t)  # step k reached given time g: keep it and step k - 1
+    plan[S_GRID] = g + cross
+    inside = np.int64(t >= times[S_FROM])
+    hit = np.int64(k == plan[S_NEXT])  # a multiple of S_EVERY
+    plan[S_NEXT] += hit * plan[S_EVERY]
+    first = inside * np.int64(plan[S_LAST] < 0)  # the first step of the window (nothing kept yet)
+    keep = given * cross + (1 - given) * inside * (hit | first)
+    prev = np.int64(k > 0) * np.int64(plan[S_LAST] != k - 1) * (given * cross + (1 - given) * first)
+    j = plan[S_ROWS] + prev  # the pending row holds step k - 1: kept with step k when prev
+    plan[S_LAST] = keep * k + (1 - keep) * plan[S_LAST]
+    plan[S_ROWS] = j + keep
+    out.step[j] = k
+    out.t[j] = t
+    out.dt[j] = dt
+    out.solves[j] = solves
+    o_x, o_v, o_a, dofs = out.x, out.v, out.a, out.dofs
+    for ii in range(dofs.shape[0]):
+        i = dofs[ii]
+        o_x[j, ii] = x[i]
+        o_v[j, ii] = v[i]
+        o_a[j, ii] = a[i]
+    o_w, o_state, dirs = out.w, out.state, out.dirs
+    for ii in range(dirs.shape[0]):
+        d = dirs[ii]
+        o_w[j, ii] = w[d]
+        o_state[j, ii] = state[d]
+    return j

@@ -20,7 +20,7 @@ from numba import njit
 
 from slipstep.kernels.codes import C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 from slipstep.kernels.codes import STATE_CYCLING
-from slipstep.kernels.contact import compatible, coupled, law, piecewise_law, scatter
+from slipstep.kernels.contact import compatible_law, coupled, law, piecewise_law, scatter
 from slipstep.kernels import structure_ops as so
 
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
@@ -447,9 +447,8 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
             status = NON_FINITE
             break
         local_coordinates(backend, so.csr_of(sys), A, qbase, dx, q1)
-        if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-            piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-            so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)
+        if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
+            so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law of the postulate at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -533,9 +532,8 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
             status = NON_FINITE
             break
         _local_coordinates_dense(A, qbase, dx, q1)
-        if compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale):
-            piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-            scatter(AT, f1, gf1)
+        if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
+            scatter(AT, f1, gf1)  # f1, w1: the law of the postulate at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)

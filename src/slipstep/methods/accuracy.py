@@ -1,5 +1,5 @@
-"""The step rule's accuracy side: stability limits over the visitable contact states, the
-step-doubling estimate of the time-discretisation error, and the divergence test.
+"""The step rule's accuracy side: the step-doubling estimate of the time-discretisation
+error, the default rule's refinement of the step, and the divergence test.
 
 Error estimate (step doubling, Richardson). Newmark / HHT / generalised alpha are second
 order, also across stick-slip transitions for the loop energy (measured: the loop-energy
@@ -14,7 +14,7 @@ dissipated energy per cycle (friction, last period, all contacts) and the peak c
 force over the last period, both relative. Explicit schemes cannot double their step
 (stability): their twin halves it, err ~ (Q_dt - Q_dt/2) * 4/3.
 
-Default step rule (item 4 of issue 8; README "Methods"):
+Default step rule (item 4 of issue 8; README "Methods"; the limits: methods/step_control.py):
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
     then, while the step-doubling estimate at dt exceeds DEFAULT_TARGET = 0.5 % on the loop
     energy, dt = dt sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period,
@@ -24,7 +24,6 @@ A run whose final estimate exceeds WARN_LIMIT = 1 % warns and names the estimate
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 
@@ -32,7 +31,8 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
-from slipstep.kernels.contact import LIFT, STICK
+from slipstep.methods.save import Save, contact_columns
+from slipstep.methods.step_control import highest_frequency  # noqa: F401  (re-exported)
 
 DEFAULT_TARGET = 0.005
 WARN_LIMIT = 0.01
@@ -40,55 +40,27 @@ WARN_LIMIT = 0.01
 #: PILOT_PERIODS periods, whatever the run's length: the step does not depend on it)
 PILOT_ROUNDS = 3
 PILOT_PERIODS = 3
-#: all state combinations are searched for the highest frequency up to this many directions
-MAX_ENUMERATED_DIRECTIONS = 5
-
-
-def omega_max(cs, state) -> float:
-    """omega_max^2 = max |eig(M^-1 (K + K_D(S)))| (paper Eq. 8) of one contact state [rad/s]
-    (massless DOFs condensed out: slipstep.methods.simulation.state_t_min)."""
-    from slipstep.methods.simulation import state_t_min
-
-    t_min, _ = state_t_min(cs, np.asarray(state, np.int8))
-    return 2.0 * math.pi / t_min if t_min > 0 else math.inf
-
-
-def highest_frequency(cs) -> float:
-    """The highest omega_max over the contact states a march can visit [rad/s]: every
-    combination of stick, slip+, slip- and lift-off (lift-off shared by a contact's
-    directions) for up to MAX_ENUMERATED_DIRECTIONS directions, else full stick and the
-    uniform slip states (slip couples mu k_n into the tangential rows and can raise it)."""
-    nd = cs.kt.shape[0]
-    owner = np.asarray(cs.direction_contact)
-    if nd <= MAX_ENUMERATED_DIRECTIONS:
-        states = itertools.product((STICK, 2, 3, LIFT), repeat=nd)
-    else:
-        states = [(s,) * nd for s in (STICK, 2, 3)]
-    best = 0.0
-    for st in states:
-        st = np.array(st, np.int8)
-        lifted = {owner[d] for d in range(nd) if st[d] == LIFT}
-        if any((st[d] == LIFT) != (owner[d] in lifted) for d in range(nd)):
-            continue  # lift-off is a contact's state, not a direction's
-        best = max(best, omega_max(cs, st))
-    return best
 
 
 def loop_energy(out, n_steps: int, cs, period: float | None) -> tuple[float, float]:
     """(friction energy dissipated over the last period [J], peak |contact force| over it [N])
     from kernel outputs: D = sum_d int T_d dw_d (trapezoid rule, interpolated at the start
-    of the period, as slipstep.post.energy.friction_energy_per_period)."""
-    t = out.t[: n_steps + 1]
+    of the period, as slipstep.post.energy.friction_energy_per_period). ``out`` must hold
+    every contact at every step of the last period (``saved_rows`` rows: slipstep.methods.save)."""
+    from slipstep.methods.simulation import saved_rows
+
+    k = saved_rows(out, n_steps)
+    t = out.t[:k]
     if period is None or t[-1] - t[0] < period * (1 - 1e-9):
         period = t[-1] - t[0]
-    T = out.f[: n_steps + 1][:, np.asarray(cs.tangential_row)]
-    w = out.w[: n_steps + 1]
+    T = out.f[:k][:, contact_columns(out, cs)[0]]
+    w = out.w[:k]
     inc = (0.5 * (T[1:] + T[:-1]) * np.diff(w, axis=0)).sum(axis=1)
     cum = np.concatenate([[0.0], np.cumsum(inc)])
     start = t[-1] - period
     energy = cum[-1] - np.interp(start, t, cum)
     last = t >= start - 1e-12 * period
-    peak = float(np.abs(out.f[: n_steps + 1][last]).max(initial=0.0))
+    peak = float(np.abs(out.f[:k][last]).max(initial=0.0))
     return float(energy), peak
 
 
@@ -117,8 +89,10 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
     k = n_steps + 1
     x, v = out.x[:k], out.v[:k]
     f = out.f[:k]
-    if cs.banded:  # banded backend (issue 10): the quadratic forms on the band
+    if cs.banded:  # banded backend (issue 10): the quadratic forms on the band, in the kernel's DOF order
         from slipstep.kernels.banded import band_quadratic_forms
+
+        x, v = x[:, cs.dof_order], v[:, cs.dof_order]  # saved columns are in the user's order
 
         E = np.empty(k)
         ek = np.empty(k)
@@ -145,6 +119,9 @@ def check_divergence(runner) -> Status:
     from slipstep.methods.simulation import _force_signal, _motion_signal
     from slipstep.model.excitation import evaluate_compiled
 
+    plan = getattr(runner, "save_plan", None)
+    if plan is not None and not (plan.all_dofs and plan.all_contacts and plan.every_step):
+        return runner.status  # needs every DOF and contact at every step (not made; NON_FINITE still is)
     if runner.status == Status.OK:
         cs, out = runner.compiled, runner.out
         n = int(out.counters[C_STEPS])
@@ -176,6 +153,7 @@ def twin(sim, method: str, **changes):
         "error_estimate": False,
         "max_state_iterations": opt.max_state_iterations,
         "step_ratio": opt.step_ratio,
+        "save": Save(dofs="none"),  # the loop energy needs the contacts at every step only
     }
     base.update(changes)
     if sim.method.massless:
@@ -207,6 +185,8 @@ def pilot_step(sim, dt0: float) -> float:
         if fine is None or coarse is None:
             return dt
         est = richardson(fine[1], coarse[1])
+        if not math.isfinite(est):  # no loop energy at dt (nothing slips): nothing to refine on
+            return dt
         if not est > DEFAULT_TARGET:
             if abs(duration - sim.t_end) <= 1e-12 * duration:
                 sim._coarse = (2 * dt, coarse)  # reused by the final estimate
@@ -223,6 +203,9 @@ def estimate(sim) -> dict:
     nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan, "error_estimate_method": "none"}
     if not sim.options.error_estimate or sim.status != Status.OK or sim.period is None:
         return nan
+    plan = sim.save_plan
+    if not (plan.all_contacts and plan.every == 1 and plan.times is None):
+        return dict(nan, error_estimate_method="none (needs every contact at every step: the save option)")
     n = int(sim.out.counters[C_STEPS])
     energy, peak = loop_energy(sim.out, n, sim.compiled, sim.period)
     opt = sim.options

@@ -123,13 +123,10 @@ def initial_acceleration(M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return a
 
 
-def condensed_eigenvalues(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """omega^2 of the dynamic part with the DOFs ``idx`` condensed (module docstring);
-    raises InputError when K_mm(S) is singular (no quasi-static equilibrium of those DOFs)."""
-    Keff = cs.K.copy()
-    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
-    d = np.setdiff1d(np.arange(cs.K.shape[0]), idx)
-    Kmm = Keff[np.ix_(idx, idx)]
+def check_held(Keff: np.ndarray, idx: np.ndarray) -> None:
+    """Refuse a contact state in which the DOFs ``idx`` have no quasi-static equilibrium:
+    K_mm(S) = (K + K_D(S))_mm singular (smallest singular value <= 1e-12 of the largest)."""
+    Kmm = np.asarray(Keff)[np.ix_(idx, idx)]
     sv = np.linalg.svd(Kmm, compute_uv=False)
     if sv.size and sv.min() <= 1e-12 * max(sv.max(), 1e-300):
         raise InputError(
@@ -138,15 +135,19 @@ def condensed_eigenvalues(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray
             "(their stiffness K_mm + K_D,mm is singular: held by nothing)",
             "treat only DOFs that the contacts hold in full stick",
         )
+
+
+def condensed_eigenvalues(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Every omega^2 of the dynamic part with the DOFs ``idx`` condensed (module docstring; the
+    step needs only the largest: slipstep.methods.step_control.state_t_min); raises InputError
+    when K_mm(S) is singular (no quasi-static equilibrium of those DOFs)."""
+    Keff = cs.K.copy()
+    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
+    check_held(Keff, idx)
+    d = np.setdiff1d(np.arange(cs.K.shape[0]), idx)
+    Kmm = Keff[np.ix_(idx, idx)]
     Ks = Keff[np.ix_(d, d)] - Keff[np.ix_(d, idx)] @ np.linalg.solve(Kmm, Keff[np.ix_(idx, d)])
     return np.linalg.eigvals(np.linalg.solve(cs.M[np.ix_(d, d)], Ks))
-
-
-def condensed_t_min(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray) -> tuple[float, np.ndarray]:
-    """T_min = 2 pi / sqrt(max |omega^2|) of the condensed dynamic part, and the eigenvalues."""
-    ev = condensed_eigenvalues(cs, state, idx)
-    wmax2 = float(np.abs(ev).max(initial=0.0))
-    return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), ev
 
 
 def internal_frequencies(cs: CompiledSystem, state: np.ndarray, idx: np.ndarray) -> np.ndarray:

@@ -1,10 +1,12 @@
 """Memory estimate of a march, checked before any array is allocated.
 
-A march stores one output point per step (kernels.march.Outputs):
+A march stores one output point per saved step (kernels.march.Outputs; what is saved:
+slipstep.methods.save, the ``save`` option):
 
-    bytes per point = 8 (t) + 8 (dt) + 8 (solves) + 3 * 8 n (x, v, a) + 2 * 8 nq (q, f) + 9 nd (w, state)
+    bytes per point = 8 (t) + 8 (dt) + 8 (solves) + 8 (step) + 3 * 8 n (x, v, a) + 2 * 8 nq (q, f) + 9 nd (w, state)
 
-with n DOFs, nq local contact coordinates and nd tangential directions. The result Dataset
+with n the saved DOFs, nq the saved local contact coordinates and nd the saved tangential
+directions; the points are the saved steps (slipstep.methods.save.rows_needed), not the steps. The result Dataset
 copies the stored points once and the evaluated prescribed motion adds 8 m per point, so the
 peak of a run and its save is about ``PEAK_FACTOR`` times the output buffer (measured:
 ``benchmarks/bench_memory.py``), plus the workspace (the per-state factorisation cache).
@@ -67,7 +69,7 @@ def memory_limit(max_memory: float | None = None) -> float:
 def point_bytes(n: int, nq: int, nd: int, m: int = 0) -> int:
     """Bytes of one stored output point (see the module docstring); m motion components
     are evaluated for the Dataset."""
-    return 24 + 24 * n + 16 * nq + 9 * nd + 8 * m
+    return 32 + 24 * n + 16 * nq + 9 * nd + 8 * m
 
 
 def run_bytes(points: int, n: int, nq: int, nd: int, m: int, workspace: int) -> float:

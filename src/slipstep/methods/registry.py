@@ -1,16 +1,17 @@
-"""The paper's methods as named combinations of a step solver and a step control.
+"""The one registry of what slipstep can march with: methods (a step solver and a step
+control, the paper's Methods 1-4 and their variants) x time-integration schemes (paper App. A)
+x variants (fixed / adaptive step, Newton / piecewise-linear solve).
 
-| name                       | paper      | step solver (kernels.march) | step control          |
-|----------------------------|------------|-----------------------------|-----------------------|
-| newmark                    | Method 1   | modified Newton, stick J    | fixed r T_min(stick)/pi |
-| newmark-adaptive           | Method 2   | modified Newton, J(S) of the step's state | contact-state adaptive |
-| piecewise-linear           | Method 3   | piecewise linear            | fixed                 |
-| piecewise-linear-adaptive  | Method 2+3 | piecewise linear            | contact-state adaptive |
-| quasi-static               | Method 4   | piecewise linear, no inertia| fixed, steps per period |
-| full-newton                | (option)   | Newton, current-state J     | fixed                 |
-| newmark-adaptive-stick     | (variant)  | modified Newton, stick J    | contact-state adaptive |
-| quasi-static-events        | (beyond)   | exact events, kernels/events.py | outputs every period/steps_per_period |
-| quasi-static-dofs          | Method 3+4 | piecewise linear, chosen DOFs without inertia (methods/massless.py) | fixed, T_min of the dynamic part |
+* :data:`METHODS`: name -> :class:`Method` (paper label, solver code, step control, the
+  scheme variant it is); :data:`ALIASES`: the paper's numbers.
+* :data:`SCHEMES`: name -> :class:`SchemeEntry` (the integrator class, its parameters with THE
+  defaults, used by ``slipstep.newmark()/hht()/generalized_alpha()`` and by the integrator
+  classes alike); :data:`SCHEME_ALIASES`.
+* :data:`VARIANTS`, :data:`VARIANT_METHODS`: a scheme's variant -> the method that runs it.
+
+The CLI help (``slipstep run --help``), ``slipstep methods`` and the README's method and scheme
+tables are generated from here: ``slipstep methods --markdown`` prints the README tables
+(tests/test_registry.py checks the README against it).
 """
 
 from __future__ import annotations
@@ -30,6 +31,16 @@ class Method:
     quasi_static: bool
     description: str
     massless: bool = False  # the DOFs of option massless_dofs without inertia (methods/massless.py)
+
+    @property
+    def variant(self) -> str | None:
+        """The scheme variant this method is (:data:`VARIANT_METHODS`), None if none."""
+        return next((v for v, m in VARIANT_METHODS.items() if m == self.name), None)
+
+    @property
+    def number(self) -> str | None:
+        """The paper's number of the method ('1', '2+3', ...), None if it has none."""
+        return next((k for k, v in ALIASES.items() if v == self.name and k not in HIDDEN_ALIASES), None)
 
 
 METHODS: dict[str, Method] = {
@@ -126,9 +137,126 @@ ALIASES = {
     "34": "quasi-static-dofs",
 }
 
+HIDDEN_ALIASES = ("23", "34")  # accepted spellings not shown in the tables
+
 PAPER_METHODS = ("newmark", "newmark-adaptive", "piecewise-linear", "piecewise-linear-adaptive", "quasi-static")
 #: What ``slipstep compare`` runs by default: the paper's methods and the event-driven one beyond it.
 COMPARE_METHODS = PAPER_METHODS + ("quasi-static-events",)
+
+
+#: a scheme's variants, and the method that runs each (implicit schemes: kernels/march.py)
+VARIANTS = ("fixed", "adaptive", "piecewise-linear", "both")
+VARIANT_METHODS = {
+    "fixed": "newmark",
+    "adaptive": "newmark-adaptive",
+    "piecewise-linear": "piecewise-linear",
+    "both": "piecewise-linear-adaptive",
+}
+#: explicit schemes solve nothing for the contacts: no piecewise-linear variants
+EXPLICIT_VARIANTS = ("fixed", "adaptive")
+
+
+@dataclass(frozen=True)
+class SchemeEntry:
+    """A time-integration scheme: its integrator class (``module:Class``), its parameters in
+    call order with their defaults, and what it is in a few words (kind, order and step limit
+    are the class's: slipstep.integrators.base)."""
+
+    name: str
+    cls: str
+    kind: str  # 'implicit' (kernels/march.py, every variant) or 'explicit' (kernels/explicit.py)
+    parameters: tuple[tuple[str, float], ...] = ()
+    summary: str = ""
+
+    @property
+    def variants(self) -> tuple[str, ...]:
+        return VARIANTS if self.kind == "implicit" else EXPLICIT_VARIANTS
+
+    def default(self, parameter: str) -> float:
+        return dict(self.parameters)[parameter]
+
+    def integrator_class(self):
+        import importlib
+
+        module, name = self.cls.split(":")
+        return getattr(importlib.import_module(module), name)
+
+
+SCHEMES: dict[str, SchemeEntry] = {
+    e.name: e
+    for e in (
+        SchemeEntry(
+            "newmark",
+            "slipstep.integrators.newmark:Newmark",
+            "implicit",
+            (("beta", 0.25), ("gamma", 0.5)),
+            "Newmark-beta; the default average acceleration (1/4, 1/2) is the paper's scheme",
+        ),
+        SchemeEntry(
+            "linear-acceleration",
+            "slipstep.integrators.newmark:LinearAcceleration",
+            "implicit",
+            (),
+            "Newmark beta = 1/6, gamma = 1/2 (conditionally stable, omega dt <= 2 sqrt 3)",
+        ),
+        SchemeEntry(
+            "hht",
+            "slipstep.integrators.hht:HHT",
+            "implicit",
+            (("alpha", 0.1),),
+            "Hilber-Hughes-Taylor alpha, 0 <= alpha <= 1/3: numerical damping of the high frequencies",
+        ),
+        SchemeEntry(
+            "generalized-alpha",
+            "slipstep.integrators.generalized_alpha:GeneralizedAlpha",
+            "implicit",
+            (("rho_inf", 0.8),),
+            "generalised alpha (Chung & Hulbert 1993), high-frequency spectral radius 0 <= rho_inf <= 1",
+        ),
+        SchemeEntry(
+            "central-difference",
+            "slipstep.integrators.central_difference:CentralDifference",
+            "explicit",
+            (),
+            "explicit central difference (Newmark beta = 0, gamma = 1/2)",
+        ),
+        SchemeEntry(
+            "rk4",
+            "slipstep.integrators.rk4:RK4",
+            "explicit",
+            (),
+            "explicit classical Runge-Kutta 4 on the first-order form [x, v]",
+        ),
+    )
+}
+
+SCHEME_ALIASES = {
+    "generalised-alpha": "generalized-alpha",
+    "gen-alpha": "generalized-alpha",
+    "alpha": "generalized-alpha",
+    "hht-alpha": "hht",
+    "cd": "central-difference",
+    "central": "central-difference",
+    "runge-kutta": "rk4",
+    "runge-kutta-4": "rk4",
+    "average-acceleration": "newmark",
+}
+
+
+def scheme_default(scheme: str, parameter: str) -> float:
+    """The default of one scheme parameter (the one value every entry point uses)."""
+    return SCHEMES[scheme].default(parameter)
+
+
+def scheme_spec(entry: SchemeEntry) -> str:
+    """'hht(alpha=0.1)': the scheme with its defaults, as ``--scheme`` / ``simulate`` read it."""
+    if not entry.parameters:
+        return entry.name
+    return f"{entry.name}({', '.join(f'{p}={_number(v)}' for p, v in entry.parameters)})"
+
+
+def _number(v: float) -> str:
+    return f"{v:g}"
 
 
 def get_method(name: str) -> Method:
@@ -140,3 +268,91 @@ def get_method(name: str) -> Method:
             f"use one of {', '.join(METHODS)} (or the paper's numbers 1, 2, 3, 2+3, 4)",
         )
     return METHODS[key]
+
+
+# -- generated texts: CLI help, `slipstep methods`, README tables --------------------------
+def method_choices() -> str:
+    """'newmark|1, newmark-adaptive|2, ..., full-newton, ...': every method with its number."""
+    return ", ".join(m.name + (f"|{m.number}" if m.number else "") for m in METHODS.values())
+
+
+def scheme_choices() -> str:
+    """'newmark(beta=0.25, gamma=0.5), linear-acceleration, hht(alpha=0.1), ...' with the defaults."""
+    return ", ".join(scheme_spec(e) for e in SCHEMES.values())
+
+
+def methods_rows() -> list[tuple[str, str, str, str]]:
+    """(name, paper label, number or '-', description) per method, in registry order."""
+    return [(m.name, m.paper_label, m.number or "-", m.description) for m in METHODS.values()]
+
+
+def schemes_rows() -> list[tuple[str, ...]]:
+    """(spec with defaults, kind, order, step limit factor, Omega_crit, variants, summary) per
+    scheme (imports the integrators: numpy and numba)."""
+    rows = []
+    for e in SCHEMES.values():
+        integ = e.integrator_class()()
+        if integ.kind != e.kind or tuple(integ.variants) != e.variants:
+            raise RuntimeError(f"scheme {e.name}: the registry says {e.kind}, the class {integ.kind}")
+        omega_crit = integ.omega_crit if integ.kind == "explicit" else integ.scheme().omega_crit
+        stability = "unconditional" if omega_crit == float("inf") else f"{omega_crit:.4g}"
+        rows.append(
+            (
+                scheme_spec(e),
+                integ.kind,
+                str(integ.order),
+                f"{integ.step_limit_factor:.4g}",
+                stability,
+                ", ".join(integ.variants),
+                e.summary,
+            )
+        )
+    return rows
+
+
+def _markdown(head: tuple[str, ...], rows) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def methods_markdown() -> str:
+    """The README's methods table (``slipstep methods --markdown``)."""
+    rows = [(f"`{n}`", p, num, d) for n, p, num, d in methods_rows()]
+    return _markdown(("name", "paper", "`--method` number", "what it does"), rows)
+
+
+def schemes_markdown() -> str:
+    """The README's schemes table (``slipstep methods --markdown``)."""
+    rows = [(f"`{r[0]}`",) + r[1:] for r in schemes_rows()]
+    head = (
+        "scheme (`--scheme`, defaults)",
+        "kind",
+        "order",
+        "step limit dt <= factor T_min",
+        "stability Omega_crit",
+        "variants",
+        "what it is",
+    )
+    return _markdown(head, rows)
+
+
+#: the README's generated blocks: (start marker, end marker, generator)
+README_BLOCKS = (
+    ("<!-- methods table: generated by `slipstep methods --markdown` -->", "<!-- end of methods table -->", "methods"),
+    ("<!-- schemes table: generated by `slipstep methods --markdown` -->", "<!-- end of schemes table -->", "schemes"),
+)
+
+
+def readme_blocks() -> dict[str, str]:
+    """{'methods': table, 'schemes': table}: the README's generated tables."""
+    return {"methods": methods_markdown(), "schemes": schemes_markdown()}
+
+
+def update_readme(text: str) -> str:
+    """``text`` (the README) with each generated block replaced by the current table."""
+    blocks = readme_blocks()
+    for start, end, key in README_BLOCKS:
+        a, b = text.index(start) + len(start), text.index(end)
+        text = text[:a] + "\n" + blocks[key] + "\n" + text[b:]
+    return text

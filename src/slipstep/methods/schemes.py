@@ -11,64 +11,64 @@ All are the generalised-alpha balance of :mod:`slipstep.kernels.march` with para
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from fractions import Fraction
 
 from slipstep.errors import InputError
+from slipstep.methods import step_control as SC
+from slipstep.methods.registry import scheme_default
 
 
 @dataclass(frozen=True)
 class Scheme:
     name: str
-    beta: float = 0.25
-    gamma: float = 0.5
+    beta: float = scheme_default("newmark", "beta")
+    gamma: float = scheme_default("newmark", "gamma")
     alpha_m: float = 0.0
     alpha_f: float = 0.0
 
     @property
     def step_limit_factor(self) -> float:
-        """dt <= factor * T_min: the convergence limit of the fixed-point (modified Newton)
-        iteration of a Newmark step, dt < T_min / (2 pi sqrt(beta)) (paper 4.2)."""
-        return 1.0 / (2.0 * math.pi * math.sqrt(self.beta))
+        """dt <= factor * T_min, factor = 1 / (2 pi sqrt(beta)): the modified-Newton convergence
+        limit (paper 4.2; slipstep.methods.step_control.convergence_factor)."""
+        return SC.convergence_factor(self.beta)
 
     @property
     def omega_crit(self) -> float:
-        """Stability limit Omega_crit = omega_max dt of the linear step (inf: unconditionally stable).
-
-        Newmark (Hughes 1987, 9.1): unconditionally stable for 2 beta >= gamma >= 1/2; otherwise
-        stable for omega dt <= Omega_crit = 1 / sqrt(gamma/2 - beta) (undamped, the binding case):
-        beta = 1/6: 2 sqrt(3) = 3.46; beta = 1/12: sqrt(6) = 2.45. HHT (alpha in [0, 1/3]) and
-        generalised alpha (rho_inf in [0, 1]) satisfy alpha_m <= alpha_f <= 1/2,
-        beta >= 1/4 + (alpha_f - alpha_m)/2 and are unconditionally stable (Chung & Hulbert 1993)."""
-        if self.alpha_m != 0.0 or self.alpha_f != 0.0 or 2.0 * self.beta >= self.gamma - 1e-14:
-            return math.inf
-        return 1.0 / math.sqrt(self.gamma / 2.0 - self.beta)
+        """Stability limit Omega_crit = omega_max dt (inf: unconditionally stable;
+        slipstep.methods.step_control.newmark_omega_crit)."""
+        return SC.newmark_omega_crit(self.beta, self.gamma, self.alpha_m, self.alpha_f)
 
     @property
     def stability_limit_factor(self) -> float:
         """dt <= factor * T_min for stability, factor = Omega_crit / (2 pi) (inf if unconditional)."""
-        return self.omega_crit / (2.0 * math.pi)
+        return SC.stability_factor(self.omega_crit)
 
 
-def newmark(beta: float = 0.25, gamma: float = 0.5) -> Scheme:
+def newmark(
+    beta: float = scheme_default("newmark", "beta"), gamma: float = scheme_default("newmark", "gamma")
+) -> Scheme:
+    """Newmark(beta, gamma), default average acceleration (defaults: slipstep.methods.registry.SCHEMES)."""
     if not (beta > 0 and gamma >= 0.5):
         raise InputError(
             "scheme.beta/gamma",
             f"beta={beta}, gamma={gamma} is not a usable implicit Newmark scheme",
             "use beta > 0 and gamma >= 1/2 (average acceleration: 1/4, 1/2)",
         )
-    name = "newmark" if (beta, gamma) == (0.25, 0.5) else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
+    default = (scheme_default("newmark", "beta"), scheme_default("newmark", "gamma"))
+    name = "newmark" if (beta, gamma) == default else f"newmark(beta={_exact(beta)},gamma={_exact(gamma)})"
     return Scheme(name, beta, gamma)
 
 
-def hht(alpha: float = 0.05) -> Scheme:
+def hht(alpha: float = scheme_default("hht", "alpha")) -> Scheme:
+    """HHT-alpha, 0 <= alpha <= 1/3 (default: slipstep.methods.registry.SCHEMES)."""
     if not 0 <= alpha <= 1 / 3:
         raise InputError("scheme.alpha", f"is {alpha}", "give 0 <= alpha <= 1/3")
     return Scheme(f"hht(alpha={alpha:g})", (1 + alpha) ** 2 / 4, 0.5 + alpha, 0.0, alpha)
 
 
-def generalized_alpha(rho_inf: float = 0.9) -> Scheme:
+def generalized_alpha(rho_inf: float = scheme_default("generalized-alpha", "rho_inf")) -> Scheme:
+    """Generalised alpha, 0 <= rho_inf <= 1 (default: slipstep.methods.registry.SCHEMES)."""
     if not 0 <= rho_inf <= 1:
         raise InputError("scheme.rho_inf", f"is {rho_inf}", "give 0 <= rho_inf <= 1")
     am = (2 * rho_inf - 1) / (rho_inf + 1)

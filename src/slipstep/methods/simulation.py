@@ -24,15 +24,19 @@ from slipstep.kernels import march as K
 from slipstep.kernels.events import event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
+from slipstep.methods import save as SV
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
-from slipstep.kernels.contact import STICK, add_contact_stiffness, contact_law, generalised_force, local_displacement
+from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
+from slipstep.methods import step_control as SC
+from slipstep.methods.eigen import band_mass_lu, mass_factor
+from slipstep.methods.step_control import default_max_step, state_t_min  # noqa: F401  (re-exported)
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.model.validate import positive
 from slipstep.results import STATE_NAMES, build_dataset
-from slipstep.system import CompiledSystem, System, to_user_order
+from slipstep.system import CompiledSystem, System
 
 #: the values of RunOptions.linear_solver
 LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded")
@@ -82,6 +86,9 @@ class RunOptions:
         slipstep.methods.memory); default: half of the available memory.
     massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
         shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
+    save: what the march stores (methods/save.py): 'auto' (everything for at most
+        save.FULL_SAVE_MAX_DOFS DOFs, else the contacts and the response DOFs, every step), 'all',
+        a slipstep.Save or a dict of its keys (dofs, contacts, every, last_periods, times, response).
     """
 
     periods: float = 3.0
@@ -104,6 +111,7 @@ class RunOptions:
     error_estimate: bool = True
     max_memory: float | None = None
     massless_dofs: object = "auto"
+    save: object = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -138,28 +146,10 @@ class RunOptions:
             raise InputError(
                 "linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct', 'low-rank' or 'banded'"
             )
+        SV.as_save(self.save)
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self
-
-
-def state_t_min(cs: CompiledSystem, state: np.ndarray) -> tuple[float, np.ndarray]:
-    """T_min = 2 pi / omega_max of a contact state, omega_max^2 = max |eig(M^-1 (K + K_D(S)))|
-    (paper Eq. 8), and the eigenvalues themselves. With massless DOFs (zero rows of M: the
-    quasi-static-dofs method) those are condensed out first (methods/massless.py). The banded
-    backend: omega_max^2 by the banded Lanczos of kernels/banded.py (the one the march uses per
-    state), and the eigenvalues array holds that one value."""
-    if cs.banded:
-        wmax2 = banded_lambda_max(cs, state)
-        return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), np.array([wmax2])
-    zero = ML.massless_mask(cs.M)
-    if zero.any():
-        return ML.condensed_t_min(cs, state, np.flatnonzero(zero))
-    Keff = cs.K.copy()
-    add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, Keff)
-    ev = np.linalg.eigvals(np.linalg.solve(cs.M, Keff))
-    wmax2 = np.abs(ev).max()
-    return (2 * math.pi / math.sqrt(wmax2) if wmax2 > 0 else math.inf), ev
 
 
 class Runner:
@@ -183,11 +173,17 @@ class Runner:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
+        reset_outputs(self.out)
         args = (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
+        plan = getattr(self, "save_plan", None)
+        times = self.out.t  # the progress bar reads the time of step k from row k
+        if plan is not None and not plan.every_step and self.progress:  # rows are not steps: t ~ k dt
+            cap = int(self.out.plan[K.S_CAPACITY])
+            times = self.settings.t_start + np.minimum(np.arange(cap + 1) * self.dt, self.t_end)
         status, self.kernel_time = call_kernel(
-            kernel, args, self.out.counters, self.out.t, self.t_end, self.out.t.shape[0], self.progress
+            kernel, args, self.out.counters, times, self.t_end, int(self.out.plan[K.S_CAPACITY]) + 1, self.progress
         )
         if self._kernel is None:
             self._kernel = compiled_entry(dispatcher, args)
@@ -211,7 +207,10 @@ class Runner:
         if self.status in (None, Status.OK):
             return {}
         step = int(self.out.counters[K.C_FAIL_STEP])
-        report = {"failed_at_step": step, "failed_at_time_s": float(self.out.t[step])}
+        t_fail = float(self.out.times[K.S_FAIL])
+        if not math.isfinite(t_fail):  # interrupted: the time of the last step done
+            t_fail = float(self.out.t[max(saved_rows(self.out, int(self.out.counters[K.C_STEPS])) - 1, 0)])
+        report = {"failed_at_step": step, "failed_at_time_s": t_fail}
         visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
@@ -222,10 +221,18 @@ class Runner:
             raise RuntimeError("call march() first")
         c = self.out.counters
         n_steps = int(c[K.C_STEPS])
-        t = self.out.t[: n_steps + 1]
+        plan = getattr(self, "save_plan", None)
+        rows = saved_rows(self.out, n_steps)
+        grid = None if plan is None or plan.times is None else plan.times
+        if grid is not None:  # the given times the march reached
+            grid = grid[grid <= self.out.t[rows - 1] * (1 + 1e-15) + 1e-300]
+        t = self.out.t[:rows] if grid is None else grid
         motion = evaluate_compiled(_motion_signal(self.compiled), t)
         failure = self.failure_report()
         message = self.status.message
+        if self.status == Status.CAPACITY:  # which buffer: the steps, or the saved rows (methods/save.py)
+            rows_full = n_steps < int(self.out.plan[K.S_CAPACITY])
+            message += " (out of output rows of the save plan)" if rows_full else " (out of step capacity)"
         if failure:
             message = (
                 f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
@@ -234,7 +241,7 @@ class Runner:
             if "states_visited" in failure:
                 message += f", states tried {failure['states_visited']}"
             message += self.failure_hint if self.status == Status.NON_FINITE else ""
-        solves = int(self.out.solves[1 : n_steps + 1].sum())
+        solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
         method = self.method_attrs()
         attrs = {"title": f"slipstep result: {self.system.name}, {method['method']}", "case": self.system.name}
         attrs.update(method)
@@ -262,14 +269,19 @@ class Runner:
         )
         attrs.update(failure)
         attrs.update(self.accuracy_attrs())
+        if plan is not None:
+            attrs.update(plan.attrs())
         return build_dataset(
             self.system,
-            user_outputs(self.compiled, self.out, n_steps),
-            n_steps,
+            self.out,
+            rows - 1,
             motion,
             attrs,
             dynamic=not method["quasi_static"],
             compiled=self.compiled,
+            plan=plan,
+            grid=grid,
+            gamma=None if method["quasi_static"] else self.options.scheme.gamma,
         )
 
 
@@ -297,7 +309,6 @@ class Simulation(Runner):
         self.massless = ML.select_massless(system, self.options.massless_dofs) if self.method.massless else None
         if self.massless is not None:  # those DOFs without inertia; T_min of the dynamic part
             self.compiled = cs = ML.inertia_free(cs, self.massless)
-            self.t_min_stick, _ = ML.condensed_t_min(cs, self.stick, self.massless)
         else:
             if self.options.massless_dofs != "auto":
                 raise InputError(
@@ -305,7 +316,7 @@ class Simulation(Runner):
                     f"is only used by the quasi-static-dofs method, not {self.method.name}",
                     "use method quasi-static-dofs or drop the option",
                 )
-            self.t_min_stick, _ = state_t_min(cs, self.stick)
+        self.t_min_stick = state_t_min(cs, self.stick)  # massless DOFs (zero rows of M) condensed
         period = system.period
         opt = self.options
         if opt.duration is not None:
@@ -319,6 +330,7 @@ class Simulation(Runner):
                 "give duration (seconds) or a harmonic excitation",
             )
         self.period, self.t_end = period, t_end
+        self.save_plan = SV.resolve(self.options.save, system, cs, 0.0, t_end, period)
         scheme = opt.scheme
         self._accuracy = None
         self._coarse = None
@@ -344,16 +356,19 @@ class Simulation(Runner):
             )
         self.dt = dt
         dt_max = self.max_step
-        n_fixed = math.ceil(t_end / dt * (1 + 1e-12))
-        if opt.rtol is not None and not self.method.quasi_static:  # the local error is O(dt^3)
-            base = min(self.t_min_stick / math.pi, dt_max)
-            capacity = math.ceil(4 * t_end / base * max(1.0, (1e-2 / opt.rtol) ** (1 / 3))) + 100
-        elif self.method.adaptive:
-            capacity = 3 * math.ceil(t_end / min(self.dt_limit, dt_max)) + 100
-        else:
-            capacity = n_fixed + 1
+        capacity = SC.capacity(
+            t_end,
+            dt,
+            self.dt_limit,
+            dt_max,
+            self.method.adaptive,
+            None if self.method.quasi_static else opt.rtol,
+            self.t_min_stick,
+        )
         self.low_rank = use_low_rank(cs, opt.linear_solver)
-        self.memory_estimate = check_memory(cs, capacity, opt, self.method.quasi_static, self.low_rank)
+        self.memory_estimate = check_memory(
+            cs, capacity, opt, self.method.quasi_static, self.low_rank, self.save_plan, t_end
+        )
         accuracy_on = opt.rtol is not None and not self.method.quasi_static
         self.settings = K.march_settings(
             beta=scheme.beta,
@@ -361,7 +376,7 @@ class Simulation(Runner):
             alpha_m=scheme.alpha_m,
             alpha_f=scheme.alpha_f,
             dt=dt,
-            step_factor=min(opt.step_ratio * scheme.step_limit_factor, scheme.stability_limit_factor),
+            step_factor=SC.kernel_step_factor(scheme, opt.step_ratio),
             dt_max=min(dt_max, self.dt_stability),
             tol=opt.tolerance,
             state_rtol=opt.state_tolerance,
@@ -382,49 +397,31 @@ class Simulation(Runner):
             structure=K.BANDED if cs.banded else (K.LOW_RANK if self.low_rank else K.DENSE),
         )
         self.ws = _allocate_workspace(cs, opt.max_state_iterations, self.low_rank)
-        self.out = _allocate_outputs(cs, capacity, self.options.max_memory)
+        self.out = _allocate_outputs(cs, capacity, self.options.max_memory, self.save_plan, t_end)
         self.status = None
         self.kernel_time = math.nan
         self._preload()
 
-    # -- the step rule (README "Methods"; methods/accuracy.py) ------------------------------
+    # -- the step rule (README "Methods"; methods/step_control.py, methods/accuracy.py) ------
     def _step_limits(self, scheme) -> tuple[float, float]:
-        """(dt_limit, dt_stability): the step limit r * factor * T_min(stick) of the Newton
-        iteration's convergence (paper 4.2), capped at the scheme's stability limit
-        Omega_crit / omega_max (omega_max over every visitable contact state) with a warning.
-        With rtol and the piecewise-linear solve only the stability limit is kept."""
+        """(dt_limit, dt_stability): :func:`slipstep.methods.step_control.step_limits`."""
         opt = self.options
-        dt_stability = math.inf
-        if math.isfinite(scheme.omega_crit) and not self.method.quasi_static:
-            w = accuracy.highest_frequency(self.compiled)
-            dt_stability = scheme.omega_crit / w if w > 0 else math.inf
-        conv = opt.step_ratio * scheme.step_limit_factor * self.t_min_stick
-        if opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR and not self.method.quasi_static:
-            conv = dt_stability  # nothing iterates within a linear phase: only stability limits the step
-        if conv > dt_stability * (1 + 1e-12) and opt.dt is None:
-            warnings.warn(
-                f"step_ratio {opt.step_ratio:g} gives dt = {conv:.4g} s, beyond the stability limit "
-                f"{dt_stability:.4g} s of {scheme.name} (omega_max dt <= {scheme.omega_crit:.4g}): the step "
-                f"is capped at the stability limit",
-                stacklevel=4,
-            )
-            conv = dt_stability
-        return conv, dt_stability
+        iterates = not (opt.rtol is not None and self.method.solver == K.PIECEWISE_LINEAR)
+        return SC.step_limits(
+            self.compiled,
+            scheme,
+            self.t_min_stick,
+            opt.step_ratio,
+            self.method.quasi_static,
+            iterates,
+            opt.dt is not None,
+        )
 
     def _fixed_step(self, limit: float, max_step: float) -> float:
-        """The fixed step: min(limit, max_step), rounded down to whole steps per period."""
-        opt, period = self.options, self.period
-        if opt.dt is not None:
-            return opt.dt
-        if self.method.quasi_static:
-            return (period if period is not None else self.t_end) / opt.steps_per_period
-        if not math.isfinite(limit) and not math.isfinite(max_step):
-            raise InputError(
-                "structure", "has no stiffness at all in full stick (T_min is infinite)", "add contacts or stiffness"
-            )
-        if period is not None:
-            return period / math.ceil(period / min(limit, max_step) * (1 - 1e-12))
-        return min(limit, max_step)
+        """The fixed step: :func:`slipstep.methods.step_control.fixed_step`."""
+        opt = self.options
+        spp = opt.steps_per_period if self.method.quasi_static else None
+        return SC.fixed_step(limit, max_step, self.period, self.t_end, opt.dt, spp)
 
     def _pilot_allowed(self) -> bool:
         opt = self.options
@@ -568,6 +565,7 @@ class Simulation(Runner):
         self.preload_state = (x, v, np.array(a, float).reshape(n), fe0, gf, w, np.asarray(state, np.int8).copy())
         self.q0, self.f0 = q, f
         self.settings = K.replace_settings(self.settings, t_start=t_start, t_end=t_start + self.t_end)
+        self.out.times[K.S_FROM] = t_start + self.save_plan.t_from  # the last periods of this march
         # the step-doubling twins march from the preload: no estimate for a continued march
         self._accuracy = {
             "energy_error_estimate": math.nan,
@@ -680,14 +678,6 @@ def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> n
     return f
 
 
-def default_max_step(period: float | None, dt_stick: float) -> float:
-    """The accuracy cap of dynamic steps, fixed and adaptive: at least 50 steps per excitation
-    period (the T_min rule of paper 4.2 is a convergence limit and says nothing about accuracy
-    when the structure's highest frequency is close to the excitation); without a period, 10
-    full-stick steps (the cap then only bounds adaptive steps in lift-off, where T_min = inf)."""
-    return period / 50 if period else 10 * dt_stick
-
-
 def compiled_entry(dispatcher, args):
     """The compiled overload of a numba dispatcher for these argument types, callable without
     the per-call type dispatch (about 6 us for our tuples of arrays); the dispatcher itself
@@ -739,44 +729,6 @@ def _reset_cache(ws: K.Workspace) -> None:
     ws.lin_dt[0] = np.nan
 
 
-def banded_lambda_max(cs: CompiledSystem, state: np.ndarray) -> float:
-    """omega_max^2 of a contact state for the banded backend (kernels.banded.band_lambda_max)."""
-    n, kl, ku = cs.Mb.shape[0], cs.kl, cs.ku
-    keff = np.zeros((n, 2 * kl + ku + 1))
-    BD.band_to_lu_storage(cs.Kb, kl, ku, keff)
-    BD.band_contact_stiffness(
-        cs.normal_row,
-        cs.law,
-        cs.law_par,
-        cs.first_direction,
-        cs.n_directions,
-        cs.tangential_row,
-        cs.kt,
-        cs.A_ptr,
-        cs.A_idx,
-        cs.A_val,
-        np.asarray(state, np.int8),
-        np.empty(0),
-        np.empty(0),
-        1.0,
-        keff,
-        kl + ku,
-    )
-    mlu, mpiv = band_mass_lu(cs)
-    return float(BD.band_lambda_max(cs.Mb, keff, kl, ku, mlu, mpiv, bool(BD.band_is_diagonal(cs.Mb, ku))))
-
-
-def band_mass_lu(cs: CompiledSystem) -> tuple[np.ndarray, np.ndarray]:
-    """The banded LU of M (banded backend): (lu, piv)."""
-    n, kl, ku = cs.Mb.shape[0], cs.kl, cs.ku
-    lu = np.zeros((n, 2 * kl + ku + 1))
-    piv = np.zeros(n, np.int64)
-    BD.band_to_lu_storage(cs.Mb, kl, ku, lu)
-    if not BD.band_lu_factor(lu, kl, ku, piv, 1e-14):
-        raise InputError("structure.mass", "is singular", "give every DOF a positive mass/inertia")
-    return lu, piv
-
-
 def structure_product(cs: CompiledSystem, which: str, x: np.ndarray) -> np.ndarray:
     """M x, C x or K x (``which`` 'M', 'C', 'K') in the kernel DOF order, dense or banded."""
     if not cs.banded:
@@ -796,15 +748,6 @@ def mass_solve(cs: CompiledSystem, rhs: np.ndarray) -> np.ndarray:
     return out
 
 
-def user_outputs(cs: CompiledSystem, out: K.Outputs, n_steps: int) -> K.Outputs:
-    """The kernel outputs with the DOF-indexed arrays (x, v, a) in the user's DOF order: the
-    one place the banded backend's DOF order is undone (slipstep.system.to_user_order)."""
-    if not cs.banded:
-        return out
-    k = n_steps + 1
-    return out._replace(**{name: to_user_order(cs, getattr(out, name)[:k], axis=1) for name in ("x", "v", "a")})
-
-
 def compile_backend(linear_solver: str) -> str:
     """The System.compile backend a linear_solver option asks for."""
     return {"banded": "banded", "direct": "dense", "low-rank": "dense"}.get(linear_solver, "auto")
@@ -822,17 +765,31 @@ def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     return linear_solver == "low-rank" and nq > 0
 
 
-def check_memory(cs: CompiledSystem, capacity: int, opt: RunOptions, quasi_static: bool, low_rank: bool) -> float:
-    """The memory estimate of a march of ``capacity`` steps (slipstep.methods.memory) checked
-    against the limit before anything is allocated; returns it [bytes]."""
+def check_memory(
+    cs: CompiledSystem,
+    capacity: int,
+    opt: RunOptions,
+    quasi_static: bool,
+    low_rank: bool,
+    plan: SV.Plan | None = None,
+    t_end: float = 0.0,
+) -> float:
+    """The memory estimate of a march of ``capacity`` steps saving ``plan`` (None: everything;
+    slipstep.methods.memory) checked against the limit before anything is allocated; returns
+    it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
     field_name = "duration" if opt.duration is not None else "periods"
     fixes = "simulate fewer periods (or a shorter duration)" + (
         ", use fewer steps_per_period" if quasi_static else ", raise the step ratio"
     )
+    points = capacity + 1
+    if plan is not None:
+        n, nq, nd = plan.dofs.size, plan.rows.size, plan.directions.size
+        points = SV.rows_needed(plan, capacity, 0.0, t_end)
+        fixes = "save less (save: fewer dofs, every k-th step or the last periods; --save-dofs, --save-every), " + fixes
     limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
     return memory.check(
-        capacity + 1, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
+        points, n, nq, nd, m, _workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
     )
 
 
@@ -885,10 +842,10 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
     i8 = lambda *shape: np.zeros(shape, np.int8)
     if width:  # banded backend: band storage for Lin (kl + ku + 1) and the LUs (2 kl + ku + 1); M's LU
         lin, jac, lus = z(n, cs.kl + cs.ku + 1), z(n, width), z(cap + 2, n, width)
-        minv, mpiv = band_mass_lu(cs)
+        mfac, mpiv = band_mass_lu(cs)  # the banded LU of M (kernels/banded.py band_lambda_max)
     else:
         lin, jac, lus = z(n, n), z(n, n), z(cap + 2, size, size)
-        minv, mpiv = ML.inverse_mass(cs.M), np.zeros(0, np.int64)
+        mfac, mpiv = mass_factor(cs.M), np.zeros(0, np.int64)
     lr = LowRank(
         base_keys=i8(capb, nd),
         base_used=np.zeros(capb, np.bool_),
@@ -927,7 +884,7 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         qbase=z(nq),
         Lin=lin,
         J=jac,
-        Minv=minv,
+        mass_factor=mfac,
         key=i8(2 * nd),
         dt_state=i8(nd),
         stick=np.full(nd, STICK, np.int8),
@@ -941,32 +898,66 @@ def _allocate_workspace(cs: CompiledSystem, max_state_iter: int, low_rank: bool)
         tmin_value=z(cap),
         lin_dt=np.full(1, np.nan),
         visited=i8(max_state_iter + 1, nd),
+        basis=z(4, cs.force_frequency.shape[0] + cs.motion_frequency.shape[0]),
+        clock=z(4),
         mpiv=mpiv,
         lr=lr,
     )
 
 
-def _allocate_outputs(cs: CompiledSystem, capacity: int, max_memory: float | None = None) -> K.Outputs:
-    """The output buffers of ``capacity`` steps; a buffer beyond the memory limit (default: half of
-    the available memory) is refused first (runners check it earlier with a better message)."""
+def _allocate_outputs(
+    cs: CompiledSystem, capacity: int, max_memory: float | None = None, plan: SV.Plan | None = None, t_end: float = 0.0
+) -> K.Outputs:
+    """The output buffers of a march of at most ``capacity`` steps saving ``plan`` (None: every
+    DOF and contact at every step); a buffer beyond the memory limit (default: half of the
+    available memory) is refused first (runners check it earlier with a better message)."""
     n, nq, nd = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0]
-    k = capacity + 1
+    if plan is None:
+        dofs, rows, dirs = np.arange(n, dtype=np.int64), np.arange(nq, dtype=np.int64), np.arange(nd, dtype=np.int64)
+        ip, times = np.array([capacity, 1, 0, -1, 0, 0], np.int64), np.array([-math.inf, math.nan, math.inf])
+        k = capacity + 3
+    else:
+        dofs, rows, dirs, ip, times = SV.kernel_arrays(plan, cs, capacity)
+        k = SV.rows_needed(plan, capacity, 0.0, t_end)
+    ns, nqs, nds = dofs.size, rows.size, dirs.size
     if k > 100_000:
         limit = None if max_memory is None else memory.parse_size("max_memory", max_memory)
-        memory.check(k, n, nq, nd, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time")
+        memory.check(k, ns, nqs, nds, cs.B.shape[1], 0, limit, "duration", "simulate a shorter time or save less")
     return K.Outputs(
         t=np.zeros(k),
         dt=np.zeros(k),
-        x=np.zeros((k, n)),
-        v=np.zeros((k, n)),
-        a=np.zeros((k, n)),
-        q=np.zeros((k, nq)),
-        f=np.zeros((k, nq)),
-        w=np.zeros((k, nd)),
-        state=np.zeros((k, nd), np.int8),
+        x=np.zeros((k, ns)),
+        v=np.zeros((k, ns)),
+        a=np.zeros((k, ns)),
+        q=np.zeros((k, nqs)),
+        f=np.zeros((k, nqs)),
+        w=np.zeros((k, nds)),
+        state=np.zeros((k, nds), np.int8),
         solves=np.zeros(k, np.int64),
         counters=np.zeros(K.N_COUNTERS, np.int64),
+        step=np.full(k, -1, np.int64),
+        dofs=dofs,
+        rows=rows,
+        dirs=dirs,
+        plan=ip,
+        times=times,
     )
+
+
+def reset_outputs(out: K.Outputs) -> None:
+    """Set the save plan's running entries before a march (the kernel's _store keeps them):
+    no row kept, no step kept, the first given time, the first multiple of every; no failure."""
+    out.plan[[K.S_ROWS, K.S_LAST, K.S_GRID, K.S_NEXT]] = 0, -1, 0, 0
+    out.times[K.S_FAIL] = math.nan
+
+
+def saved_rows(out: K.Outputs, n_steps: int) -> int:
+    """Rows of ``out`` holding the march of ``n_steps`` steps: those the kernel kept, and the
+    pending row when it holds the last step (a march always ends with its last step)."""
+    rows = int(out.plan[K.S_ROWS])
+    if rows < out.step.shape[0] and out.step[rows] == n_steps and (rows == 0 or out.step[rows - 1] != n_steps):
+        rows += 1
+    return max(rows, 1)
 
 
 def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):

@@ -70,6 +70,22 @@ _LONG_NAMES = {
 }
 
 
+def require_saved(ds: xr.Dataset, needs, what: str) -> None:
+    """Refuse (InputError naming ``save``) a result that did not save what ``what`` needs:
+    'all_dofs', 'all_contacts', 'every_step' (slipstep.results.saved)."""
+    from slipstep.errors import InputError
+    from slipstep.results import saved
+
+    labels = {"all_dofs": "every DOF", "all_contacts": "every contact", "every_step": "every step"}
+    missing = [labels[n] for n in needs if not saved(ds, n)]
+    if missing:
+        raise InputError(
+            "save",
+            f"of this result is {ds.attrs.get('save')!r}: {what} needs {' and '.join(missing)}",
+            "run again with save='all' (command line: --save-dofs all --save-contacts all --save-every 1)",
+        )
+
+
 def _cumtrapz(F: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Cumulative trapezoid of sum_j F_j dy_j along axis 0 (F, y: (nt, k) or (nt,))."""
     F = F.reshape(F.shape[0], -1)
@@ -120,6 +136,7 @@ def energy_balance(ds: xr.Dataset, system) -> xr.Dataset:
     Attribute ``relative_residual``: max |balance_residual| / max(|W_ext| + |W_mot| +
     D_fric + D_damp over time).
     """
+    require_saved(ds, ("all_dofs", "all_contacts", "every_step"), "the energy balance")
     cs = system.compile()
     t = ds["time"].values
     x = ds["displacement"].values
@@ -192,6 +209,7 @@ def friction_energy_per_period(ds: xr.Dataset, period: float | None = None) -> x
         period = ds.attrs.get("period_s")
     if period is None or not np.isfinite(period) or period <= 0:
         raise ValueError("period: the result has no excitation period; pass period= (seconds)")
+    require_saved(ds, ("every_step",), "the friction energy per period")
     t = ds["time"].values
     if t[-1] - t[0] < period * (1 - 1e-9):
         raise ValueError(f"period: the result lasts {t[-1] - t[0]:.6g} s, shorter than the period {period:.6g} s")

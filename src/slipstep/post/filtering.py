@@ -10,7 +10,7 @@ filter: a Butterworth filter of order ``order`` applied forward and backward
 Automatic cut-off:
     f_e  = highest excitation frequency of the system (harmonic force / motion components)
     f_d  = lowest internal frequency of the visited contact states, from the eigenvalues
-           lambda of M^-1 (K + K_D(S)): f = sqrt(Re lambda) / (2 pi) (slipstep.state_t_min);
+           lambda of M^-1 (K + K_D(S)): f = sqrt(Re lambda) / (2 pi) (slipstep.methods.step_control.state_eigenvalues);
            singular states (a zero eigenvalue: mechanism) contribute their non-zero ones;
            in an assembly, those of the contact-held DOFs (the damper) with the rest fixed
     h    = harmonics kept: min(max_harmonics, floor(f_d / (3 f_e))), at least 1
@@ -88,7 +88,7 @@ def state_frequencies(system, state) -> np.ndarray:
     a damper, and others not, blades) the ringing is the damper's: its frequencies with the
     other DOFs fixed (M_mm^-1 (K + K_D(S))_mm, paper Remark 2), the blades' modes being physics."""
     from slipstep.methods.massless import contact_held_dofs
-    from slipstep.methods.simulation import state_t_min
+    from slipstep.methods.step_control import state_eigenvalues
 
     cs = system.compile_dense("the filtered contact-state analysis")
     held = contact_held_dofs(system)
@@ -99,7 +99,7 @@ def state_frequencies(system, state) -> np.ndarray:
         add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, K)
         ev = np.linalg.eigvals(np.linalg.solve(cs.M[np.ix_(held, held)], K[np.ix_(held, held)]))
     else:
-        _, ev = state_t_min(cs, np.asarray(state, np.int8))
+        ev = state_eigenvalues(cs, np.asarray(state, np.int8))
     lam = np.asarray(ev)
     big = float(np.abs(lam).max(initial=0.0))
     keep = lam.real > 1e-9 * big

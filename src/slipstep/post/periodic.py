@@ -128,6 +128,14 @@ def periodicity(
     module docstring for e_k. ``rtol`` is the relative tolerance of steady state."""
     T = period_of(ds, period)
     t = ds["time"].values
+    if variable == "displacement" and ds.sizes.get("dof", 0) == 0 and ds.sizes.get("direction", 0) > 0:
+        variable = "tangential_force"  # no DOF saved (the save option): the contact forces
+    if variable not in ds or ds[variable].size == 0:
+        from slipstep.errors import InputError
+
+        raise InputError(
+            "save", f"of this result saved no {variable} ({ds.attrs.get('save')})", "save DOFs or contacts"
+        )
     y = np.asarray(ds[variable].values, float).reshape(t.size, -1)
     n = int(np.floor((t[-1] - t[0]) / T * (1 + _REL)))
     scale = max(float(np.ptp(y, axis=0).max(initial=0.0)), float(ds.attrs.get("length_scale_m", 0.0)) * 1e-3, 1e-300)

@@ -167,5 +167,8 @@ def _contacts(ds, lp) -> dict:
 
 
 def _steady_error(ds, period) -> float:
-    errors = periodicity(ds, period=period).errors
+    try:
+        errors = periodicity(ds, period=period).errors
+    except InputError:  # nothing saved to compare (the save option)
+        return math.nan
     return float(errors[-1]) if errors else math.nan

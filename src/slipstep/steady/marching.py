@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 
+from slipstep.methods import save as SV
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.methods.simulation import Simulation
@@ -57,6 +58,7 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
         ):
             raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
+    opts.setdefault("save", "all")  # the period change and the shooting replay read every DOF at every step
     sim = Simulation(system, method, periods=1.0, **opts)
     if sim.compiled.banded:  # issue 10: the steady-state search carries states in the user's DOF order
         raise InputError(
@@ -64,6 +66,9 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
             "is a sparse structure on the banded backend: the steady-state search needs the dense one",
             "march enough periods with slipstep.run instead, or give linear_solver='direct' for a small model",
         )
+    SV.needs(
+        sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option"
+    )
     return sim
 
 
