@@ -17,8 +17,8 @@ Two backends (``CompiledSystem.banded``):
   A as CSR; the dense fields are empty placeholders of shape (n, 0) / (nq, 0) (their first
   axis still gives n and nq). Kernel arrays are in the kernel order ``dof_order``
   (kernel DOF k is the user's DOF dof_order[k]); :func:`kernel_dofs` maps user DOF indices
-  to kernel ones, :func:`to_user_order` undoes the order of DOF-indexed results (the one place
-  results are put back: methods.simulation.Runner.dataset).
+  to kernel ones (the one map: the save plan stores the saved columns in the user's order
+  through it, methods/save.py), :func:`to_user_order` puts a DOF-indexed kernel array back.
 """
 
 from __future__ import annotations

@@ -143,9 +143,12 @@ def match(key: str, patterns, names, what: str) -> np.ndarray:
 
 
 def response_dofs(system, cs, extra=()) -> np.ndarray:
-    """The DOFs the contacts see (non-zero columns of A), the forced DOFs and those named in
-    ``extra``."""
-    seen = np.abs(np.asarray(cs.A)).max(axis=0, initial=0.0) > 0 if cs.A.size else np.zeros(cs.M.shape[0], bool)
+    """The user DOF indices of the DOFs the contacts see (non-zero columns of A), the forced DOFs
+    and those named in ``extra``. Found on the compiled arrays (kernel order: A in CSR, the
+    forces) and mapped back through cs.dof_order (kernel DOF k is the user's dof_order[k])."""
+    n = cs.M.shape[0]
+    seen = np.zeros(n, bool)
+    seen[np.asarray(cs.A_idx)[np.asarray(cs.A_val) != 0]] = True
     forced = np.asarray(cs.constant_force) != 0
     for amp in (cs.force_sin, cs.force_cos, cs.force_table_value):
         a = np.asarray(amp)
@@ -153,7 +156,7 @@ def response_dofs(system, cs, extra=()) -> np.ndarray:
             forced |= np.abs(a).max(axis=1, initial=0.0) > 0
         elif a.ndim == 2 and a.shape[1] == forced.size:
             forced |= np.abs(a).max(axis=0, initial=0.0) > 0
-    idx = set(np.flatnonzero(seen | forced).tolist())
+    idx = set(np.asarray(cs.dof_order)[np.flatnonzero(seen | forced)].tolist())
     if extra:
         idx.update(match("save.response", list(extra), system.structure.dof_names, "DOF").tolist())
     return np.array(sorted(idx), np.int64)
