@@ -104,28 +104,45 @@ def _root(c, om, ta, tb, b, tol_t):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _first_root_1h(c, om, ta, t_end, tol):
+def _first_root_1h(c, om, ta, sa, ca, t_end, tol):
     """One harmonic: the first t in [ta, t_end] where c0 + a sin(om t) + b cos(om t) falls
     below 0 and then below -tol, in closed form (a sin + b cos = R sin(om t + phi)); t_end + 1
-    if none."""
+    if none. sa, ca = sin(om ta), cos(om ta).
+
+    The zero crossing downwards is at psi0 = om t + phi with sin psi0 = r0 = -c0 / R,
+    cos psi0 = -sqrt(1 - r0^2), the band's edge (value -tol) at psi1 = psi0 + dpsi. Where the
+    band is thin (dr = tol / R <= 1e-6, |r0| < 0.9) dpsi = dr / sqrt(1 - r0^2) to first order
+    (the next term below 6 dr^2 < 6e-12) and the angle from om ta to the crossing comes from
+    one arctan2 of its sine and cosine (the rotation of (cos psi0, sin psi0) by -phi and by
+    -om ta, no phase angle formed); else by arcsin and arctan2."""
     c0, a, b = c[0], c[1], c[2]
-    R = np.hypot(a, b)
-    if R <= abs(c0) + tol:  # never crosses -tol (or is below it everywhere)
-        return ta if c0 + R < -tol else t_end + 1.0
-    phi = np.arctan2(b, a)
+    lim = abs(c0) + tol
+    R2 = a * a + b * b
+    if R2 <= lim * lim:  # never crosses -tol (or is below it everywhere)
+        return ta if c0 + np.sqrt(R2) < -tol else t_end + 1.0
+    R = np.sqrt(R2)
     two_pi = 2.0 * np.pi
     r0 = -c0 / R
-    r1 = max(-1.0, (-c0 - tol) / R)
-    e0 = np.pi - np.arcsin(r0)  # sin(psi) decreasing through r0: the zero crossing
-    dr = r0 - r1
-    if dr <= 1e-6 and abs(r0) < 0.9:  # ... and through the tolerance band's edge, just after it:
-        e1 = e0 + dr / np.sqrt(1.0 - r0 * r0)  # first order in dr (the next term below 6 dr^2 < 6e-12)
+    dr = min(tol / R, r0 + 1.0)  # r0 - r1, r1 = max(-1, (-c0 - tol) / R)
+    if dr <= 1e-6 and abs(r0) < 0.9:
+        cq = np.sqrt(1.0 - r0 * r0)  # -cos psi0
+        ua, ub = a / R, b / R  # cos phi, sin phi
+        c_t = -cq * ua + r0 * ub  # cos(psi0 - phi)
+        s_t = r0 * ua + cq * ub  # sin(psi0 - phi)
+        delta0 = np.arctan2(s_t * ca - c_t * sa, c_t * ca + s_t * sa)  # psi0 - phi - om ta, in (-pi, pi]
+        dpsi = dr / cq
+        d1 = delta0 + dpsi  # (psi1 - psi_a) mod 2 pi
+        if d1 < 0.0:
+            d1 += two_pi
+        d0 = d1 - dpsi
     else:
+        r1 = r0 - dr
+        phi = np.arctan2(b, a)
+        e0 = np.pi - np.arcsin(r0)
         e1 = np.pi - np.arcsin(r1)
-    psi_a = om[0] * ta + phi
-    x1 = e1 - psi_a
-    d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
-    d0 = d1 - (e1 - e0)
+        x1 = e1 - (om[0] * ta + phi)
+        d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
+        d0 = d1 - (e1 - e0)
     t = ta + max(d0, 0.0) / om[0]
     return t if t <= t_end else t_end + 1.0
 
@@ -306,6 +323,7 @@ def event_march(sys, st, ws, out, q0, f0):
     vals = np.zeros(ns)
     # the default save plan (every point from the start, no given times): rows written here, as _store would
     every_point = plan[S_EVERY] == 1 and out.times.shape[0] == 3 and out.times[S_FROM] <= st.t_start
+    sa, ca = (np.sin(om[0] * t), np.cos(om[0] * t)) if nh == 1 else (0.0, 1.0)
     while t < t_end - tiny:
         k_phase = k
         ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
@@ -331,9 +349,9 @@ def event_march(sys, st, ws, out, q0, f0):
         t_ev = t_end
         hit = -1
         ta = t
-        if nh == 1:
+        if nh == 1:  # sa, ca = sin(om t), cos(om t): from the last transition
             for i in range(nm):
-                tr_ = _first_root_1h(MC[i], om, t, t_end, rtol * scale[i])
+                tr_ = _first_root_1h(MC[i], om, t, sa, ca, t_end, rtol * scale[i])
                 if tr_ <= t_end and tr_ < t_ev:
                     t_ev, hit = tr_, i
             ta = t_end
@@ -421,6 +439,7 @@ def event_march(sys, st, ws, out, q0, f0):
             break
         # ---- the transition at t_ev: every margin reaching zero with a negative slope ----
         _basis(t_ev, om, bb)
+        sa, ca = bb[1 % nb], bb[2 % nb]  # (nh = 1: the next phase's sin, cos of om t)
         for r in range(nq):
             q1[r] = _value(Q[:, r], bb)
         for i in range(n):
