@@ -384,6 +384,14 @@ def _table(title, *columns, show_header: bool = True):
     return table
 
 
+def _error_estimate_text(a: dict) -> str:
+    """The step-doubling estimates in percent, or why there are none (error_estimate_method)."""
+    energy, peak = a["energy_error_estimate"], a["peak_force_error_estimate"]
+    if math.isnan(energy) and math.isnan(peak):
+        return f"not estimated: {a.get('error_estimate_method', 'none')}"
+    return f"{100 * energy:.2g} % / {100 * peak:.2g} %"
+
+
 def _row(table, *cells):
     from rich.text import Text
 
@@ -512,10 +520,7 @@ def run(
             ("state changes", a["state_changes"]),
             ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
             ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
-            (
-                "est. error, loop energy / peak force",
-                f"{100 * a['energy_error_estimate']:.2g} % / {100 * a['peak_force_error_estimate']:.2g} %",
-            ),
+            ("est. error, loop energy / peak force", _error_estimate_text(a)),
             ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
             ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"),
             ("output", str(path)),
