@@ -41,7 +41,7 @@ from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
-from slipstep.kernels.march import S_CAPACITY, S_FAIL, S_ROWS, _store
+from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, S_NEXT, S_ROWS, _store
 
 # margin kinds
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
@@ -104,28 +104,45 @@ def _root(c, om, ta, tb, b, tol_t):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _first_root_1h(c, om, ta, t_end, tol):
+def _first_root_1h(c, om, ta, sa, ca, t_end, tol):
     """One harmonic: the first t in [ta, t_end] where c0 + a sin(om t) + b cos(om t) falls
     below 0 and then below -tol, in closed form (a sin + b cos = R sin(om t + phi)); t_end + 1
-    if none."""
+    if none. sa, ca = sin(om ta), cos(om ta).
+
+    The zero crossing downwards is at psi0 = om t + phi with sin psi0 = r0 = -c0 / R,
+    cos psi0 = -sqrt(1 - r0^2), the band's edge (value -tol) at psi1 = psi0 + dpsi. Where the
+    band is thin (dr = tol / R <= 1e-6, |r0| < 0.9) dpsi = dr / sqrt(1 - r0^2) to first order
+    (the next term below 6 dr^2 < 6e-12) and the angle from om ta to the crossing comes from
+    one arctan2 of its sine and cosine (the rotation of (cos psi0, sin psi0) by -phi and by
+    -om ta, no phase angle formed); else by arcsin and arctan2."""
     c0, a, b = c[0], c[1], c[2]
-    R = np.hypot(a, b)
-    if R <= abs(c0) + tol:  # never crosses -tol (or is below it everywhere)
-        return ta if c0 + R < -tol else t_end + 1.0
-    phi = np.arctan2(b, a)
+    lim = abs(c0) + tol
+    R2 = a * a + b * b
+    if R2 <= lim * lim:  # never crosses -tol (or is below it everywhere)
+        return ta if c0 + np.sqrt(R2) < -tol else t_end + 1.0
+    R = np.sqrt(R2)
     two_pi = 2.0 * np.pi
     r0 = -c0 / R
-    r1 = max(-1.0, (-c0 - tol) / R)
-    e0 = np.pi - np.arcsin(r0)  # sin(psi) decreasing through r0: the zero crossing
-    dr = r0 - r1
-    if dr <= 1e-6 and abs(r0) < 0.9:  # ... and through the tolerance band's edge, just after it:
-        e1 = e0 + dr / np.sqrt(1.0 - r0 * r0)  # first order in dr (the next term below 6 dr^2 < 6e-12)
+    dr = min(tol / R, r0 + 1.0)  # r0 - r1, r1 = max(-1, (-c0 - tol) / R)
+    if dr <= 1e-6 and abs(r0) < 0.9:
+        cq = np.sqrt(1.0 - r0 * r0)  # -cos psi0
+        ua, ub = a / R, b / R  # cos phi, sin phi
+        c_t = -cq * ua + r0 * ub  # cos(psi0 - phi)
+        s_t = r0 * ua + cq * ub  # sin(psi0 - phi)
+        delta0 = np.arctan2(s_t * ca - c_t * sa, c_t * ca + s_t * sa)  # psi0 - phi - om ta, in (-pi, pi]
+        dpsi = dr / cq
+        d1 = delta0 + dpsi  # (psi1 - psi_a) mod 2 pi
+        if d1 < 0.0:
+            d1 += two_pi
+        d0 = d1 - dpsi
     else:
+        r1 = r0 - dr
+        phi = np.arctan2(b, a)
+        e0 = np.pi - np.arcsin(r0)
         e1 = np.pi - np.arcsin(r1)
-    psi_a = om[0] * ta + phi
-    x1 = e1 - psi_a
-    d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
-    d0 = d1 - (e1 - e0)
+        x1 = e1 - (om[0] * ta + phi)
+        d1 = x1 - two_pi * np.floor(x1 / two_pi)  # (e1 - psi_a) mod 2 pi, in [0, 2 pi)
+        d0 = d1 - (e1 - e0)
     t = ta + max(d0, 0.0) / om[0]
     return t if t <= t_end else t_end + 1.0
 
@@ -263,9 +280,6 @@ def event_march(sys, st, ws, out, q0, f0):
     scr = np.zeros((5, max(n, nq)))
     Fp = np.zeros((nb, nq))
     Wp = np.zeros((nb, nd))
-    ncol = n + 2 * nq + nd
-    G = np.zeros((nb, ncol))
-    vec = np.zeros(ncol)
     wtmp = np.zeros(nd)
     nmax = nrow.shape[0] + 2 * nd
     MC = np.zeros((nmax, nb))
@@ -300,6 +314,16 @@ def event_march(sys, st, ws, out, q0, f0):
     flips = 0
     t0 = st.t_start
     o_q, o_f = out.q, out.f
+    plan, dofs, dirs = out.plan, out.dofs, out.dirs
+    o_x, o_v, o_a, o_w, o_state = out.x, out.v, out.a, out.w, out.state
+    o_step, o_t, o_dt, o_solves = out.step, out.t, out.dt, out.solves
+    n_x, n_r, n_w = dofs.shape[0], o_rows.shape[0], dirs.shape[0]
+    ns = n_x + 2 * n_r + n_w
+    Gs = np.zeros((nb, ns))  # per phase: the saved columns [x dofs, q rows, f rows, w dirs] per basis function
+    vals = np.zeros(ns)
+    # the default save plan (every point from the start, no given times): rows written here, as _store would
+    every_point = plan[S_EVERY] == 1 and out.times.shape[0] == 3 and out.times[S_FROM] <= st.t_start
+    sa, ca = (np.sin(om[0] * t), np.cos(om[0] * t)) if nh == 1 else (0.0, 1.0)
     while t < t_end - tiny:
         k_phase = k
         ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
@@ -316,14 +340,6 @@ def event_march(sys, st, ws, out, q0, f0):
                     Fp[j, r] -= f1[r]
                 for d in range(nd):
                     Wp[j, d] -= w1[d]
-        for j in range(nb):  # one row per basis function: [x, q, f, w]
-            for i in range(n):
-                G[j, i] = X[j, i]
-            for r in range(nq):
-                G[j, n + r] = Q[j, r]
-                G[j, n + nq + r] = Fp[j, r]
-            for d in range(nd):
-                G[j, n + 2 * nq + d] = Wp[j, d]
         if not ok:
             status = SINGULAR
             break
@@ -333,9 +349,9 @@ def event_march(sys, st, ws, out, q0, f0):
         t_ev = t_end
         hit = -1
         ta = t
-        if nh == 1:
+        if nh == 1:  # sa, ca = sin(om t), cos(om t): from the last transition
             for i in range(nm):
-                tr_ = _first_root_1h(MC[i], om, t, t_end, rtol * scale[i])
+                tr_ = _first_root_1h(MC[i], om, t, sa, ca, t_end, rtol * scale[i])
                 if tr_ <= t_end and tr_ < t_ev:
                     t_ev, hit = tr_, i
             ta = t_end
@@ -348,7 +364,20 @@ def event_march(sys, st, ws, out, q0, f0):
                     if tr_ < t_ev:
                         t_ev, hit = tr_, i
             ta = tb
-        # ---- outputs in (t, t_ev] (v = a = 0 stay as allocated) ----
+        # ---- outputs in (t, t_ev]: the saved columns of G summed over the basis (v = a = 0) ----
+        for j in range(nb):
+            c = 0
+            for ii in range(n_x):
+                Gs[j, c] = X[j, dofs[ii]]
+                c += 1
+            for ii in range(n_r):
+                Gs[j, c] = Q[j, o_rows[ii]]
+                Gs[j, n_r + c] = Fp[j, o_rows[ii]]
+                c += 1
+            c += n_r
+            for ii in range(n_w):
+                Gs[j, c] = Wp[j, dirs[ii]]
+                c += 1
         n_out = 0
         while k < cap and out.plan[S_ROWS] + 2 <= n_rows and (k + 1) * dt_out + t0 <= t_ev + tiny:
             tk = min((k + 1) * dt_out + t0, t_end)
@@ -361,28 +390,45 @@ def event_march(sys, st, ws, out, q0, f0):
                     bb[2 * h + 2] = cn * rot_c[h] - sn * rot_s[h]
             n_out += 1
             k += 1
-            b0 = bb[0]
-            for c in range(ncol):
-                vec[c] = b0 * G[0, c]
-            for j in range(1, nb):
-                bj = bb[j]
-                for c in range(ncol):
-                    vec[c] += bj * G[j, c]
-            for i in range(n):
-                xo[i] = vec[i]
-            for d in range(nd):
-                wo[d] = vec[n + 2 * nq + d]
             if k == k_phase + 1:  # the first output of a phase: did the state change?
                 for d in range(nd):
                     if state[d] != prev[d]:
                         counters[C_STATE_CHANGES] += 1
                         break
-            for d in range(nd):
-                prev[d] = state[d]
-            row = _store(xo, zero, zero, wo, state, out, k, tk, tk - t_prev, pending)
-            for ii in range(o_rows.shape[0]):
-                o_q[row, ii] = vec[n + o_rows[ii]]
-                o_f[row, ii] = vec[n + nq + o_rows[ii]]
+                for d in range(nd):
+                    prev[d] = state[d]
+            b0 = bb[0]  # sum_j b_j G_jc in the order of the basis (columns innermost: independent sums)
+            for c in range(ns):
+                vals[c] = b0 * Gs[0, c]
+            for j in range(1, nb):
+                bj = bb[j]
+                for c in range(ns):
+                    vals[c] += bj * Gs[j, c]
+            if every_point:  # the default plan keeps every output point: its row is the next one (no _store)
+                row = plan[S_ROWS]
+                plan[S_ROWS] = row + 1
+                plan[S_LAST] = k
+                plan[S_NEXT] = k + 1
+                o_step[row] = k
+                o_t[row] = tk
+                o_dt[row] = tk - t_prev
+                o_solves[row] = pending
+                for ii in range(n_x):
+                    o_x[row, ii] = vals[ii]
+                    o_v[row, ii] = 0.0
+                    o_a[row, ii] = 0.0
+                for ii in range(n_w):
+                    o_w[row, ii] = vals[n_x + 2 * n_r + ii]
+                    o_state[row, ii] = state[dirs[ii]]
+            else:
+                for ii in range(n_x):
+                    xo[dofs[ii]] = vals[ii]
+                for ii in range(n_w):
+                    wo[dirs[ii]] = vals[n_x + 2 * n_r + ii]
+                row = _store(xo, zero, zero, wo, state, out, k, tk, tk - t_prev, pending)
+            for ii in range(n_r):
+                o_q[row, ii] = vals[n_x + ii]
+                o_f[row, ii] = vals[n_x + n_r + ii]
             t_prev = tk
             pending = 0
         if (k >= cap or out.plan[S_ROWS] + 2 > n_rows) and (k + 1) * dt_out + t0 <= t_ev + tiny:
@@ -393,6 +439,7 @@ def event_march(sys, st, ws, out, q0, f0):
             break
         # ---- the transition at t_ev: every margin reaching zero with a negative slope ----
         _basis(t_ev, om, bb)
+        sa, ca = bb[1 % nb], bb[2 % nb]  # (nh = 1: the next phase's sin, cos of om t)
         for r in range(nq):
             q1[r] = _value(Q[:, r], bb)
         for i in range(n):
