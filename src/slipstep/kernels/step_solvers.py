@@ -254,6 +254,7 @@ def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, co
     where J(S) is singular: dx += J(S)^-1 r(dx). The same two-part convergence test as
     :func:`modified_newton` (increment and force residual, both)."""
     A, AT = sys.A, sys.AT
+    csr = so.csr_of(sys)  # once per step: a tuple of arrays per iteration costs their reference counts
     dx, delta, r, q1, w, state1 = sv.dx, sv.delta, sv.r, sv.q1, sv.w, sv.state1
     stick = cache.stick
     for i in range(dx.shape[0]):
@@ -266,7 +267,7 @@ def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, co
     theta = 0.0
     inc_ok = False
     for it in range(max_iter + 1):
-        newton_residual(backend, so.csr_of(sys), A, AT, cl, Lin, kfac, sv, counters)
+        newton_residual(backend, csr, A, AT, cl, Lin, kfac, sv, counters)
         if inc_ok and residual_converged(sv, kfac, conv):
             return OK, it
         if it == max_iter:
@@ -276,7 +277,7 @@ def full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, co
         if ok:
             use, use_state = slot, state1
         so.solve(backend, sys, cl, cache, use, use_state, q1, w, kfac, r, delta)
-        status, inc_ok, prev_norm, theta = newton_update(backend, so.csr_of(sys), A, dx, delta, it, prev_norm, theta, conv)
+        status, inc_ok, prev_norm, theta = newton_update(backend, csr, A, dx, delta, it, prev_norm, theta, conv)
         if status != OK:
             return status, it + 1
     return NOT_CONVERGED, max_iter
