@@ -37,7 +37,7 @@ from slipstep.kernels.codes import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LIFT, NON_FINITE, OK, P_KN,
     P_MU, SINGULAR, SLIP_NEG, SLIP_POS, STATE_CYCLING, STICK,
 )
-from slipstep.kernels.borrow import borrowed
+from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
@@ -46,6 +46,7 @@ from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, 
 # margin kinds
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
 MAX_FLIPS = 20  # state changes allowed at one instant before STATE_CYCLING
+ANCHOR = 64  # output points between exact evaluations of the basis (rotation in between)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -169,7 +170,7 @@ def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J
         for i in range(n):
             for j in range(n):
                 J[i, j] = Kst[i, j]
-        nowhere = np.empty(0)
+        nowhere = zero_q[:0]
         contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, nowhere, nowhere, 1.0, J)
         counters[C_FACTORISATIONS] += 1
         if not lu_factor(J, lus[slot], pivs[slot], singular_rtol):
@@ -242,6 +243,123 @@ def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J
     return True, k, solves, slot
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _take(blk, at, size):
+    """The next ``size`` entries of a scratch block from ``at``: (view, at + size)."""
+    return blk[at:at + size], at + size
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rotate(b, rot_c, rot_s):
+    """Advance the basis by one output step in place: (sin, cos)(om (t + dt)) from (sin, cos)(om t)
+    with rot_c, rot_s = cos(om dt), sin(om dt)."""
+    for h in range(rot_c.shape[0]):
+        sn, cn = b[2 * h + 1], b[2 * h + 2]
+        b[2 * h + 1] = sn * rot_c[h] + cn * rot_s[h]
+        b[2 * h + 2] = cn * rot_c[h] - sn * rot_s[h]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, r0, o_step, o_t, o_dt,
+                 o_solves):
+    """The cm output points k0 + 1.. of a block (t_k = min(k dt + t0, t_end)) into rows r0..: step,
+    time, step size and solves, and their basis values Bk[j, i] = b_j(t_(k0 + 1 + i)), exact at the
+    first point and then advanced by rotation (:func:`_rotate`; one harmonic: sin and cos in
+    registers). Returns the time of the last point."""
+    nb = bb.shape[0]
+    if nb == 3:
+        rc, rs = rot_c[0], rot_s[0]
+        sn, cn = 0.0, 1.0
+        for i in range(cm):
+            kk = k0 + i + 1
+            tk = min(kk * dt_out + t0, t_end)
+            if i == 0:
+                sn, cn = np.sin(om[0] * tk), np.cos(om[0] * tk)
+            else:
+                sn, cn = sn * rc + cn * rs, cn * rc - sn * rs
+            Bk[1, i] = sn  # (b_0 = 1 is not read: _block_sums)
+            Bk[2, i] = cn
+            o_step[r0 + i] = kk
+            o_t[r0 + i] = tk
+            o_dt[r0 + i] = tk - t_prev
+            o_solves[r0 + i] = pending
+            pending = 0
+            t_prev = tk
+        return t_prev
+    for i in range(cm):
+        kk = k0 + i + 1
+        tk = min(kk * dt_out + t0, t_end)
+        if i == 0:
+            _basis(tk, om, bb)
+        else:
+            _rotate(bb, rot_c, rot_s)
+        for j in range(nb):
+            Bk[j, i] = bb[j]
+        o_step[r0 + i] = kk
+        o_t[r0 + i] = tk
+        o_dt[r0 + i] = tk - t_prev
+        o_solves[r0 + i] = pending
+        pending = 0
+        t_prev = tk
+    return t_prev
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _block_sums(cm, Bk, Gs, T):
+    """T[c, i] = sum_j b_j(t_i) G_jc over the saved columns c at the cm points of a block, summed in
+    the order of the basis (b_0 = 1: G_0c + b_1 G_1c + ...; one harmonic: G_jc in registers)."""
+    nb, ns = Gs.shape[0], Gs.shape[1]
+    if nb == 3:
+        for c in range(ns):
+            g0, g1, g2 = Gs[0, c], Gs[1, c], Gs[2, c]
+            for i in range(cm):
+                T[c, i] = g0 + Bk[1, i] * g1 + Bk[2, i] * g2
+        return
+    for c in range(ns):
+        for i in range(cm):
+            s = Bk[0, i] * Gs[0, c]
+            for j in range(1, nb):
+                s += Bk[j, i] * Gs[j, c]
+            T[c, i] = s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, Gs, T, n_x, n_r,
+                   n_w, state, dirs, o_rows, o_vals):
+    """Output points k0 + 1 .. k0 + m of a phase into rows row0.. (the default save plan: every
+    point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs, v = a = 0 (o_v1,
+    o_a1: out.v, out.a flat), the phase's state. In blocks of ANCHOR points (the basis exact at
+    a block's first point): times and basis (:func:`_block_basis`), the column sums
+    (:func:`_block_sums`), then the rows. o_rows = (out.step, out.t, out.dt, out.solves), o_vals =
+    (out.x, v flat, a flat, out.q, out.f, out.w, out.state). Returns the time of the last point
+    (t_prev if m = 0)."""
+    o_step, o_t, o_dt, o_solves = o_rows
+    o_x, o_v1, o_a1, o_q, o_f, o_w, o_state = o_vals
+    done = 0
+    while done < m:
+        cm = min(ANCHOR, m - done)
+        r0 = row0 + done
+        t_prev = _block_basis(k0 + done, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, r0,
+                              o_step, o_t, o_dt, o_solves)
+        pending = 0
+        _block_sums(cm, Bk, Gs, T)
+        for e in range(r0 * n_x, (r0 + cm) * n_x):
+            o_v1[e] = 0.0
+            o_a1[e] = 0.0
+        for i in range(cm):
+            row = r0 + i
+            for ii in range(n_x):
+                o_x[row, ii] = T[ii, i]
+            for ii in range(n_r):
+                o_q[row, ii] = T[n_x + ii, i]
+                o_f[row, ii] = T[n_x + n_r + ii, i]
+            for ii in range(n_w):
+                o_w[row, ii] = T[n_x + 2 * n_r + ii, i]
+                o_state[row, ii] = state[dirs[ii]]
+        done += cm
+    return t_prev
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def event_march(sys, st, ws, out, q0, f0):
     """Event-driven quasi-static march from st.t_start to st.t_end with outputs every st.dt
@@ -256,11 +374,53 @@ def event_march(sys, st, ws, out, q0, f0):
     nfh, nmh = sys.force_frequency.shape[0], sys.motion_frequency.shape[0]
     nh = nfh + nmh
     nb = 1 + 2 * nh
-    om = np.empty(nh)
-    Fb = np.zeros((nb, n))
-    Pb = np.zeros((nb, m))
+    # scratch: one zeroed block, one for the per-state responses and one of ints, carved into borrowed views
+    # (no reference counts in the loops; kept alive to the end, kernels/borrow.py)
+    nmax = nrow.shape[0] + 2 * nd  # margins at most: one per contact, two per stick direction
+    dofs, o_rows, dirs = out.dofs, out.rows, out.dirs
+    n_x, n_r, n_w = dofs.shape[0], o_rows.shape[0], dirs.shape[0]
+    ns = n_x + 2 * n_r + n_w
+    nslot = ws.cache_used.shape[0]
+    own_f = np.zeros(3 * nh + nb * (n + m + nq + nd + nmax + ns + ANCHOR) + ns * ANCHOR + 5 * max(n, nq) + nd + nmax + 2 * nb
+                     + 2 * n + nd + ns)
+    own_x = np.empty(nslot * nb * (n + nq))
+    own_i = np.zeros(2 * nmax, np.int64)
+    blk, blk_x, blk_i = borrowed(own_f), borrowed(own_x), borrowed(own_i)
+    om, at = _take(blk, 0, nh)
+    rot_c, at = _take(blk, at, nh)
+    rot_s, at = _take(blk, at, nh)
+    v_, at = _take(blk, at, nb * n)
+    Fb = v_.reshape((nb, n))
+    v_, at = _take(blk, at, nb * m)
+    Pb = v_.reshape((nb, m))
+    v_, at = _take(blk, at, 5 * max(n, nq))
+    scr = v_.reshape((5, max(n, nq)))
+    v_, at = _take(blk, at, nb * nq)
+    Fp = v_.reshape((nb, nq))
+    v_, at = _take(blk, at, nb * nd)
+    Wp = v_.reshape((nb, nd))
+    v_, at = _take(blk, at, nmax * nb)
+    MC = v_.reshape((nmax, nb))
+    v_, at = _take(blk, at, nb * ns)
+    Gs = v_.reshape((nb, ns))  # per phase: the saved columns [x dofs, q rows, f rows, w dirs] per basis function
+    v_, at = _take(blk, at, nb * ANCHOR)
+    Bk = v_.reshape((nb, ANCHOR))  # the basis at a block of output points
+    v_, at = _take(blk, at, ns * ANCHOR)
+    T = v_.reshape((ns, ANCHOR))  # the saved columns at a block of output points
+    wtmp, at = _take(blk, at, nd)
+    scale, at = _take(blk, at, nmax)
+    bb, at = _take(blk, at, nb)
+    broot, at = _take(blk, at, nb)
+    zero, at = _take(blk, at, n)  # v = a = 0 of every output
+    xo, at = _take(blk, at, n)
+    wo, at = _take(blk, at, nd)
+    vals, at = _take(blk, at, ns)
+    kind, owner = blk_i[:nmax], blk_i[nmax:]
+    Xc = blk_x[:nslot * nb * n].reshape((nslot, nb, n))
+    Qc = blk_x[nslot * nb * n:].reshape((nslot, nb, nq))
     for i in range(n):
         Fb[0, i] = sys.constant_force[i]
+    om_max = 0.0
     for h in range(nfh):
         om[h] = 2.0 * np.pi * sys.force_frequency[h]
         for i in range(n):
@@ -271,36 +431,24 @@ def event_march(sys, st, ws, out, q0, f0):
         for c in range(m):
             Pb[2 * (nfh + h) + 1, c] = sys.motion_sin[c, h]
             Pb[2 * (nfh + h) + 2, c] = sys.motion_cos[c, h]
-    period = 2.0 * np.pi / om.max() if nh > 0 else st.t_end - st.t_start
-    rot_c = np.cos(om * st.dt)
-    rot_s = np.sin(om * st.dt)
+    for h in range(nh):
+        om_max = max(om_max, om[h])
+        rot_c[h] = np.cos(om[h] * st.dt)
+        rot_s[h] = np.sin(om[h] * st.dt)
+    period = 2.0 * np.pi / om_max if nh > 0 else st.t_end - st.t_start
     scan = min(period / 64.0, (st.t_end - st.t_start) / 16.0)
     tol_t = 1e-13 * period
     rtol = st.state_rtol
-    scr = np.zeros((5, max(n, nq)))
-    Fp = np.zeros((nb, nq))
-    Wp = np.zeros((nb, nd))
-    wtmp = np.zeros(nd)
-    nmax = nrow.shape[0] + 2 * nd
-    MC = np.zeros((nmax, nb))
-    kind = np.zeros(nmax, np.int64)
-    owner = np.zeros(nmax, np.int64)
-    scale = np.zeros(nmax)
-    bb = np.empty(nb)
-    broot = np.empty(nb)
     keys, used, lus, pivs = ws.cache_keys, ws.cache_used, ws.cache_lu, ws.cache_piv
     used[:] = False
-    Xc = np.empty((used.shape[0], nb, n))
-    Qc = np.empty((used.shape[0], nb, nq))
     state, w, x = ws.state, ws.w, ws.x
     q1, f1, w1 = ws.q1, ws.f1, ws.w1
     # ---- initial point ----
     t = st.t_start
     t_end = st.t_end
     dt_out = st.dt
-    zero = np.zeros(n)  # v = a = 0 of every output
-    xo, wo, prev = np.empty(n), np.empty(nd), state.copy()
-    o_rows, n_rows = out.rows, out.t.shape[0]
+    prev = state.copy()
+    n_rows = out.t.shape[0]
     row = _store(x, zero, zero, w, state, out, 0, t, 0.0, 0)
     for ii in range(o_rows.shape[0]):
         out.q[row, ii] = q0[o_rows[ii]]
@@ -314,18 +462,14 @@ def event_march(sys, st, ws, out, q0, f0):
     flips = 0
     t0 = st.t_start
     o_q, o_f = out.q, out.f
-    plan, dofs, dirs = out.plan, out.dofs, out.dirs
+    plan = out.plan
     o_x, o_v, o_a, o_w, o_state = out.x, out.v, out.a, out.w, out.state
+    o_v1, o_a1 = o_v.reshape(o_v.size), o_a.reshape(o_a.size)  # flat: v = a = 0 of a block of rows at once
     o_step, o_t, o_dt, o_solves = out.step, out.t, out.dt, out.solves
-    n_x, n_r, n_w = dofs.shape[0], o_rows.shape[0], dirs.shape[0]
-    ns = n_x + 2 * n_r + n_w
-    Gs = np.zeros((nb, ns))  # per phase: the saved columns [x dofs, q rows, f rows, w dirs] per basis function
-    vals = np.zeros(ns)
     # the default save plan (every point from the start, no given times): rows written here, as _store would
     every_point = plan[S_EVERY] == 1 and out.times.shape[0] == 3 and out.times[S_FROM] <= st.t_start
     sa, ca = (np.sin(om[0] * t), np.cos(om[0] * t)) if nh == 1 else (0.0, 1.0)
     while t < t_end - tiny:
-        k_phase = k
         ok, nm, solves, slot = _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, ws.J,
                                       keys, used, lus, pivs, Xc, Qc, ws.key, scr, wtmp, MC, kind, owner, scale,
                                       st.singular_rtol, counters)
@@ -378,25 +522,38 @@ def event_march(sys, st, ws, out, q0, f0):
             for ii in range(n_w):
                 Gs[j, c] = Wp[j, dirs[ii]]
                 c += 1
+        if k < cap and plan[S_ROWS] + 2 <= n_rows and (k + 1) * dt_out + t0 <= t_ev + tiny:  # a first output: new state?
+            for d in range(nd):
+                if state[d] != prev[d]:
+                    counters[C_STATE_CHANGES] += 1
+                    break
+            for d in range(nd):
+                prev[d] = state[d]
+        if every_point:  # the default plan keeps every output point: rows k0 + 1.. are the next ones (no _store)
+            row0 = plan[S_ROWS]
+            k_max = min(cap, k + n_rows - 1 - row0)  # k < cap and row + 2 <= n_rows at every output
+            k1 = k
+            while k1 < k_max and (k1 + 1) * dt_out + t0 <= t_ev + tiny:
+                k1 += 1
+            m = k1 - k
+            t_prev = _outputs_every(k, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk,
+                                    Gs, T, n_x, n_r, n_w, state, dirs, (o_step, o_t, o_dt, o_solves),
+                                    (o_x, o_v1, o_a1, o_q, o_f, o_w, o_state))
+            if m > 0:
+                k = k1
+                plan[S_ROWS] = row0 + m
+                plan[S_LAST] = k
+                plan[S_NEXT] = k + 1
+                pending = 0
         n_out = 0
-        while k < cap and out.plan[S_ROWS] + 2 <= n_rows and (k + 1) * dt_out + t0 <= t_ev + tiny:
+        while not every_point and k < cap and plan[S_ROWS] + 2 <= n_rows and (k + 1) * dt_out + t0 <= t_ev + tiny:
             tk = min((k + 1) * dt_out + t0, t_end)
-            if n_out % 64 == 0:  # exact basis, then advanced by rotation (a few ulps per output)
+            if n_out % ANCHOR == 0:  # exact basis, then advanced by rotation (a few ulps per output)
                 _basis(tk, om, bb)
             else:
-                for h in range(nh):
-                    sn, cn = bb[2 * h + 1], bb[2 * h + 2]
-                    bb[2 * h + 1] = sn * rot_c[h] + cn * rot_s[h]
-                    bb[2 * h + 2] = cn * rot_c[h] - sn * rot_s[h]
+                _rotate(bb, rot_c, rot_s)
             n_out += 1
             k += 1
-            if k == k_phase + 1:  # the first output of a phase: did the state change?
-                for d in range(nd):
-                    if state[d] != prev[d]:
-                        counters[C_STATE_CHANGES] += 1
-                        break
-                for d in range(nd):
-                    prev[d] = state[d]
             b0 = bb[0]  # sum_j b_j G_jc in the order of the basis (columns innermost: independent sums)
             for c in range(ns):
                 vals[c] = b0 * Gs[0, c]
@@ -404,28 +561,11 @@ def event_march(sys, st, ws, out, q0, f0):
                 bj = bb[j]
                 for c in range(ns):
                     vals[c] += bj * Gs[j, c]
-            if every_point:  # the default plan keeps every output point: its row is the next one (no _store)
-                row = plan[S_ROWS]
-                plan[S_ROWS] = row + 1
-                plan[S_LAST] = k
-                plan[S_NEXT] = k + 1
-                o_step[row] = k
-                o_t[row] = tk
-                o_dt[row] = tk - t_prev
-                o_solves[row] = pending
-                for ii in range(n_x):
-                    o_x[row, ii] = vals[ii]
-                    o_v[row, ii] = 0.0
-                    o_a[row, ii] = 0.0
-                for ii in range(n_w):
-                    o_w[row, ii] = vals[n_x + 2 * n_r + ii]
-                    o_state[row, ii] = state[dirs[ii]]
-            else:
-                for ii in range(n_x):
-                    xo[dofs[ii]] = vals[ii]
-                for ii in range(n_w):
-                    wo[dirs[ii]] = vals[n_x + 2 * n_r + ii]
-                row = _store(xo, zero, zero, wo, state, out, k, tk, tk - t_prev, pending)
+            for ii in range(n_x):
+                xo[dofs[ii]] = vals[ii]
+            for ii in range(n_w):
+                wo[dirs[ii]] = vals[n_x + 2 * n_r + ii]
+            row = _store(xo, zero, zero, wo, state, out, k, tk, tk - t_prev, pending)
             for ii in range(n_r):
                 o_q[row, ii] = vals[n_x + ii]
                 o_f[row, ii] = vals[n_x + n_r + ii]
@@ -483,4 +623,5 @@ def event_march(sys, st, ws, out, q0, f0):
         counters[C_FAIL_STEP] = k + 1
         out.times[S_FAIL] = t
     counters[C_STEPS] = k
+    keep_alive((own_f, own_x, own_i))
     return status
