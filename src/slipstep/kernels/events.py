@@ -260,12 +260,11 @@ def _rotate(b, rot_c, rot_s):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, r0, o_step, o_t, o_dt,
-                 o_solves):
-    """The cm output points k0 + 1.. of a block (t_k = min(k dt + t0, t_end)) into rows r0..: step,
-    time, step size and solves, and their basis values Bk[j, i] = b_j(t_(k0 + 1 + i)), exact at the
-    first point and then advanced by rotation (:func:`_rotate`; one harmonic: sin and cos in
-    registers). Returns the time of the last point."""
+def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, b_step, b_t, b_dt, b_solves):
+    """The cm output points k0 + 1.. of a block (t_k = min(k dt + t0, t_end)): their step, time,
+    step size and solves (into the block's rows b_*), and their basis values Bk[j, i] =
+    b_j(t_(k0 + 1 + i)), exact at the first point and then advanced by rotation (:func:`_rotate`;
+    one harmonic: sin and cos in registers). Returns the time of the last point."""
     nb = bb.shape[0]
     if nb == 3:
         rc, rs = rot_c[0], rot_s[0]
@@ -277,12 +276,12 @@ def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, b
                 sn, cn = np.sin(om[0] * tk), np.cos(om[0] * tk)
             else:
                 sn, cn = sn * rc + cn * rs, cn * rc - sn * rs
-            Bk[1, i] = sn  # (b_0 = 1 is not read: _block_sums)
+            Bk[1, i] = sn  # (b_0 = 1 is not read: _block_fill)
             Bk[2, i] = cn
-            o_step[r0 + i] = kk
-            o_t[r0 + i] = tk
-            o_dt[r0 + i] = tk - t_prev
-            o_solves[r0 + i] = pending
+            b_step[i] = kk
+            b_t[i] = tk
+            b_dt[i] = tk - t_prev
+            b_solves[i] = pending
             pending = 0
             t_prev = tk
         return t_prev
@@ -295,67 +294,67 @@ def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, b
             _rotate(bb, rot_c, rot_s)
         for j in range(nb):
             Bk[j, i] = bb[j]
-        o_step[r0 + i] = kk
-        o_t[r0 + i] = tk
-        o_dt[r0 + i] = tk - t_prev
-        o_solves[r0 + i] = pending
+        b_step[i] = kk
+        b_t[i] = tk
+        b_dt[i] = tk - t_prev
+        b_solves[i] = pending
         pending = 0
         t_prev = tk
     return t_prev
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _block_sums(cm, Bk, Gs, T):
-    """T[c, i] = sum_j b_j(t_i) G_jc over the saved columns c at the cm points of a block, summed in
-    the order of the basis (b_0 = 1: G_0c + b_1 G_1c + ...; one harmonic: G_jc in registers)."""
-    nb, ns = Gs.shape[0], Gs.shape[1]
-    if nb == 3:
-        for c in range(ns):
+def _block_fill(blk, cm, Bk, Gs, c0):
+    """blk[i, ii] = sum_j b_j(t_i) G_j,(c0 + ii) at the cm points of a block (blk: the block's rows of
+    one output array, Bk[j, i] = b_j(t_i)), summed in the order of the basis (b_0 = 1: G_0c +
+    b_1 G_1c + ...; one harmonic: the G_jc in registers). Column by column: long loops over the
+    points, no index arithmetic beyond the loop counters."""
+    nb = Gs.shape[0]
+    for ii in range(blk.shape[1]):
+        c = c0 + ii
+        if nb == 3:
             g0, g1, g2 = Gs[0, c], Gs[1, c], Gs[2, c]
             for i in range(cm):
-                T[c, i] = g0 + Bk[1, i] * g1 + Bk[2, i] * g2
-        return
-    for c in range(ns):
-        for i in range(cm):
-            s = Bk[0, i] * Gs[0, c]
-            for j in range(1, nb):
-                s += Bk[j, i] * Gs[j, c]
-            T[c, i] = s
+                blk[i, ii] = g0 + Bk[1, i] * g1 + Bk[2, i] * g2
+        else:
+            for i in range(cm):
+                s = Bk[0, i] * Gs[0, c]
+                for j in range(1, nb):
+                    s += Bk[j, i] * Gs[j, c]
+                blk[i, ii] = s
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, Gs, T, n_x, n_r,
-                   n_w, state, dirs, o_rows, o_vals):
+def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, Gs, n_x, n_r,
+                   state, dirs, o_rows, o_vals):
     """Output points k0 + 1 .. k0 + m of a phase into rows row0.. (the default save plan: every
-    point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs, v = a = 0 (o_v1,
-    o_a1: out.v, out.a flat), the phase's state. In blocks of ANCHOR points (the basis exact at
-    a block's first point): times and basis (:func:`_block_basis`), the column sums
-    (:func:`_block_sums`), then the rows. o_rows = (out.step, out.t, out.dt, out.solves), o_vals =
-    (out.x, v flat, a flat, out.q, out.f, out.w, out.state). Returns the time of the last point
-    (t_prev if m = 0)."""
+    point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs, v = a = 0, the
+    phase's state. In blocks of ANCHOR points (the basis exact at a block's first point): times
+    and basis (:func:`_block_basis`), then the columns (:func:`_block_fill`). o_rows = (out.step,
+    out.t, out.dt, out.solves), o_vals = (out.x, out.v, out.a, out.q, out.f, out.w, out.state).
+    Returns the time of the last point (t_prev if m = 0)."""
     o_step, o_t, o_dt, o_solves = o_rows
-    o_x, o_v1, o_a1, o_q, o_f, o_w, o_state = o_vals
+    o_x, o_v, o_a, o_q, o_f, o_w, o_state = o_vals
     done = 0
     while done < m:
         cm = min(ANCHOR, m - done)
-        r0 = row0 + done
-        t_prev = _block_basis(k0 + done, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, r0,
-                              o_step, o_t, o_dt, o_solves)
+        r0, r1 = row0 + done, row0 + done + cm
+        t_prev = _block_basis(k0 + done, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk,
+                              o_step[r0:r1], o_t[r0:r1], o_dt[r0:r1], o_solves[r0:r1])
         pending = 0
-        _block_sums(cm, Bk, Gs, T)
-        for e in range(r0 * n_x, (r0 + cm) * n_x):
-            o_v1[e] = 0.0
-            o_a1[e] = 0.0
-        for i in range(cm):
-            row = r0 + i
-            for ii in range(n_x):
-                o_x[row, ii] = T[ii, i]
-            for ii in range(n_r):
-                o_q[row, ii] = T[n_x + ii, i]
-                o_f[row, ii] = T[n_x + n_r + ii, i]
-            for ii in range(n_w):
-                o_w[row, ii] = T[n_x + 2 * n_r + ii, i]
-                o_state[row, ii] = state[dirs[ii]]
+        _block_fill(o_x[r0:r1], cm, Bk, Gs, 0)
+        _block_fill(o_q[r0:r1], cm, Bk, Gs, n_x)
+        _block_fill(o_f[r0:r1], cm, Bk, Gs, n_x + n_r)
+        _block_fill(o_w[r0:r1], cm, Bk, Gs, n_x + 2 * n_r)
+        b_v, b_a, b_state = o_v[r0:r1], o_a[r0:r1], o_state[r0:r1]
+        for ii in range(b_v.shape[1]):
+            for i in range(cm):
+                b_v[i, ii] = 0.0
+                b_a[i, ii] = 0.0
+        for ii in range(b_state.shape[1]):
+            s = state[dirs[ii]]
+            for i in range(cm):
+                b_state[i, ii] = s
         done += cm
     return t_prev
 
@@ -381,7 +380,7 @@ def event_march(sys, st, ws, out, q0, f0):
     n_x, n_r, n_w = dofs.shape[0], o_rows.shape[0], dirs.shape[0]
     ns = n_x + 2 * n_r + n_w
     nslot = ws.cache_used.shape[0]
-    own_f = np.zeros(3 * nh + nb * (n + m + nq + nd + nmax + ns + ANCHOR) + ns * ANCHOR + 5 * max(n, nq) + nd + nmax + 2 * nb
+    own_f = np.zeros(3 * nh + nb * (n + m + nq + nd + nmax + ns + ANCHOR) + 5 * max(n, nq) + nd + nmax + 2 * nb
                      + 2 * n + nd + ns)
     own_x = np.empty(nslot * nb * (n + nq))
     own_i = np.zeros(2 * nmax, np.int64)
@@ -405,8 +404,6 @@ def event_march(sys, st, ws, out, q0, f0):
     Gs = v_.reshape((nb, ns))  # per phase: the saved columns [x dofs, q rows, f rows, w dirs] per basis function
     v_, at = _take(blk, at, nb * ANCHOR)
     Bk = v_.reshape((nb, ANCHOR))  # the basis at a block of output points
-    v_, at = _take(blk, at, ns * ANCHOR)
-    T = v_.reshape((ns, ANCHOR))  # the saved columns at a block of output points
     wtmp, at = _take(blk, at, nd)
     scale, at = _take(blk, at, nmax)
     bb, at = _take(blk, at, nb)
@@ -464,7 +461,6 @@ def event_march(sys, st, ws, out, q0, f0):
     o_q, o_f = out.q, out.f
     plan = out.plan
     o_x, o_v, o_a, o_w, o_state = out.x, out.v, out.a, out.w, out.state
-    o_v1, o_a1 = o_v.reshape(o_v.size), o_a.reshape(o_a.size)  # flat: v = a = 0 of a block of rows at once
     o_step, o_t, o_dt, o_solves = out.step, out.t, out.dt, out.solves
     # the default save plan (every point from the start, no given times): rows written here, as _store would
     every_point = plan[S_EVERY] == 1 and out.times.shape[0] == 3 and out.times[S_FROM] <= st.t_start
@@ -537,8 +533,8 @@ def event_march(sys, st, ws, out, q0, f0):
                 k1 += 1
             m = k1 - k
             t_prev = _outputs_every(k, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk,
-                                    Gs, T, n_x, n_r, n_w, state, dirs, (o_step, o_t, o_dt, o_solves),
-                                    (o_x, o_v1, o_a1, o_q, o_f, o_w, o_state))
+                                    Gs, n_x, n_r, state, dirs, (o_step, o_t, o_dt, o_solves),
+                                    (o_x, o_v, o_a, o_q, o_f, o_w, o_state))
             if m > 0:
                 k = k1
                 plan[S_ROWS] = row0 + m
