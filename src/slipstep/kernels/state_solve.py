@@ -52,29 +52,40 @@ class LowRank(NamedTuple):
     zc: np.ndarray  # (n) scratch
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nominal, singular_rtol, counters):
-    """Slot of the factorised solve of J(kd_state) for the current step size, cached per
-    key = (kd_state, cache.dt_state); a non-nominal dt (the shortened last step) uses scratch
-    slot cap, a state without a piecewise-linear form (coupled slip: its tangent is taken at
-    (q, w_old)) scratch slot cap + 1, neither cached. Returns (slot, ok); ok is False when
-    J(S) is singular. cl: the ContactLaw table, cache: the StateCache (kernels/settings.py)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def state_slot(cl, cache, kd_state, nominal):
+    """(slot, found): the cache slot of the factorised J(kd_state) for the current step size,
+    key = (kd_state, cache.dt_state) (kernels/cache.py). A non-nominal dt (the shortened last
+    step) uses scratch slot cap, a state without a piecewise-linear form (coupled slip: its
+    tangent depends on the linearisation point) scratch slot cap + 1, neither cached (found
+    False). A new key is entered in the table: the caller factorises into its slot
+    (:func:`factorise_state`, :func:`factorise_banded`). Inlined, so that a cache hit costs
+    no call of the factorisation functions and their arguments."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    dt_state, stick, key, keys, used, ok_flags = cache.dt_state, cache.stick, cache.key, cache.keys, cache.used, cache.ok
-    lus, pivs, lr = cache.lu, cache.piv, cache.lr
+    key = cache.key
     nd = kd_state.shape[0]
     for d in range(nd):
         key[d] = kd_state[d]
-        key[nd + d] = dt_state[d]
-    cap = used.shape[0]
+        key[nd + d] = cache.dt_state[d]
+    cap = cache.used.shape[0]
     if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state):
-        slot = cap + 1
-    elif nominal:
-        slot, found = find_slot(keys, used, key)
-        if found:
-            return slot, ok_flags[slot]
-    else:
-        slot = cap
+        return cap + 1, False
+    if nominal:
+        return find_slot(cache.keys, cache.used, key)
+    return cap, False
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def factorise_state(slot, lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nominal, singular_rtol, counters):
+    """Factorise the solve of J(kd_state) for the current step size into ``slot`` (from
+    :func:`state_slot`, not found there): the LU of J (direct) or the low-rank update of the
+    base J0 of this step size (module docstring). Returns ok, False when J(S) is singular
+    (also kept in cache.ok[slot]). cl: the ContactLaw table, cache: the StateCache
+    (kernels/settings.py); q, w_old: the linearisation point of a coupled slip."""
+    nrow, lcode, lpar, fdir, ndir, trow, kt = cl
+    dt_state, stick, ok_flags = cache.dt_state, cache.stick, cache.ok
+    lus, pivs, lr = cache.lu, cache.piv, cache.lr
+    nd = kd_state.shape[0]
     n = Lin.shape[0]
     if not lowrank:
         for i in range(n):
@@ -84,7 +95,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nom
         ok = lu_factor(J, lus[slot], pivs[slot], singular_rtol)
         ok_flags[slot] = ok
         counters[C_FACTORISATIONS] += 1
-        return slot, ok
+        return ok
     # ---- low rank: the base J0 = J(stick) of this step size, then C(S) ----
     nq = A.shape[0]
     capb = lr.base_used.shape[0]
@@ -116,7 +127,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nom
     lr.slot_base[slot] = b
     if not lr.base_ok[b]:
         ok_flags[slot] = False
-        return slot, False
+        return False
     identity = True
     for d in range(nd):
         if kd_state[d] != STICK:
@@ -124,7 +135,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nom
     lr.slot_identity[slot] = identity
     if identity:
         ok_flags[slot] = True
-        return slot, True
+        return True
     C = lus[slot]  # C(S) = I + dK(S) A Z, assembled in its slot and factorised in place
     for c in range(nq):
         for r in range(nq):
@@ -135,7 +146,7 @@ def factorise_state(lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nom
     ok = lu_factor(C, C, pivs[slot], singular_rtol)
     ok_flags[slot] = ok
     counters[C_FACTORISATIONS] += 1
-    return slot, ok
+    return ok
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -166,25 +177,11 @@ def solve_low_rank(slot, cache, A, cl, kd_state, q, w_old, kfac, r, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def factorise_banded(sys, cl, cache, Lin, kfac, kd_state, q, w_old, nominal, singular_rtol, counters):
-    """:func:`factorise_state` for the banded backend: the slot of the banded LU of
-    J(kd_state) = Lin + kfac A^T K(kd_state) A (Lin in band storage, A in CSR), cached per key
-    (kd_state, dt state) with the same scratch slots. Returns (slot, ok)."""
+def factorise_banded(slot, sys, cl, cache, Lin, kfac, kd_state, q, w_old, singular_rtol, counters):
+    """:func:`factorise_state` for the banded backend: the banded LU of J(kd_state) = Lin +
+    kfac A^T K(kd_state) A (Lin in band storage, A in CSR) into ``slot`` (from
+    :func:`state_slot`). Returns ok."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    nd = kd_state.shape[0]
-    key = cache.key
-    for d in range(nd):
-        key[d] = kd_state[d]
-        key[nd + d] = cache.dt_state[d]
-    cap = cache.used.shape[0]
-    if coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, kd_state):
-        slot = cap + 1
-    elif nominal:
-        slot, found = find_slot(cache.keys, cache.used, key)
-        if found:
-            return slot, cache.ok[slot]
-    else:
-        slot = cap
     kl, ku = sys.kl, sys.ku
     lu = cache.lu[slot]
     band_to_lu_storage(Lin, kl, ku, lu)
@@ -193,4 +190,4 @@ def factorise_banded(sys, cl, cache, Lin, kfac, kd_state, q, w_old, nominal, sin
     ok = band_lu_factor(lu, kl, ku, cache.piv[slot], singular_rtol)
     cache.ok[slot] = ok
     counters[C_FACTORISATIONS] += 1
-    return slot, ok
+    return ok

@@ -3,7 +3,9 @@
     r(dx) = r0 - Lin dx - kfac A^T f(q_base + A dx, w_n) = 0
 
 for dx (module docstring of kernels/march.py for r0, Lin, q_base, kfac), and leaves in the
-StepVectors ``sv`` (kernels/settings.py) the converged q1, f1, w1, state1 and gf1 = A^T f1.
+StepVectors ``sv`` (kernels/settings.py) the converged q1, f1, w1, state1 and gf1 = A^T f1
+(the piecewise-linear solver only where kfac != 1: A^T f_{n+1} enters the next step's residual
+base through alpha_f alone, so a quasi-static or Newmark march never reads it).
 Every structure-matrix operation goes through kernels/structure_ops.py (``backend``).
 
     0 MODIFIED_NEWTON        :func:`stick_tangent_step` (Method 1)
@@ -449,7 +451,8 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
             break
         local_coordinates(backend, so.csr_of(sys), A, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
-            so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law of the postulate at q1
+            if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
+                so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law of the postulate at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -534,7 +537,8 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
             break
         _local_coordinates_dense(A, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
-            scatter(AT, f1, gf1)  # f1, w1: the law of the postulate at q1
+            if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
+                scatter(AT, f1, gf1)  # f1, w1: the law of the postulate at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)

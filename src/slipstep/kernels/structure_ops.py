@@ -41,7 +41,7 @@ from slipstep.kernels.banded import (
 )
 from slipstep.kernels.contact import gather, scatter
 from slipstep.kernels.linalg import lu_solve
-from slipstep.kernels.state_solve import factorise_banded, factorise_state, solve_low_rank
+from slipstep.kernels.state_solve import factorise_banded, factorise_state, solve_low_rank, state_slot
 
 #: structure backends (MarchSettings.structure)
 DENSE, LOW_RANK, BANDED = 0, 1, 2
@@ -142,10 +142,13 @@ def factorise(backend, sys, cl, cache, Lin, J, kfac, kd_state, q, w_old, nominal
     """(slot, ok): the factorisation of J(kd_state) = Lin + kfac A^T K(kd_state) A for the
     current step size, cached per (kd_state, dt state) (q, w_old: the linearisation point of a
     coupled slip; length 0 for none). ok False: J singular."""
+    slot, found = state_slot(cl, cache, kd_state, nominal)
+    if found:
+        return slot, cache.ok[slot]
     if backend == BANDED:
-        return factorise_banded(sys, cl, cache, Lin, kfac, kd_state, q, w_old, nominal, singular_rtol, counters)
-    return factorise_state(backend == LOW_RANK, Lin, J, kfac, sys.A, cl, cache, kd_state, q, w_old, nominal,
-                           singular_rtol, counters)
+        return slot, factorise_banded(slot, sys, cl, cache, Lin, kfac, kd_state, q, w_old, singular_rtol, counters)
+    return slot, factorise_state(slot, backend == LOW_RANK, Lin, J, kfac, sys.A, cl, cache, kd_state, q, w_old,
+                                 nominal, singular_rtol, counters)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
