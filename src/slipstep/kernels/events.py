@@ -30,6 +30,8 @@ q within a phase; sin and cos advanced by rotation). Piecewise-linear laws only 
 slip), harmonic signals without tables or ramps (checked in Python).
 """
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -44,6 +46,57 @@ from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, S_NEXT, S_ROWS, _store
 
 # margin kinds
+class EventSystem(NamedTuple):
+    """The fields of slipstep.system.CompiledSystem that :func:`event_march` reads (same names
+    and meaning): numba unboxes every array of a kernel's arguments on each call (about 40 ns
+    each), so the event kernel, whose call is a large part of its time, takes these 19 instead
+    of the 44 (:func:`event_arguments`)."""
+
+    K: np.ndarray
+    A: np.ndarray
+    AT: np.ndarray
+    B: np.ndarray
+    g: np.ndarray
+    normal_row: np.ndarray
+    first_direction: np.ndarray
+    n_directions: np.ndarray
+    tangential_row: np.ndarray
+    kt: np.ndarray
+    law: np.ndarray
+    law_par: np.ndarray
+    constant_force: np.ndarray
+    force_frequency: np.ndarray
+    force_sin: np.ndarray
+    force_cos: np.ndarray
+    motion_frequency: np.ndarray
+    motion_sin: np.ndarray
+    motion_cos: np.ndarray
+
+
+class EventWorkspace(NamedTuple):
+    """The fields of kernels.march.Workspace that :func:`event_march` reads (same arrays)."""
+
+    x: np.ndarray
+    w: np.ndarray
+    state: np.ndarray
+    q1: np.ndarray
+    f1: np.ndarray
+    w1: np.ndarray
+    J: np.ndarray
+    key: np.ndarray
+    cache_keys: np.ndarray
+    cache_used: np.ndarray
+    cache_lu: np.ndarray
+    cache_piv: np.ndarray
+
+
+def event_arguments(sys, ws):
+    """(EventSystem, EventWorkspace) of a CompiledSystem and a Workspace: views of the same
+    arrays, so what the kernel writes lands in ``ws``."""
+    return (EventSystem(*(getattr(sys, f) for f in EventSystem._fields)),
+            EventWorkspace(*(getattr(ws, f) for f in EventWorkspace._fields)))
+
+
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
 MAX_FLIPS = 20  # state changes allowed at one instant before STATE_CYCLING
 ANCHOR = 64  # output points between exact evaluations of the basis (rotation in between)
@@ -328,13 +381,14 @@ def _block_fill(blk, cm, Bk, Gs, c0):
 def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, Gs, n_x, n_r,
                    state, dirs, o_rows, o_vals):
     """Output points k0 + 1 .. k0 + m of a phase into rows row0.. (the default save plan: every
-    point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs, v = a = 0, the
-    phase's state. In blocks of ANCHOR points (the basis exact at a block's first point): times
+    point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs and the phase's
+    state; v = a = 0 are the zeros the runner allocates the buffers with
+    (methods/simulation._allocate_outputs: a quasi-static runner never writes them). In blocks of ANCHOR points (the basis exact at a block's first point): times
     and basis (:func:`_block_basis`), then the columns (:func:`_block_fill`). o_rows = (out.step,
-    out.t, out.dt, out.solves), o_vals = (out.x, out.v, out.a, out.q, out.f, out.w, out.state).
+    out.t, out.dt, out.solves), o_vals = (out.x, out.q, out.f, out.w, out.state).
     Returns the time of the last point (t_prev if m = 0)."""
     o_step, o_t, o_dt, o_solves = o_rows
-    o_x, o_v, o_a, o_q, o_f, o_w, o_state = o_vals
+    o_x, o_q, o_f, o_w, o_state = o_vals
     done = 0
     while done < m:
         cm = min(ANCHOR, m - done)
@@ -346,11 +400,7 @@ def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, r
         _block_fill(o_q[r0:r1], cm, Bk, Gs, n_x)
         _block_fill(o_f[r0:r1], cm, Bk, Gs, n_x + n_r)
         _block_fill(o_w[r0:r1], cm, Bk, Gs, n_x + 2 * n_r)
-        b_v, b_a, b_state = o_v[r0:r1], o_a[r0:r1], o_state[r0:r1]
-        for ii in range(b_v.shape[1]):
-            for i in range(cm):
-                b_v[i, ii] = 0.0
-                b_a[i, ii] = 0.0
+        b_state = o_state[r0:r1]
         for ii in range(b_state.shape[1]):
             s = state[dirs[ii]]
             for i in range(cm):
@@ -363,7 +413,8 @@ def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, r
 def event_march(sys, st, ws, out, q0, f0):
     """Event-driven quasi-static march from st.t_start to st.t_end with outputs every st.dt
     (module docstring); same arguments (st: the MarchSettings), layout and counters as
-    kernels.march.march."""
+    kernels.march.march, sys and ws as the slim tuples of :func:`event_arguments` (or the full
+    CompiledSystem and Workspace: the same fields are read)."""
     sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)  # kernels/borrow.py
     Kst, A = sys.K, sys.A
     nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
@@ -460,7 +511,7 @@ def event_march(sys, st, ws, out, q0, f0):
     t0 = st.t_start
     o_q, o_f = out.q, out.f
     plan = out.plan
-    o_x, o_v, o_a, o_w, o_state = out.x, out.v, out.a, out.w, out.state
+    o_x, o_w, o_state = out.x, out.w, out.state
     o_step, o_t, o_dt, o_solves = out.step, out.t, out.dt, out.solves
     # the default save plan (every point from the start, no given times): rows written here, as _store would
     every_point = plan[S_EVERY] == 1 and out.times.shape[0] == 3 and out.times[S_FROM] <= st.t_start
@@ -534,7 +585,7 @@ def event_march(sys, st, ws, out, q0, f0):
             m = k1 - k
             t_prev = _outputs_every(k, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk,
                                     Gs, n_x, n_r, state, dirs, (o_step, o_t, o_dt, o_solves),
-                                    (o_x, o_v, o_a, o_q, o_f, o_w, o_state))
+                                    (o_x, o_q, o_f, o_w, o_state))
             if m > 0:
                 k = k1
                 plan[S_ROWS] = row0 + m

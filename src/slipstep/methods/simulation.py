@@ -21,7 +21,7 @@ from slipstep.live import call_kernel
 from slipstep.methods import memory
 from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
-from slipstep.kernels.events import event_march
+from slipstep.kernels.events import event_arguments, event_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods import save as SV
@@ -169,12 +169,16 @@ class Runner:
         """The time-discretisation error estimate attrs (see Simulation.accuracy_attrs)."""
         return {}
 
+    def kernel_arguments(self) -> tuple:
+        """The march kernel's arguments (sys, settings, ws, out, q0, f0)."""
+        return (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
+
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
         reset_outputs(self.out)
-        args = (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
+        args = self.kernel_arguments()
         kernel = self._kernel if self._kernel is not None else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
         plan = getattr(self, "save_plan", None)
@@ -574,6 +578,14 @@ class Simulation(Runner):
         }
 
     # -- marching -------------------------------------------------------------------------
+    def kernel_arguments(self) -> tuple:
+        """The kernel's arguments; the event-driven kernel takes the slim system and workspace
+        tuples of kernels.events.event_arguments (fewer arrays to unbox per call)."""
+        if self.method.solver != K.EVENTS:
+            return super().kernel_arguments()
+        sys, ws = event_arguments(self.compiled, self.ws)
+        return (sys, self.settings, ws, self.out, self.q0, self.f0)
+
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
         ws = self.ws
