@@ -313,6 +313,15 @@ def _rotate(b, rot_c, rot_s):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _point_row(i, k, t, t_prev, pending, b_step, b_t, b_dt, b_solves):
+    """Row i of a block: output point k at time t, its step t - t_prev and the solves since the last point."""
+    b_step[i] = k
+    b_t[i] = t
+    b_dt[i] = t - t_prev
+    b_solves[i] = pending
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, bb, Bk, b_step, b_t, b_dt, b_solves):
     """The cm output points k0 + 1.. of a block (t_k = min(k dt + t0, t_end)): their step, time,
     step size and solves (into the block's rows b_*), and their basis values Bk[j, i] =
@@ -331,10 +340,7 @@ def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, b
                 sn, cn = sn * rc + cn * rs, cn * rc - sn * rs
             Bk[1, i] = sn  # (b_0 = 1 is not read: _block_fill)
             Bk[2, i] = cn
-            b_step[i] = kk
-            b_t[i] = tk
-            b_dt[i] = tk - t_prev
-            b_solves[i] = pending
+            _point_row(i, kk, tk, t_prev, pending, b_step, b_t, b_dt, b_solves)
             pending = 0
             t_prev = tk
         return t_prev
@@ -347,10 +353,7 @@ def _block_basis(k0, cm, dt_out, t0, t_end, t_prev, pending, om, rot_c, rot_s, b
             _rotate(bb, rot_c, rot_s)
         for j in range(nb):
             Bk[j, i] = bb[j]
-        b_step[i] = kk
-        b_t[i] = tk
-        b_dt[i] = tk - t_prev
-        b_solves[i] = pending
+        _point_row(i, kk, tk, t_prev, pending, b_step, b_t, b_dt, b_solves)
         pending = 0
         t_prev = tk
     return t_prev
