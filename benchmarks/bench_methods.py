@@ -42,6 +42,7 @@ from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.kernels import march as K
 from slipstep.kernels.contact import compatible, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
+from slipstep.kernels.settings import contact_table
 
 # (method, label, paper ratio to Method 1 (Figure 8: "at most"), our goal ratio)
 METHODS = [
@@ -185,13 +186,7 @@ def per_step(repeats: int) -> dict:
     args = (
         cs.A,
         cs.AT,
-        cs.normal_row,
-        cs.law,
-        cs.law_par,
-        cs.first_direction,
-        cs.n_directions,
-        cs.tangential_row,
-        cs.kt,
+        *contact_table(cs),
         lu,
         piv,
         q,

@@ -13,6 +13,7 @@ import slipstep
 from slipstep.errors import InputError
 from slipstep.kernels import banded as BD
 from slipstep.kernels.contact import add_contact_stiffness
+from slipstep.kernels.settings import contact_table
 from slipstep.methods.step_control import state_omega2, state_t_min
 from slipstep.system import kernel_dofs, to_user_order
 
@@ -200,7 +201,7 @@ def test_contact_stiffness_and_t_min_equal_the_dense_path(kind):
         add_contact_stiffness(dense, state, 1.0, Kd)
         lu = np.zeros((n, 2 * kl + ku + 1))
         BD.band_contact_stiffness(
-            cs.normal_row, cs.law, cs.law_par, cs.first_direction, cs.n_directions, cs.tangential_row, cs.kt,
+            *contact_table(cs),
             cs.A_ptr, cs.A_idx, cs.A_val, state, np.empty(0), np.empty(0), 1.0, lu, kl + ku,
         )  # fmt: skip
         expected = to_band(Kd[np.ix_(order, order)], kl, ku)

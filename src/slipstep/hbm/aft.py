@@ -39,13 +39,14 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels import contact as _law
+from slipstep.kernels.settings import contact_table
 
 # ---- the one adapter to the kernels' contact law (its argument list lives here only) -------
 
 
 def law_arguments(cs) -> tuple:
     """The contact table the kernels' law takes, from a CompiledSystem."""
-    return (cs.normal_row, cs.law, cs.law_par, cs.first_direction, cs.n_directions, cs.tangential_row, cs.kt)
+    return contact_table(cs)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

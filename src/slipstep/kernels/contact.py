@@ -24,6 +24,7 @@ from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the state code
     LAW_CIRCLE, LIFT, P_KN, P_MU, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK,
 )
 from slipstep.kernels.laws import circle, uncoupled
+from slipstep.kernels.settings import contact_table
 
 # ---- explicit-array cores (the hot path: small argument lists, no tuples) ------------------
 # Contact table arguments, in this order everywhere:
@@ -306,36 +307,36 @@ def local_displacement(sys, x, p, q):
 @njit(cache=True, nogil=True, error_model="numpy")
 def contact_law(sys, q, w_old, f, w_new, state):
     """The nonlinear law (see :func:`law`)."""
-    law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt,
-        q, w_old, f, w_new, state)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
+    law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def linear_law(sys, state, q, w_old, f, w_new):
     """The piecewise-linear law (see :func:`piecewise_law`)."""
-    piecewise_law(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions, sys.tangential_row,
-                  sys.kt, state, q, w_old, f, w_new)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
+    piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def is_compatible(sys, state, q, w_old, rtol):
     """The compatibility check (see :func:`compatible`)."""
-    return compatible(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
-                      sys.tangential_row, sys.kt, state, q, w_old, rtol, sys.length_scale)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
+    return compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, sys.length_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def add_contact_stiffness(sys, state, factor, out):
     """out += factor * K_D(S) without a point (coupled slip: the stick tangent), for T_min."""
-    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
-                      sys.tangential_row, sys.kt, sys.A, state, np.empty(0), np.empty(0), factor, out)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
+    contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, sys.A, state, np.empty(0), np.empty(0), factor, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def add_tangent_stiffness(sys, state, q, w_old, factor, out):
     """out += factor * A^T K(S; q, w_old) A: the consistent tangent of state S at (q, w_old)."""
-    contact_stiffness(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
-                      sys.tangential_row, sys.kt, sys.A, state, q, w_old, factor, out)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
+    contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, sys.A, state, q, w_old, factor, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -41,6 +41,7 @@ from slipstep.kernels.march import (
     CAPACITY, NON_FINITE, OK, S_CAPACITY, S_FAIL, S_ROWS, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
 from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
+from slipstep.kernels.settings import contact_table
 from slipstep.kernels.signals import evaluate_signal
 
 # explicit schemes (MarchSettings.solver of explicit_march; the settings it reads: dt, step_factor,
@@ -111,8 +112,7 @@ def explicit_march(sys, st, ws, out, q0, f0):
     # ---- the arguments without reference counting (kernels/borrow.py), unpacked once ----
     sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
-    nrow, lcode, lpar, fdir, ndir, trow, kt = (sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
-                                         sys.tangential_row, sys.kt)
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
     x, v, a, w, state = ws.x, ws.v, ws.a, ws.w, ws.state
     x1, v1, a1, q1, f1, w1, state1 = ws.x1, ws.v1, ws.a1, ws.q1, ws.f1, ws.w1, ws.state1
     gf, fe, p, rhs, xs, vs, kx, kv = ws.gf, ws.fe, ws.p, ws.rhs, ws.xs, ws.vs, ws.kx, ws.kv

@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 
 class MarchSettings(NamedTuple):
@@ -72,9 +73,10 @@ class ContactLaw(NamedTuple):
     kt: np.ndarray  # (nd) N/m
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@register_jitable
 def contact_table(sys):
-    """The ContactLaw of a CompiledSystem."""
+    """The ContactLaw of a CompiledSystem (callable from Python and from the kernels: the one
+    place that maps the system's fields to the law's table)."""
     return ContactLaw(sys.normal_row, sys.law, sys.law_par, sys.first_direction, sys.n_directions,
                       sys.tangential_row, sys.kt)
 

@@ -26,6 +26,7 @@ import scipy.sparse.linalg as spla
 
 from slipstep.errors import InputError
 from slipstep.kernels import banded as BD
+from slipstep.kernels.settings import contact_table
 
 #: at most this many DOFs: the dense eigenvalue problem (measured crossover, bench_eigen.py)
 DENSE_LIMIT = 64
@@ -155,13 +156,7 @@ def banded_lambda_max(cs, state: np.ndarray) -> float:
     keff = np.zeros((n, 2 * kl + ku + 1))
     BD.band_to_lu_storage(cs.Kb, kl, ku, keff)
     BD.band_contact_stiffness(
-        cs.normal_row,
-        cs.law,
-        cs.law_par,
-        cs.first_direction,
-        cs.n_directions,
-        cs.tangential_row,
-        cs.kt,
+        *contact_table(cs),
         cs.A_ptr,
         cs.A_idx,
         cs.A_val,

@@ -35,6 +35,7 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.kernels.sensitivity import period_sensitivity
+from slipstep.kernels.settings import contact_table
 from slipstep.methods.massless import inverse_mass
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.marching import (
@@ -93,13 +94,7 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
         cs.K,
         cs.A,
         cs.AT,
-        cs.normal_row,
-        cs.law,
-        cs.law_par,
-        cs.first_direction,
-        cs.n_directions,
-        cs.tangential_row,
-        cs.kt,
+        *contact_table(cs),
         scheme.beta,
         scheme.gamma,
         not quasi,
