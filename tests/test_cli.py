@@ -130,6 +130,7 @@ def test_compare_json_rows_and_keys(compared):
         assert row["status"] == "OK" and row["kernel_time_s"] > 0
         assert row["mean_solves_per_step"] == pytest.approx(row["solves"] / row["steps"])
         assert 0.0 <= row["single_solve_share"] <= 1.0
+        assert row["timed_in"] == "a fresh process"  # compare.fresh_process_times
     assert rows["newmark"]["time_ratio"] == 1.0
     assert rows["newmark"]["max_disp_diff_um"] == 0.0
 

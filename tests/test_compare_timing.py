@@ -1,0 +1,27 @@
+"""Where `compare` times the kernels: a fresh process that loads them from numba's cache
+(slipstep.compare.fresh_process_times), or this process when that one cannot run."""
+
+import math
+
+import slipstep
+from slipstep.compare import compare, fresh_process_times
+
+
+def test_fresh_process_times_every_method_repeats_times():
+    paper = slipstep.load_system("paper")
+    names = ["newmark", "quasi-static"]
+    samples, where = fresh_process_times(paper, names, 0.5, 3, {})
+    assert where == "a fresh process"
+    assert sorted(samples) == sorted(names)
+    for name in names:
+        assert len(samples[name]) == 3
+        assert all(math.isfinite(t) and t > 0 for t in samples[name])
+
+
+def test_a_fresh_process_that_cannot_start_says_why_and_compare_times_here():
+    samples, where = fresh_process_times(lambda: None, ["newmark"], 0.5, 1, {})  # a lambda does not pickle
+    assert samples is None
+    assert where.startswith("a fresh process failed: ")
+    rows = compare(slipstep.load_system("paper"), methods="newmark", periods=0.5, repeats=2, fresh_process=False)
+    assert [row["timed_in"] for row in rows] == ["this process"]
+    assert rows[0]["kernel_time_s"] > 0
