@@ -14,7 +14,7 @@ from slipstep.frequency import harmonics, linear_response, retune
 from slipstep.post.energy import energy_balance, friction_energy_per_period
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import march_one_period, period_simulation, start
-from slipstep.steady.shooting import _from_unknowns, _unknowns, period_jacobian
+from slipstep.steady.shooting import _from_unknowns, _unknowns, finite_difference_jacobian, period_jacobian
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 FINE = 2000  # steps per period for comparisons with continuous-time solutions (phase error ~ 1e-6)
@@ -139,18 +139,8 @@ def test_period_jacobian_matches_finite_differences(case, method, f):
     z = _unknowns(end, quasi)
     start(sim, _from_unknowns(z, n, quasi, end.states), 0.0)
     march_one_period(sim)
-    phi = period_jacobian(sim)
-    fd = np.zeros_like(phi)
-    xs = np.abs(z[:n]).max()
-    for j in range(z.size):
-        h = 1e-6 * (np.abs(z[n : 2 * n]).max() if (not quasi and n <= j < 2 * n) else xs)
-        ends = []
-        for sign in (1, -1):
-            zp = z.copy()
-            zp[j] += sign * h
-            start(sim, _from_unknowns(zp, n, quasi, end.states), 0.0)
-            ends.append(_unknowns(march_one_period(sim)[2], quasi))
-        fd[:, j] = (ends[0] - ends[1]) / (2 * h)
+    phi = period_jacobian(sim)  # through the recorded steps (kernels/sensitivity.py)
+    fd = finite_difference_jacobian(sim)  # central differences of the marched period map
     col = np.abs(fd).max(axis=0) + np.abs(phi).max(axis=0) + 1e-300
     assert np.abs(phi - fd).max(axis=0).max() / 1 <= 1e-5 * col.max()
     assert (np.abs(phi - fd).max(axis=0) <= 1e-5 * col).all()
@@ -205,3 +195,30 @@ def test_bad_input_names_the_field():
         march_to_steady(system, min_steps_per_period=1)
     with pytest.raises(InputError, match="initial"):
         march_to_steady(system, initial=[1.0])
+
+
+def test_shooting_a_friction_circle_orbit_has_the_multiplier_marching_sees():
+    """A friction-circle contact slipping in coupled slip most of the period: its Phi depends on
+    the slip directions, so it is built by central differences of the period map. Shooting then
+    converges in a few Newton iterations to the marched orbit, and its largest multiplier is
+    the rate at which the marched periods approach that orbit."""
+    n = 7
+    K = 4e5 * (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1))
+    A = np.zeros((3, n))
+    A[0, 2] = A[1, 3] = A[2, 4] = 1.0
+    contact = ss.ContactElement("C", A, 1e6, 1e6, 0.3, normal_offset=1e-5, law="3d-circle")
+    force = ss.Signal(tuple(f"x{i}" for i in range(n)), (ss.Harmonic(30.0, [0, 20.0, 0, -15.0, 0, 8.0, 0]),))
+    structure = ss.Structure(np.eye(n) * 0.2, damping=3e-5 * K, stiffness=K)
+    system = ss.System(structure, (contact,), ss.Excitation(force=force), name="ring")
+    marched = march_to_steady(system, method="piecewise-linear", tolerance=1e-12, max_periods=3000)
+    shot = shoot(system, method="piecewise-linear", tolerance=1e-10)
+    assert marched.ok and shot.ok
+    assert (shot.period.contact_state.values == 4).mean() > 0.5  # mostly coupled slip
+    assert shot.newton_iterations <= 4  # (with the state-only Phi: 10 iterations, 16 periods)
+    x_s, x_m = shot.period.displacement.values, marched.period.displacement.values
+    assert np.abs(x_s - x_m).max() <= 1e-9 * np.abs(x_m).max()
+    e = np.array(marched.changes)
+    window = np.flatnonzero((e < 1e-3) & (e > 1e-10))
+    rate = (e[window[-1]] / e[window[0]]) ** (1.0 / (window[-1] - window[0]))
+    rho = np.abs(shot.floquet_multipliers).max()
+    assert rho == pytest.approx(rate, rel=0.1), (rho, rate)  # (state-only Phi: 0.36 against 0.48)

@@ -32,8 +32,8 @@ import time
 
 import numpy as np
 
-from slipstep.errors import InputError, Status
-from slipstep.kernels.codes import C_STEPS
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.kernels.settings import contact_table
 from slipstep.methods.massless import inverse_mass
@@ -61,7 +61,13 @@ def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
 
 
 def period_jacobian(sim: Simulation) -> np.ndarray:
-    """Phi = dP/dz of the period just marched by ``sim`` (from the start set by start_from)."""
+    """Phi = dP/dz of the period just marched by ``sim`` (from the start set by start_from):
+    exact through the recorded steps (kernels/sensitivity.py) when every step's state has a
+    piecewise-linear form, by central differences of the period map when a friction-circle
+    contact slipped (:func:`finite_difference_jacobian`: there the step depends on the slip
+    direction, not on the state alone)."""
+    if coupled_period(sim):
+        return finite_difference_jacobian(sim)
     cs = sim.compiled
     n, nd, nq = cs.M.shape[0], cs.kt.shape[0], cs.A.shape[0]
     quasi = sim.method.quasi_static
@@ -107,9 +113,53 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
     return Z[rows]
 
 
+def coupled_period(sim: Simulation) -> bool:
+    """Did a contact slip in a state without a piecewise-linear form (the friction circle's
+    coupled slip) in the period just marched?"""
+    return bool(np.any(sim.out.state[: int(sim.out.counters[C_STEPS]) + 1] == SLIP_COUPLED))
+
+
+FD_RELATIVE_STEP = 1e-6  # central differences: step / block scale (x and w; v)
+
+
+def finite_difference_jacobian(sim: Simulation) -> np.ndarray:
+    """Phi = dP/dz by central differences: for each unknown j, the period marched from
+    z +- h_j e_j, Phi[:, j] = (P(z + h_j e_j) - P(z - h_j e_j)) / (2 h_j), h_j =
+    FD_RELATIVE_STEP times the largest |x| and |w| (or |v|) at the start (the system's length
+    scale, over the period for v, when they are zero); 2 m marches of one period. The period
+    from z itself is marched again last, so ``sim`` holds it as before."""
+    quasi = sim.method.quasi_static
+    pre = sim.preload_state
+    s0 = State(pre[0].copy(), pre[1].copy(), pre[2].copy(), pre[5].copy(), pre[6].copy())
+    t0 = float(sim.settings.t_start)
+    n = sim.compiled.M.shape[0]
+    z = _unknowns(s0, quasi)
+    length = float(np.abs(np.r_[s0.x, s0.w]).max(initial=0.0)) or float(sim.compiled.length_scale)
+    speed = float(np.abs(s0.v).max(initial=0.0)) or float(sim.compiled.length_scale) / float(sim.period)
+    columns = []
+    for j in range(z.size):
+        h = FD_RELATIVE_STEP * (speed if (not quasi and n <= j < 2 * n) else length)
+        ends = []
+        for sign in (1.0, -1.0):
+            zp = z.copy()
+            zp[j] += sign * h
+            start(sim, _from_unknowns(zp, n, quasi, s0.states), t0)
+            status, _, end, _ = march_one_period(sim)
+            if status != Status.OK:
+                raise SolverError(
+                    f"the finite-difference period Jacobian: a perturbed period stopped: {status.message}"
+                )
+            ends.append(_unknowns(end, quasi))
+        columns.append((ends[0] - ends[1]) / (2.0 * h))
+    start(sim, s0, t0)
+    march_one_period(sim)
+    return np.column_stack(columns)
+
+
 class JacobianCache:
     """Phi depends only on the recorded (dt, contact state) sequence of the period and on which
-    contacts are closed at its start: a period that repeats the last sequence reuses its Phi."""
+    contacts are closed at its start: a period that repeats the last sequence reuses its Phi
+    (not a period with a coupled slip, whose Phi also depends on the slip directions)."""
 
     def __init__(self):
         self.key, self.phi, self.built = None, None, 0
@@ -117,7 +167,7 @@ class JacobianCache:
     def __call__(self, sim: Simulation) -> np.ndarray:
         k = int(sim.out.counters[C_STEPS]) + 1
         key = (sim.out.state[:k].tobytes(), sim.out.dt[:k].tobytes(), (sim.q0[sim.compiled.normal_row] > 0.0).tobytes())
-        if key != self.key:
+        if key != self.key or coupled_period(sim):
             self.key, self.phi = key, period_jacobian(sim)
             self.built += 1
         return self.phi
