@@ -242,3 +242,18 @@ def test_blades_continuation_passes_the_peak():
     assert 0 < i < f.size - 1  # an interior peak, between the free (253 Hz) and stuck (366 Hz) modes
     assert amp[i] < ds.linear_stuck_amplitude.values[:, 0].max()
     assert np.all(ds.energy_per_cycle.values[i] > 0)
+
+
+def test_a_friction_circle_contact_is_refused_with_the_time_domain_fix():
+    """The AFT Jacobian is built from the law's piecewise-linear form, which the friction
+    circle's coupled slip does not have: an InputError naming the contacts and the fix."""
+    n = 3
+    A = np.zeros((3, n))
+    A[0, 0] = A[1, 1] = A[2, 2] = 1.0
+    circle = ss.ContactElement("C", A, 1e6, 1e6, 0.3, normal_offset=1e-5, law="3d-circle")
+    force = ss.Signal(("x0", "x1", "x2"), (ss.Harmonic(30.0, [10.0, 5.0, 0.0]),))
+    system = ss.System(ss.Structure(np.eye(n), stiffness=1e5 * np.eye(n)), (circle,), ss.Excitation(force=force))
+    with pytest.raises(ss.InputError) as err:
+        frf(system, [30.0], harmonics=3)
+    assert err.value.field == "contacts"
+    assert "['C']" in str(err.value) and "solver 'shoot'" in str(err.value)

@@ -91,6 +91,15 @@ class HarmonicBalance:
     ):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+        circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+        if circles:  # the AFT Jacobian (hbm/aft.py) is built from the piecewise-linear form of the law
+            raise InputError(
+                "contacts",
+                f"{circles} use law '3d-circle', whose coupled slip has no piecewise-linear form: the harmonic "
+                "balance's AFT Jacobian supports the piecewise-linear laws only",
+                "compute this frequency response in the time domain (slipstep.frequency.frf with solver 'shoot' or "
+                "'march', or `slipstep frf ... --solver shoot`), or use a piecewise-linear law",
+            )
         h = harmonic_set(harmonics)
         self.system = system
         self.cs = cs = system.compile_dense("harmonic balance")
