@@ -144,7 +144,7 @@ def compare(
     **options,
 ) -> list[dict]:
     """Run ``methods`` on ``system`` and return one row (dict, keys :data:`COLUMNS` plus
-    ``force_scale_N`` and ``filter_cutoff_Hz``) per method, Method 1 first.
+    ``force_scale_N``, ``filter_cutoff_Hz`` and ``timed_in``) per method, Method 1 first.
 
     ``cutoff_Hz``: low-pass cut-off (default: chosen by slipstep.post.filtering.choose_cutoff).
     ``datasets``: if a dict is given it receives the result Dataset of every method.
