@@ -262,6 +262,23 @@ def shoot(
         changes += ch
         if status not in ("OK", "NOT_STEADY"):  # a failed march (steady already: Newton checks it in one period)
             return finish(sim, status, periods, changes, state, kernel, wall, "shoot")
+
+    def stop(status, end, **extra):
+        """The result from where the search stands now (the counts as they are at the call)."""
+        return finish(
+            sim,
+            status,
+            periods,
+            changes,
+            end,
+            kernel,
+            wall,
+            "shoot",
+            newton_iterations=newton,
+            jacobians=jacobian.built,
+            **extra,
+        )
+
     best = None  # (change, z0, dz, end state) of the best period so far
     backtracks = newton = 0
     for it in range(max_iterations):
@@ -271,35 +288,11 @@ def shoot(
         kernel += sim.kernel_time
         changes.append(e)
         if status != Status.OK:
-            return finish(
-                sim,
-                status.name,
-                periods,
-                changes,
-                end,
-                kernel,
-                wall,
-                "shoot",
-                newton_iterations=newton,
-                jacobians=jacobian.built,
-            )
+            return stop(status.name, end)
         if e <= tolerance:
             phi = jacobian(sim)
             neutral = neutral_sliders(phi, n_state, nd)
-            return finish(
-                sim,
-                "OK",
-                periods,
-                changes,
-                end,
-                kernel,
-                wall,
-                "shoot",
-                newton_iterations=newton,
-                jacobians=jacobian.built,
-                floquet_multipliers=floquet(phi, neutral),
-                neutral_directions=int(neutral.size),
-            )
+            return stop("OK", end, floquet_multipliers=floquet(phi, neutral), neutral_directions=int(neutral.size))
         if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
             if backtracks < max_backtracks:
                 backtracks += 1
@@ -311,18 +304,7 @@ def shoot(
                 periods, kernel = periods + k, kernel + kt_
                 changes += ch
                 if status not in ("OK", "NOT_STEADY"):  # (steady: the next period confirms it, with Floquet)
-                    return finish(
-                        sim,
-                        status,
-                        periods,
-                        changes,
-                        end,
-                        kernel,
-                        wall,
-                        "shoot",
-                        newton_iterations=newton,
-                        jacobians=jacobian.built,
-                    )
+                    return stop(status, end)
                 state, best, backtracks = end, None, 0
                 continue
         phi = jacobian(sim)
@@ -338,8 +320,6 @@ def shoot(
     status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, max(max_periods - periods, 1))
     periods, kernel = periods + k, kernel + kt_
     changes += ch
-    result = finish(
-        sim, status, periods, changes, end, kernel, wall, "shoot", newton_iterations=newton, jacobians=jacobian.built
-    )
+    result = stop(status, end)
     result.message = f"Newton did not converge in {max_iterations} iterations; fell back to marching: {result.message}"
     return result
