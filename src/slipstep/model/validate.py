@@ -123,44 +123,41 @@ def square_matrix(field: str, value, n: int | None = None) -> np.ndarray:
 
 
 def square_matrix_or_sparse(field: str, value, n: int | None = None):
-    """A square finite matrix: a scipy.sparse one is kept sparse (canonical CSR: duplicates
-    summed, explicit zeros dropped, indices sorted), anything else as :func:`square_matrix`."""
+    """A square finite matrix: a scipy.sparse one is kept sparse (:func:`_sparse_matrix`),
+    anything else as :func:`square_matrix`."""
     import scipy.sparse as sp
 
     if not sp.issparse(value):
         return square_matrix(field, value, n)
-    try:
-        A = sp.csr_matrix(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(field, f"is not numeric ({' '.join(str(exc).split())[:120]})", "give numbers only") from None
-    A.sum_duplicates()
-    A.eliminate_zeros()
-    A.sort_indices()
+    A = _sparse_matrix(field, value)
     if A.shape[0] != A.shape[1]:
         raise InputError(field, f"is {A.shape[0]}x{A.shape[1]}, not square", "give an n x n matrix")
     if n is not None and A.shape[0] != n:
         raise InputError(
             field, f"is {A.shape[0]}x{A.shape[1]} but the structure has {n} DOFs", f"give a {n}x{n} matrix"
         )
-    if not np.all(np.isfinite(A.data)):
-        raise InputError(field, "contains NaN or infinite values", "give finite numbers")
-    if A.nnz and np.abs(A.data).max() > MAX_MAGNITUDE:
-        raise InputError(
-            field,
-            f"holds {np.abs(A.data).max():.3g}, beyond any physical value (|x| > {MAX_MAGNITUDE:g})",
-            "check the values and their units",
-        )
     return A
 
 
 def gather_matrix(field: str, value):
-    """A contact's gather map (rows x DOFs): a scipy.sparse one is kept sparse (canonical CSR),
-    anything else as a finite dense matrix."""
+    """A contact's gather map (rows x DOFs): a scipy.sparse one is kept sparse
+    (:func:`_sparse_matrix`), anything else as a finite dense matrix."""
     import scipy.sparse as sp
 
     if not sp.issparse(value):
         return float_array(field, value, ndim=2)
-    A = sp.csr_matrix(value, dtype=np.float64)
+    return _sparse_matrix(field, value)
+
+
+def _sparse_matrix(field: str, value):
+    """A scipy.sparse matrix as canonical CSR (duplicates summed, explicit zeros dropped,
+    indices sorted) with finite values of physical magnitude."""
+    import scipy.sparse as sp
+
+    try:
+        A = sp.csr_matrix(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(field, f"is not numeric ({' '.join(str(exc).split())[:120]})", "give numbers only") from None
     A.sum_duplicates()
     A.eliminate_zeros()
     A.sort_indices()
