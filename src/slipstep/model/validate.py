@@ -50,14 +50,7 @@ def float_array(field: str, value, ndim: int | None = None, shape: tuple | None 
 
 def positive(field: str, value, allow_zero: bool = False) -> float:
     """A finite scalar > 0 (or >= 0); a boolean is not a number."""
-    _not_bool(field, value)
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(field, f"is not a number ({value!r})", "give a number") from None
-    if not np.isfinite(x):
-        raise InputError(field, f"is {x}, not a finite number", "give a finite number")
-    _not_absurd(field, x)
+    x = finite(field, value)
     if x < 0 or (x == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(field, f"is {x}, must be {bound}", f"give a value {bound}")

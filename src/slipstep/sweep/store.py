@@ -354,16 +354,20 @@ def _create(path: Path, plan, labels: dict) -> None:
         array(name, "f8", np.nan, {"units": units, "long_name": long_name})
     array("worker", str, "", {"long_name": "host:pid of the worker that computed the case (varies between runs)"})
     array("run_index", "i8", -1, {"long_name": "invocation of the sweep that computed the case (0: the first)"})
+
+    def label_coordinate(dim):
+        g.create_array(
+            dim,
+            shape=(len(labels[dim]),),
+            dtype=str,
+            fill_value="",
+            dimension_names=[dim],
+            attributes={"long_name": f"{dim} names"},
+        )[:] = np.array(labels[dim], dtype=str)
+
     for dim in ("interface", "contact", "direction"):
         if dim in labels:
-            g.create_array(
-                dim,
-                shape=(len(labels[dim]),),
-                dtype=str,
-                fill_value="",
-                dimension_names=[dim],
-                attributes={"long_name": f"{dim} names"},
-            )[:] = np.array(labels[dim], dtype=str)
+            label_coordinate(dim)
     points = plan.outputs["history_points"]
     if plan.outputs["histories"]:
         phase = g.create_array(
@@ -381,14 +385,7 @@ def _create(path: Path, plan, labels: dict) -> None:
         if dim is not None and dim not in labels:
             continue
         if dim is not None and dim not in g:
-            g.create_array(
-                dim,
-                shape=(len(labels[dim]),),
-                dtype=str,
-                fill_value="",
-                dimension_names=[dim],
-                attributes={"long_name": f"{dim} names"},
-            )[:] = np.array(labels[dim], dtype=str)
+            label_coordinate(dim)
         width = (len(labels[dim]),) if dim is not None else ()
         integer = name == "contact_state"
         g.create_array(
