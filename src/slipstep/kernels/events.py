@@ -45,7 +45,6 @@ from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, S_NEXT, S_ROWS, _store
 
-# margin kinds
 class EventSystem(NamedTuple):
     """The fields of slipstep.system.CompiledSystem that :func:`event_march` reads (same names
     and meaning): numba unboxes every array of a kernel's arguments on each call (about 40 ns
@@ -97,6 +96,7 @@ def event_arguments(sys, ws):
             EventWorkspace(*(getattr(ws, f) for f in EventWorkspace._fields)))
 
 
+# margin kinds
 M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
 MAX_FLIPS = 20  # state changes allowed at one instant before STATE_CYCLING
 ANCHOR = 64  # output points between exact evaluations of the basis (rotation in between)
@@ -386,9 +386,10 @@ def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, r
     """Output points k0 + 1 .. k0 + m of a phase into rows row0.. (the default save plan: every
     point kept): x, q, f, w = sum_j b_j(t_k) G_j over the saved columns of Gs and the phase's
     state; v = a = 0 are the zeros the runner allocates the buffers with
-    (methods/simulation._allocate_outputs: a quasi-static runner never writes them). In blocks of ANCHOR points (the basis exact at a block's first point): times
-    and basis (:func:`_block_basis`), then the columns (:func:`_block_fill`). o_rows = (out.step,
-    out.t, out.dt, out.solves), o_vals = (out.x, out.q, out.f, out.w, out.state).
+    (methods/simulation._allocate_outputs: a quasi-static runner never writes them). In blocks
+    of ANCHOR points (the basis exact at a block's first point): times and basis
+    (:func:`_block_basis`), then the columns (:func:`_block_fill`). o_rows = (out.step, out.t,
+    out.dt, out.solves), o_vals = (out.x, out.q, out.f, out.w, out.state).
     Returns the time of the last point (t_prev if m = 0)."""
     o_step, o_t, o_dt, o_solves = o_rows
     o_x, o_q, o_f, o_w, o_state = o_vals

@@ -292,6 +292,8 @@ class Runner:
 class Simulation(Runner):
     """One system marched by one method with one set of options."""
 
+    _event_arguments = None  # (compiled, ws, the event kernel's slim tuples of them), kernel_arguments
+
     def __init__(self, system: System, method: str | Method = "newmark", **options):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
@@ -583,7 +585,10 @@ class Simulation(Runner):
         tuples of kernels.events.event_arguments (fewer arrays to unbox per call)."""
         if self.method.solver != K.EVENTS:
             return super().kernel_arguments()
-        sys, ws = event_arguments(self.compiled, self.ws)
+        built = self._event_arguments  # built once per (compiled, ws)
+        if built is None or built[0] is not self.compiled or built[1] is not self.ws:
+            built = self._event_arguments = (self.compiled, self.ws, event_arguments(self.compiled, self.ws))
+        sys, ws = built[2]
         return (sys, self.settings, ws, self.out, self.q0, self.f0)
 
     def march(self) -> Status:
