@@ -41,12 +41,7 @@ from numba import njit
 from slipstep.kernels import contact as _law
 from slipstep.kernels.settings import contact_table
 
-# ---- the one adapter to the kernels' contact law (its argument list lives here only) -------
-
-
-def law_arguments(cs) -> tuple:
-    """The contact table the kernels' law takes, from a CompiledSystem."""
-    return contact_table(cs)
+# ---- the kernels' contact law (its table: kernels.settings.contact_table) --------------------
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -221,7 +216,7 @@ class AFT:
     Layout of the flattened unknowns: index j * nq + r (coefficient j, local row r)."""
 
     def __init__(self, cs, basis, w_init: np.ndarray, max_periods: int = 50):
-        self.args = law_arguments(cs)
+        self.args = contact_table(cs)
         self.basis = basis
         self.nq, self.nd = cs.A.shape[0], cs.kt.shape[0]
         self.w_init = np.ascontiguousarray(w_init, dtype=np.float64)
