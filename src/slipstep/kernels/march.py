@@ -431,15 +431,10 @@ def march(sys, st, ws, out, q0, f0):
     has_circle = np.any(cl.lcode == LAW_CIRCLE)
     has_stiffness = so.has_nonzero(backend, sys, 2)
     own_pred = np.empty((2, n))
-    cap = out.plan[S_CAPACITY]
     # ---- initial point ----
     t = st.t_start
     t_end = st.t_end
-    o_q, o_f, o_rows = out.q, out.f, out.rows
-    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
-    for ii in range(o_rows.shape[0]):
-        o_q[row, ii] = q0[o_rows[ii]]
-        o_f[row, ii] = f0[o_rows[ii]]
+    _store_local(out, _store(x, v, a, w, state, out, 0, t, 0.0, 0), q0, f0)
     for d in range(nd):
         dt_state[d] = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
@@ -468,12 +463,8 @@ def march(sys, st, ws, out, q0, f0):
     dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
     dt_next = dt_acc
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
-        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
-            status = INTERRUPTED
-            counters[C_FAIL_STEP] = k
-            break
-        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
-            status = CAPACITY
+        status = _halt(counters, out, k)  # Ctrl-C, or out of steps or of output rows
+        if status != OK:
             break
         # ---- step size (fixed, or by contact state; the accuracy step) ----
         if n_preload > 0:
@@ -561,11 +552,8 @@ def march(sys, st, ws, out, q0, f0):
         if n_preload == 0:
             t += dt
         k += 1
-        row = _store(x, v, a, w, state, out, k, t, dt, solves)
+        _store_local(out, _store(x, v, a, w, state, out, k, t, dt, solves), q1, f1)
         counters[C_PROGRESS] = k
-        for ii in range(o_rows.shape[0]):
-            o_q[row, ii] = q1[o_rows[ii]]
-            o_f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
     return status
@@ -611,3 +599,25 @@ def _store(x, v, a, w, state, out, k, t, dt, solves):
         o_w[j, ii] = w[d]
         o_state[j, ii] = state[d]
     return j
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _store_local(out, row, q, f):
+    """Write the saved contact rows (out.rows) of q and f into output row ``row``."""
+    o_q, o_f, o_rows = out.q, out.f, out.rows
+    for ii in range(o_rows.shape[0]):
+        o_q[row, ii] = q[o_rows[ii]]
+        o_f[row, ii] = f[o_rows[ii]]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _halt(counters, out, k):
+    """The status that stops a march before step k + 1, OK for none: INTERRUPTED on a stop
+    request from another thread (Ctrl-C; the k steps done are kept, C_FAIL_STEP = k), CAPACITY
+    when the steps or the output rows are used up."""
+    if counters[C_STOP] != 0:
+        counters[C_FAIL_STEP] = k
+        return INTERRUPTED
+    if k >= out.plan[S_CAPACITY] or out.plan[S_ROWS] + 2 > out.t.shape[0]:
+        return CAPACITY
+    return OK

@@ -22,6 +22,7 @@ from slipstep.methods import memory
 from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
 from slipstep.kernels.events import event_arguments, event_march
+from slipstep.kernels.quasi_static import quasi_static_march
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods import save as SV
@@ -179,7 +180,8 @@ class Runner:
         self.out.counters[:] = 0
         reset_outputs(self.out)
         args = self.kernel_arguments()
-        kernel = self._kernel if self._kernel is not None else dispatcher
+        known = self._kernel is not None and self._kernel[0] is dispatcher  # (dispatcher, compiled entry)
+        kernel = self._kernel[1] if known else dispatcher
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
         plan = getattr(self, "save_plan", None)
         times = self.out.t  # the progress bar reads the time of step k from row k
@@ -189,8 +191,8 @@ class Runner:
         status, self.kernel_time = call_kernel(
             kernel, args, self.out.counters, times, self.t_end, int(self.out.plan[K.S_CAPACITY]) + 1, self.progress
         )
-        if self._kernel is None:
-            self._kernel = compiled_entry(dispatcher, args)
+        if not known:
+            self._kernel = (dispatcher, compiled_entry(dispatcher, args))
         self.status = Status(status)
         if self.status == Status.INTERRUPTED and not self.keep_interrupted:
             partial = self.dataset()
@@ -591,13 +593,15 @@ class Simulation(Runner):
         sys, ws = built[2]
         return (sys, self.settings, ws, self.out, self.q0, self.f0)
 
-    def march(self) -> Status:
-        """Run the kernel from the preload state; returns the status (also in self.status)."""
+    def march(self, kernel=None) -> Status:
+        """Run the method's kernel (:func:`march_kernel`; or ``kernel``, another kernel of the same
+        arguments, as tests/test_quasi_static.py does) from the preload state; returns the status
+        (also in self.status)."""
         ws = self.ws
         for dst, src in zip((ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state), self.preload_state):
             dst[:] = src
         _reset_cache(ws)
-        self._run_kernel(event_march if self.method.solver == K.EVENTS else K.march)
+        self._run_kernel(march_kernel(self.method) if kernel is None else kernel)
         return self._check_divergence()
 
     # -- results --------------------------------------------------------------------------
@@ -630,6 +634,17 @@ class Simulation(Runner):
                 else {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}
             ),
         }
+
+
+def march_kernel(method: Method):
+    """The kernel that marches ``method`` after the preload: the event-driven march
+    (kernels/events.py), the quasi-static march of Method 4 (kernels/quasi_static.py: no
+    inertia, fixed step, piecewise-linear solve) or the implicit march (kernels/march.py)."""
+    if method.solver == K.EVENTS:
+        return event_march
+    if method.quasi_static and method.solver == K.PIECEWISE_LINEAR and not method.adaptive:
+        return quasi_static_march
+    return K.march
 
 
 def check_banded_method(method: Method) -> None:

@@ -1,0 +1,140 @@
+"""The quasi-static time march of Method 4 (paper Eq. 10; physics.md section 4), a kernel of
+its own: at every step of the fixed step dt,
+
+    K x_{n+1} + A^T f(q_{n+1}, w_n) = f_e(t_{n+1}),    q_{n+1} = A x_{n+1} - B p(t_{n+1}) + g
+
+solved for dx = x_{n+1} - x_n by the piecewise-linear step solver of the implicit march
+(kernels/step_solvers.piecewise_linear_step: postulate S_{n+1} = S_n, one solve with the cached
+J(S) = K + K_D(S), the compatibility check, re-solve on a transition; modified Newton with
+J(all stick) when the states cycle; Newton on the consistent tangent in a coupled slip), i.e.
+the implicit march (kernels/march.py) with Lin = K, r0 = f_e(t_{n+1}) - K x_n, kfac = 1.
+
+Why a kernel of its own: the implicit march carries every dynamic path (the Newmark and
+generalised-alpha relations, the Newton solvers, the contact-state adaptive step, the accuracy
+control), and its compiled loop is several times the size of what a quasi-static step runs. In
+that loop a Method 4 step took 0.19-0.20 of Method 1's time on the paper case (`slipstep
+compare paper`); here it takes 0.14, with bitwise the same numbers (tests/test_quasi_static.py
+checks both marches against each other). The static preload and the static start of a run stay
+on the implicit march (kernels.march, ``inertia`` False, ``preload``), which keeps its
+quasi-static mode as the independent path this kernel is checked against.
+
+One step, in order: loads and motions (march._loads_and_motions), q_base = A x_n - B p + g,
+r0 = f_e - K x_n, the piecewise-linear step, x_{n+1} = x_n + dx (v = a = 0 are never
+touched), the contact states and sliders, the output row (march._store, save plan included).
+Inputs as kernels.march.march; the MarchSettings it reads: dt, tol, state_rtol, singular_rtol,
+t_start, t_end, max_iter, max_state_iter, fallback, signals, structure.
+"""
+
+import numpy as np
+from numba import njit
+
+from slipstep.kernels import structure_ops as so
+from slipstep.kernels.borrow import borrowed, keep_alive
+from slipstep.kernels.codes import C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LAW_CIRCLE, OK
+from slipstep.kernels.march import (
+    S_FAIL,
+    _accept_contacts,
+    _convergence_parameters,
+    _halt,
+    _loads_and_motions,
+    _stick_diagonal,
+    _store,
+    _store_local,
+)
+from slipstep.kernels.settings import contact_table, state_cache, step_vectors
+from slipstep.kernels.step_solvers import CV_FLOOR, piecewise_linear_step
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def quasi_static_march(sys, st, ws, out, q0, f0):
+    """March the quasi-static equilibrium (module docstring) from st.t_start to st.t_end on the
+    fixed step st.dt, writing step k into out[k] (k = 0: the given state, local q0 and f0).
+    Returns the status; out.counters[C_STEPS] steps done."""
+    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
+    cl = contact_table(sys)
+    cache = state_cache(ws)
+    sv = step_vectors(ws)
+    length_scale = sys.length_scale
+    x, v, a, fe, w, state = ws.x, ws.v, ws.a, ws.fe, ws.w, ws.state
+    fe1, f1, q1, w1, state1, dx, p, qbase, r0 = ws.fe1, ws.f1, ws.q1, ws.w1, ws.state1, ws.dx, ws.p, ws.qbase, ws.r0
+    backend = st.structure
+    counters = out.counters
+    own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton tolerances of the fallback
+    if backend == so.BANDED:
+        own_kd = so.stick_diagonal_banded(sys)
+    else:
+        own_kd = _stick_diagonal(
+            sys.A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt
+        )
+    conv, kd_stick = borrowed(own_conv), borrowed(own_kd)
+    has_circle = np.any(cl.lcode == LAW_CIRCLE)
+    has_stiffness = so.has_nonzero(backend, sys, 2)
+    t = st.t_start
+    t_end = st.t_end
+    _store_local(out, _store(x, v, a, w, state, out, 0, t, 0.0, 0), q0, f0)
+    for d in range(state.shape[0]):
+        ws.dt_state[d] = 0  # a fixed step: the cache keys carry no step state
+    tiny = 1e-12 * (t_end - t + 1e-300)
+    status = OK
+    k = 0
+    last_slot = -1  # cache slot of the last factorisation (the piecewise-linear fast path)
+    ws.lin_dt[0] = np.nan
+    basis, clock = ws.basis, ws.clock
+    clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
+    while t < t_end - tiny:
+        status = _halt(counters, out, k)  # Ctrl-C, or out of steps or of output rows
+        if status != OK:
+            break
+        dt = st.dt if t + st.dt <= t_end - tiny else t_end - t  # the last step ends at t_end
+        nominal = abs(dt - st.dt) <= 1e-12 * st.dt
+        if ws.lin_dt[0] != dt:  # Lin = K (the cache is keyed per step size, like the march's)
+            last_slot = -1
+            so.build_lin(backend, sys, False, 0.0, 0.0, 1.0, ws.Lin)
+            ws.lin_dt[0] = dt
+            conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, ws.Lin, 1.0, kd_stick)
+        _loads_and_motions(sys, t + dt, st.signals, 1.0, basis, clock, fe1, p)
+        so.gather_state(backend, sys, x, p, qbase)
+        for i in range(r0.shape[0]):
+            r0[i] = fe1[i]
+        so.sub_predictor(backend, sys, False, False, has_stiffness, r0, r0, x, r0)  # r0 = f_e - K x_n
+        status, solves, last_slot = piecewise_linear_step(
+            backend,
+            sys,
+            cl,
+            cache,
+            ws.Lin,
+            ws.J,
+            1.0,
+            sv,
+            state,
+            ws.visited,
+            0,
+            nominal,
+            last_slot,
+            has_circle,
+            st.max_state_iter,
+            st.fallback,
+            st.max_iter,
+            conv,
+            st.state_rtol,
+            st.singular_rtol,
+            length_scale,
+            counters,
+        )
+        counters[C_SOLVES] += solves
+        if status != OK:
+            counters[C_FAIL_STEP] = k + 1
+            out.times[S_FAIL] = t + dt
+            break
+        for i in range(x.shape[0]):
+            x[i] += dx[i]
+            fe[i] = fe1[i]
+        if _accept_contacts(w, state, w1, state1):
+            counters[C_STATE_CHANGES] += 1
+        t += dt
+        k += 1
+        _store_local(out, _store(x, v, a, w, state, out, k, t, dt, solves), q1, f1)
+        counters[C_PROGRESS] = k
+    counters[C_STEPS] = k
+    keep_alive((own_conv, own_kd))
+    return status
