@@ -12,7 +12,8 @@ Entries:
   Every PNG file the commands write is shown.
 
 An example that fails fails the build (``mkdocs build --strict`` then stops), so the gallery
-cannot show a figure the code no longer makes. Keep examples short: the gallery runs them all.
+cannot show a figure the code no longer makes. Keep examples short: the gallery runs them all
+(the scripts and case files in subprocesses, one per CPU at a time, beside the snippets).
 
     python docs/gen_gallery.py OUT_DIR     # write the gallery pages and figures to OUT_DIR
 """
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -263,9 +265,11 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
         for slug, title in _entries():
             pages[f"gallery/{slug}.md"] = f"# {title}\n\nThe gallery was built with SLIPSTEP_DOCS_GALLERY=0: not run.\n"
         return pages
+    jobs = []  # (in this process, slug, make, page)
     for slug, title, text, code in SNIPPETS:
-        pages.update(
-            _build(
+        jobs.append(
+            (
+                True,
                 slug,
                 lambda d, c=code: _run_snippet(c, d),
                 lambda out, figs, s, t=title, x=text, c=code: _page(t, x, c, "python", out, figs, s),
@@ -274,8 +278,9 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
     for slug, title, text, cmds in COMMANDS:
         if not _command_available(cmds):
             continue
-        pages.update(
-            _build(
+        jobs.append(
+            (
+                False,
                 slug,
                 lambda d, c=tuple(cmds): "".join(_run(_slipstep(*shlex.split(x)[1:]), d) for x in c),
                 lambda out, figs, s, t=title, x=text, c=cmds: _page(t, x, "\n".join(c), "bash", out, figs, s),
@@ -285,8 +290,9 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
         first, _, rest = _module_doc(path).partition("\n\n")
         title, _, lead = " ".join(first.split()).partition(": ")
         rest = (lead[:1].upper() + lead[1:] + "\n\n" if lead else "") + rest
-        pages.update(
-            _build(
+        jobs.append(
+            (
+                False,
                 path.stem,
                 lambda d, p=path: _run([sys.executable, str(p), "--output-dir", str(d)], d).replace(str(d), "DIR"),
                 lambda out, figs, s, p=path, t=title, r=rest: _page(
@@ -332,8 +338,9 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
                         png.unlink()
                 return text.replace(str(d) + os.sep, "")
 
-        pages.update(
-            _build(
+        jobs.append(
+            (
+                False,
                 path.stem,
                 run_case,
                 lambda out, figs, s, p=path, c=commands: _page(
@@ -348,7 +355,21 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
                 ),
             )
         )
+    pages.update(_run_all(jobs))
     return pages
+
+
+def _run_all(jobs) -> dict[str, str | bytes]:
+    """The pages of ``jobs`` [(in this process, slug, make, page)], in their order. The entries
+    that run in subprocesses go through a pool of one thread per CPU while this thread runs the
+    in-process snippets (which change the working directory, so one at a time): the gallery is
+    most of the build's time, and the CI machine has two cores."""
+    workers = max(1, os.cpu_count() or 1)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending = [None if here else pool.submit(_build, slug, make, page) for here, slug, make, page in jobs]
+        built = [_build(slug, make, page) if here else None for here, slug, make, page in jobs]
+        built = [b if f is None else f.result() for b, f in zip(built, pending)]
+    return {uri: content for pages in built for uri, content in pages.items()}
 
 
 def _build(slug: str, make, page) -> dict[str, str | bytes]:

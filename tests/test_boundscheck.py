@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 SCRIPT = textwrap.dedent("""
     import numpy as np, slipstep
@@ -74,8 +75,21 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_kernels_stay_in_bounds(tmp_path):
-    env = dict(os.environ, NUMBA_BOUNDSCHECK="1", NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
-    done = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=1200)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert "all kernel paths ran with bounds checking" in done.stdout
+def start(directory) -> subprocess.Popen:
+    """The bounds-checked run of SCRIPT in a fresh process; its numba cache (so that nothing
+    compiled with bounds checking reaches the real cache) and its output in ``directory``."""
+    directory = Path(directory)
+    env = dict(os.environ, NUMBA_BOUNDSCHECK="1", NUMBA_CACHE_DIR=str(directory / "numba-cache"))
+    with open(directory / "stdout.txt", "w") as out, open(directory / "stderr.txt", "w") as err:
+        return subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, stdout=out, stderr=err)
+
+
+def test_kernels_stay_in_bounds(boundscheck_run):
+    """``boundscheck_run`` (tests/conftest.py): (the process started when the tests were
+    collected, its directory), so that its compilation (most of its 3-7 minutes) runs on the
+    second core beside the rest of the suite."""
+    process, directory = boundscheck_run
+    process.wait(timeout=1800)
+    stderr = (Path(directory) / "stderr.txt").read_text()
+    assert process.returncode == 0, stderr[-3000:]
+    assert "all kernel paths ran with bounds checking" in (Path(directory) / "stdout.txt").read_text()
