@@ -43,7 +43,7 @@ from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
 from slipstep.kernels.linalg import lu_factor, lu_solve
-from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, S_NEXT, S_ROWS, _store, _store_local
+from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, S_NEXT, S_ROWS, _store
 
 class EventSystem(NamedTuple):
     """The fields of slipstep.system.CompiledSystem that :func:`event_march` reads (same names
@@ -501,7 +501,10 @@ def event_march(sys, st, ws, out, q0, f0):
     dt_out = st.dt
     prev = state.copy()
     n_rows = out.t.shape[0]
-    _store_local(out, _store(x, zero, zero, w, state, out, 0, t, 0.0, 0), q0, f0)
+    row = _store(x, zero, zero, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        out.q[row, ii] = q0[o_rows[ii]]
+        out.f[row, ii] = f0[o_rows[ii]]
     cap = out.plan[S_CAPACITY]
     t_prev = t
     k = 0

@@ -38,9 +38,9 @@ from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_REDOS, C_SOLVES, C_STATE_CHANGES, C_STEPS,
-    NON_FINITE, OK, S_FAIL, SINGULAR, _accept_contacts, _halt, _state_step_limit, _store, _store_local,
+    CAPACITY, NON_FINITE, OK, S_CAPACITY, S_FAIL, S_ROWS, SINGULAR, _accept_contacts, _state_step_limit, _store,
 )
-from slipstep.kernels.codes import C_PROGRESS
+from slipstep.kernels.codes import C_PROGRESS, C_STOP, INTERRUPTED
 from slipstep.kernels.settings import contact_table
 from slipstep.kernels.signals import evaluate_signal
 
@@ -124,16 +124,25 @@ def explicit_march(sys, st, ws, out, q0, f0):
     rk4 = st.solver == RK4
     adaptive = st.adaptive
     bound = st.divergence
+    cap = out.plan[S_CAPACITY]
     t = st.t_start
     t_end = st.t_end
-    _store_local(out, _store(x, v, a, w, state, out, 0, t, 0.0, 0), q0, f0)
+    o_rows = out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        out.q[row, ii] = q0[o_rows[ii]]
+        out.f[row, ii] = f0[o_rows[ii]]
     k = 0
     tiny = 1e-12 * (t_end - t + 1e-300)
     lu_dt = np.nan
     status = OK
     while t < t_end - tiny:
-        status = _halt(counters, out, k)  # Ctrl-C, or out of steps or of output rows
-        if status != OK:
+        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+            status = INTERRUPTED
+            counters[C_FAIL_STEP] = k
+            break
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
+            status = CAPACITY
             break
         if adaptive:
             dt = _state_step_limit(Kst, mass_factor, A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, tkeys, tused, tvalue,
@@ -220,7 +229,10 @@ def explicit_march(sys, st, ws, out, q0, f0):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        _store_local(out, _store(x, v, a, w, state, out, k, t, dt, solves), q1, f1)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
         counters[C_PROGRESS] = k
+        for ii in range(o_rows.shape[0]):
+            out.q[row, ii] = q1[o_rows[ii]]
+            out.f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status

@@ -468,8 +468,9 @@ def march(sys, st, ws, out, q0, f0):
     dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
     dt_next = dt_acc
     while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
-        # the rule of _halt written out (with the helper and _store_local this loop ran Method 1 about
-        # 8 % slower in bench_method1.py, five alternating runs each against the tree before them)
+        # (written out here and in kernels/quasi_static.py: as shared inline helpers, this check and
+        # the q, f output rows below made Method 1 about 8 % slower, bench_method1.py, and Method 4's
+        # kernel 3-7 %)
         if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
             status = INTERRUPTED
             counters[C_FAIL_STEP] = k
@@ -613,25 +614,3 @@ def _store(x, v, a, w, state, out, k, t, dt, solves):
         o_w[j, ii] = w[d]
         o_state[j, ii] = state[d]
     return j
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _store_local(out, row, q, f):
-    """Write the saved contact rows (out.rows) of q and f into output row ``row``."""
-    o_q, o_f, o_rows = out.q, out.f, out.rows
-    for ii in range(o_rows.shape[0]):
-        o_q[row, ii] = q[o_rows[ii]]
-        o_f[row, ii] = f[o_rows[ii]]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _halt(counters, out, k):
-    """The status that stops a march before step k + 1, OK for none: INTERRUPTED on a stop
-    request from another thread (Ctrl-C; the k steps done are kept, C_FAIL_STEP = k), CAPACITY
-    when the steps or the output rows are used up."""
-    if counters[C_STOP] != 0:
-        counters[C_FAIL_STEP] = k
-        return INTERRUPTED
-    if k >= out.plan[S_CAPACITY] or out.plan[S_ROWS] + 2 > out.t.shape[0]:
-        return CAPACITY
-    return OK

@@ -30,16 +30,11 @@ from numba import njit
 
 from slipstep.kernels import structure_ops as so
 from slipstep.kernels.borrow import borrowed, keep_alive
-from slipstep.kernels.codes import C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LAW_CIRCLE, OK
+from slipstep.kernels.codes import (
+    C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, C_STOP, CAPACITY, INTERRUPTED, LAW_CIRCLE, OK,
+)
 from slipstep.kernels.march import (
-    S_FAIL,
-    _accept_contacts,
-    _convergence_parameters,
-    _halt,
-    _loads_and_motions,
-    _stick_diagonal,
-    _store,
-    _store_local,
+    S_CAPACITY, S_FAIL, S_ROWS, _accept_contacts, _convergence_parameters, _loads_and_motions, _stick_diagonal, _store,
 )
 from slipstep.kernels.settings import contact_table, state_cache, step_vectors
 from slipstep.kernels.step_solvers import CV_FLOOR, piecewise_linear_step
@@ -71,7 +66,12 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
     has_stiffness = so.has_nonzero(backend, sys, 2)
     t = st.t_start
     t_end = st.t_end
-    _store_local(out, _store(x, v, a, w, state, out, 0, t, 0.0, 0), q0, f0)
+    cap = out.plan[S_CAPACITY]
+    o_q, o_f, o_rows = out.q, out.f, out.rows
+    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
+    for ii in range(o_rows.shape[0]):
+        o_q[row, ii] = q0[o_rows[ii]]
+        o_f[row, ii] = f0[o_rows[ii]]
     for d in range(state.shape[0]):
         ws.dt_state[d] = 0  # a fixed step: the cache keys carry no step state
     tiny = 1e-12 * (t_end - t + 1e-300)
@@ -82,8 +82,12 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
     basis, clock = ws.basis, ws.clock
     clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
     while t < t_end - tiny:
-        status = _halt(counters, out, k)  # Ctrl-C, or out of steps or of output rows
-        if status != OK:
+        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+            status = INTERRUPTED
+            counters[C_FAIL_STEP] = k
+            break
+        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows (march.py)
+            status = CAPACITY
             break
         dt = st.dt if t + st.dt <= t_end - tiny else t_end - t  # the last step ends at t_end
         nominal = abs(dt - st.dt) <= 1e-12 * st.dt
@@ -97,30 +101,10 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
         for i in range(r0.shape[0]):
             r0[i] = fe1[i]
         so.sub_predictor(backend, sys, False, False, has_stiffness, r0, r0, x, r0)  # r0 = f_e - K x_n
-        status, solves, last_slot = piecewise_linear_step(
-            backend,
-            sys,
-            cl,
-            cache,
-            ws.Lin,
-            ws.J,
-            1.0,
-            sv,
-            state,
-            ws.visited,
-            0,
-            nominal,
-            last_slot,
-            has_circle,
-            st.max_state_iter,
-            st.fallback,
-            st.max_iter,
-            conv,
-            st.state_rtol,
-            st.singular_rtol,
-            length_scale,
-            counters,
-        )
+        status, solves, last_slot = piecewise_linear_step(backend, sys, cl, cache, ws.Lin, ws.J, 1.0, sv, state,
+                                                          ws.visited, 0, nominal, last_slot, has_circle,
+                                                          st.max_state_iter, st.fallback, st.max_iter, conv,
+                                                          st.state_rtol, st.singular_rtol, length_scale, counters)
         counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
@@ -133,7 +117,10 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        _store_local(out, _store(x, v, a, w, state, out, k, t, dt, solves), q1, f1)
+        row = _store(x, v, a, w, state, out, k, t, dt, solves)
+        for ii in range(o_rows.shape[0]):
+            o_q[row, ii] = q1[o_rows[ii]]
+            o_f[row, ii] = f1[o_rows[ii]]
         counters[C_PROGRESS] = k
     counters[C_STEPS] = k
     keep_alive((own_conv, own_kd))
