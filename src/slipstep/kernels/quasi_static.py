@@ -12,8 +12,8 @@ the implicit march (kernels/march.py) with Lin = K, r0 = f_e(t_{n+1}) - K x_n, k
 Why a kernel of its own: the implicit march carries every dynamic path (the Newmark and
 generalised-alpha relations, the Newton solvers, the contact-state adaptive step, the accuracy
 control), and its compiled loop is several times the size of what a quasi-static step runs. In
-that loop a Method 4 step took 0.19-0.20 of Method 1's time on the paper case (`slipstep
-compare paper`); here it takes 0.14, with bitwise the same numbers (tests/test_quasi_static.py
+that loop Method 4 took 0.18-0.19 of Method 1's time on the paper case (`slipstep compare
+paper`); here it takes 0.15-0.16, with bitwise the same numbers (tests/test_quasi_static.py
 checks both marches against each other). The static preload and the static start of a run stay
 on the implicit march (kernels.march, ``inertia`` False, ``preload``), which keeps its
 quasi-static mode as the independent path this kernel is checked against.
