@@ -576,8 +576,27 @@ def march(sys, st, ws, out, q0, f0):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _store(x, v, a, w, state, out, k, t, dt, solves):
-    """Write the carried state of step k (time t) into the pending row out.plan[S_ROWS] (the
-    saved DOFs and directions) and keep it, or leave it pending (overwritten by the next step),
+    """Write the carried state of step k (time t) into the row of :func:`_keep_row` (the saved
+    DOFs and directions). Returns the row written."""
+    j = _keep_row(out, k, t, dt, solves)
+    o_x, o_v, o_a, dofs = out.x, out.v, out.a, out.dofs
+    for ii in range(dofs.shape[0]):
+        i = dofs[ii]
+        o_x[j, ii] = x[i]
+        o_v[j, ii] = v[i]
+        o_a[j, ii] = a[i]
+    o_w, o_state, dirs = out.w, out.state, out.dirs
+    for ii in range(dirs.shape[0]):
+        d = dirs[ii]
+        o_w[j, ii] = w[d]
+        o_state[j, ii] = state[d]
+    return j
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _keep_row(out, k, t, dt, solves):
+    """The output row of step k (time t): write step, t, dt and solves into the pending row
+    out.plan[S_ROWS] and keep it, or leave it pending (overwritten by the next step),
     by the save plan (methods/save.py): every S_EVERY-th step from the window start
     times[S_FROM] (the pending step before the window is kept with its first step), or, with
     given times, the two step ends around each given time (one given time passed per step: a
@@ -602,12 +621,17 @@ def _store(x, v, a, w, state, out, k, t, dt, solves):
     out.t[j] = t
     out.dt[j] = dt
     out.solves[j] = solves
-    o_x, o_v, o_a, dofs = out.x, out.v, out.a, out.dofs
+    return j
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _store_positions(x, w, state, out, k, t, dt, solves):
+    """:func:`_store` without v and a: a quasi-static march, whose v = a = 0 stay as the
+    outputs were allocated (zeros), writes a fifth less per step."""
+    j = _keep_row(out, k, t, dt, solves)
+    o_x, dofs = out.x, out.dofs
     for ii in range(dofs.shape[0]):
-        i = dofs[ii]
-        o_x[j, ii] = x[i]
-        o_v[j, ii] = v[i]
-        o_a[j, ii] = a[i]
+        o_x[j, ii] = x[dofs[ii]]
     o_w, o_state, dirs = out.w, out.state, out.dirs
     for ii in range(dirs.shape[0]):
         d = dirs[ii]

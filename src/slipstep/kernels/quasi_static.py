@@ -3,26 +3,37 @@ its own: at every step of the fixed step dt,
 
     K x_{n+1} + A^T f(q_{n+1}, w_n) = f_e(t_{n+1}),    q_{n+1} = A x_{n+1} - B p(t_{n+1}) + g
 
-solved for dx = x_{n+1} - x_n by the piecewise-linear step solver of the implicit march
+solved by the piecewise-linear step solver of the implicit march
 (kernels/step_solvers.piecewise_linear_step: postulate S_{n+1} = S_n, one solve with the cached
 J(S) = K + K_D(S), the compatibility check, re-solve on a transition; modified Newton with
-J(all stick) when the states cycle; Newton on the consistent tangent in a coupled slip), i.e.
-the implicit march (kernels/march.py) with Lin = K, r0 = f_e(t_{n+1}) - K x_n, kfac = 1.
+J(all stick) when the states cycle; Newton on the consistent tangent in a coupled slip), with
+Lin = K and kfac = 1, in one of two forms of the same equations:
+
+* direct (no friction-circle contact): the unknown is x_{n+1} itself, q_base = g - B p(t_{n+1}),
+  r0 = f_e(t_{n+1}); a step saves the products A x_n and K x_n of the increment form;
+* increment: the unknown is dx = x_{n+1} - x_n, q_base = A x_n - B p + g, r0 = f_e - K x_n, as in
+  the implicit march (kernels/march.py). The Newton iterations start from dx = 0, i.e. from
+  x_n, so they run in this form: the fallback after cycling postulates or a singular J(S)
+  (the step is set up again in this form, step_solvers.stick_fallback) and every step of a
+  march with a friction-circle contact (a coupled slip is solved by Newton).
+
+The two forms agree to rounding (about 1e-13 of the force scale on the paper case) and take
+the same states, steps and solves; tests/test_quasi_static.py checks this kernel against the
+implicit march's quasi-static mode on every backend and law, the fallback included.
 
 Why a kernel of its own: the implicit march carries every dynamic path (the Newmark and
 generalised-alpha relations, the Newton solvers, the contact-state adaptive step, the accuracy
-control), and its compiled loop is several times the size of what a quasi-static step runs. In
-that loop Method 4 took 0.18-0.19 of Method 1's time on the paper case (`slipstep compare
-paper`); here it takes 0.15-0.16, with bitwise the same numbers (tests/test_quasi_static.py
-checks both marches against each other). The static preload and the static start of a run stay
-on the implicit march (kernels.march, ``inertia`` False, ``preload``), which keeps its
-quasi-static mode as the independent path this kernel is checked against.
+control), and its compiled loop is several times the size of what a quasi-static step runs.
+The static preload and the static start of a run stay on the implicit march (kernels.march,
+``inertia`` False, ``preload``), which keeps its quasi-static mode as the independent path this
+kernel is checked against.
 
-One step, in order: loads and motions (march._loads_and_motions), q_base = A x_n - B p + g,
-r0 = f_e - K x_n, the piecewise-linear step, x_{n+1} = x_n + dx (v = a = 0 are never
-touched), the contact states and sliders, the output row (march._store, save plan included).
-Inputs as kernels.march.march; the MarchSettings it reads: dt, tol, state_rtol, singular_rtol,
-t_start, t_end, max_iter, max_state_iter, fallback, signals, structure.
+One step, in order: loads and motions (march._loads_and_motions), q_base and r0 (the form
+above), the piecewise-linear step, x_{n+1}, the contact states and sliders, the output row
+(march._store_positions, save plan included: v = a = 0 are never written, the outputs keep the
+zeros they were allocated with). Inputs as kernels.march.march; the MarchSettings it reads: dt,
+tol, state_rtol, singular_rtol, t_start, t_end, max_iter, max_state_iter, fallback, signals,
+structure.
 """
 
 import numpy as np
@@ -31,13 +42,22 @@ from numba import njit
 from slipstep.kernels import structure_ops as so
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.codes import (
-    C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, C_STOP, CAPACITY, INTERRUPTED, LAW_CIRCLE, OK,
+    C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, C_STOP, CAPACITY, INTERRUPTED, LAW_CIRCLE, OK, SINGULAR,
+    STATE_CYCLING,
 )
 from slipstep.kernels.march import (
     S_CAPACITY, S_FAIL, S_ROWS, _accept_contacts, _convergence_parameters, _loads_and_motions, _stick_diagonal, _store,
+    _store_positions,
 )
 from slipstep.kernels.settings import contact_table, state_cache, step_vectors
-from slipstep.kernels.step_solvers import CV_FLOOR, piecewise_linear_step
+from slipstep.kernels.step_solvers import CV_FLOOR, piecewise_linear_step, stick_fallback
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _increment_base(backend, sys, has_stiffness, x, p, qbase, r0):
+    """The step's base in the dx form: q_base = A x_n - B p + g and r0 -= K x_n (r0 holds f_e)."""
+    so.gather_state(backend, sys, x, p, qbase)
+    so.sub_predictor(backend, sys, False, False, has_stiffness, r0, r0, x, r0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -64,6 +84,7 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
     conv, kd_stick = borrowed(own_conv), borrowed(own_kd)
     has_circle = np.any(cl.lcode == LAW_CIRCLE)
     has_stiffness = so.has_nonzero(backend, sys, 2)
+    direct = not has_circle  # a coupled slip's Newton (full_newton) starts from dx = 0: the dx form
     t = st.t_start
     t_end = st.t_end
     cap = out.plan[S_CAPACITY]
@@ -97,27 +118,44 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
             ws.lin_dt[0] = dt
             conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, ws.Lin, 1.0, kd_stick)
         _loads_and_motions(sys, t + dt, st.signals, 1.0, basis, clock, fe1, p)
-        so.gather_state(backend, sys, x, p, qbase)
+        increment = not direct
         for i in range(r0.shape[0]):
             r0[i] = fe1[i]
-        so.sub_predictor(backend, sys, False, False, has_stiffness, r0, r0, x, r0)  # r0 = f_e - K x_n
+        if direct:  # solve for x_{n+1}: q_base = g - B p, r0 = f_e
+            so.motion_base(sys, p, qbase)
+        else:  # solve for dx: q_base = A x_n - B p + g, r0 = f_e - K x_n
+            _increment_base(backend, sys, has_stiffness, x, p, qbase, r0)
         status, solves, last_slot = piecewise_linear_step(backend, sys, cl, cache, ws.Lin, ws.J, 1.0, sv, state,
                                                           ws.visited, 0, nominal, last_slot, has_circle,
-                                                          st.max_state_iter, st.fallback, st.max_iter, conv,
-                                                          st.state_rtol, st.singular_rtol, length_scale, counters)
+                                                          st.max_state_iter, st.fallback and increment, st.max_iter,
+                                                          conv, st.state_rtol, st.singular_rtol, length_scale,
+                                                          counters)
+        if direct and st.fallback and (status == STATE_CYCLING or status == SINGULAR):
+            increment = True  # the fallback's Newton starts from x_n: the dx form
+            for i in range(r0.shape[0]):
+                r0[i] = fe1[i]
+            _increment_base(backend, sys, has_stiffness, x, p, qbase, r0)
+            status, more = stick_fallback(backend, sys, cl, cache, ws.Lin, ws.J, 1.0, sv, nominal, st.max_iter, conv,
+                                          st.singular_rtol, status, counters)
+            solves += more
         counters[C_SOLVES] += solves
         if status != OK:
             counters[C_FAIL_STEP] = k + 1
             out.times[S_FAIL] = t + dt
             break
+        if increment:
+            for i in range(x.shape[0]):
+                x[i] += dx[i]
+        else:
+            for i in range(x.shape[0]):
+                x[i] = dx[i]
         for i in range(x.shape[0]):
-            x[i] += dx[i]
             fe[i] = fe1[i]
         if _accept_contacts(w, state, w1, state1):
             counters[C_STATE_CHANGES] += 1
         t += dt
         k += 1
-        row = _store(x, v, a, w, state, out, k, t, dt, solves)
+        row = _store_positions(x, w, state, out, k, t, dt, solves)
         for ii in range(o_rows.shape[0]):
             o_q[row, ii] = q1[o_rows[ii]]
             o_f[row, ii] = f1[o_rows[ii]]

@@ -371,6 +371,22 @@ def state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv, tstate, dt, no
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def stick_fallback(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol, pl_status,
+                   counters):
+    """The fallback of :func:`piecewise_linear_step` when its postulates cycle or J(S) is
+    singular (pl_status): modified Newton with J(all stick) from dx = 0 (counted in
+    C_FALLBACKS). Returns (status, solves); status pl_status (the more telling reason) when
+    Newton fails too."""
+    counters[C_FALLBACKS] += 1
+    ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
+    if not ok0:
+        return pl_status, 0
+    status, solves = modified_newton(backend, lu0, piv0, Lin, kfac, so.csr_of(sys), sys.A, sys.AT, cl, sv, max_iter,
+                                     conv, np.inf, True, counters)
+    return (OK if status == OK else pl_status), solves
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
                           has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
                           length_scale, counters):
@@ -458,16 +474,9 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
         counters[C_LAW_CALLS] += 1
     if status != OK and status != NON_FINITE and fallback:
-        counters[C_FALLBACKS] += 1
-        pl_status = status
-        ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
-        more = 0
-        if ok0:
-            status, more = modified_newton(backend, lu0, piv0, Lin, kfac, so.csr_of(sys), A, AT, cl, sv, max_iter, conv, np.inf,
-                                           True, counters)
+        status, more = stick_fallback(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol,
+                                      status, counters)
         solves += more
-        if status != OK:
-            status = pl_status  # the more telling reason: singular state or cycling
     return status, solves, last_slot
 
 
@@ -544,14 +553,7 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
         counters[C_LAW_CALLS] += 1
     if status != OK and status != NON_FINITE and fallback:
-        counters[C_FALLBACKS] += 1
-        pl_status = status
-        ok0, lu0, piv0 = stick_factorisation(backend, sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters)
-        more = 0
-        if ok0:
-            status, more = _modified_newton_dense(backend, lu0, piv0, Lin, kfac, A, AT, cl, sv, max_iter, conv, np.inf,
-                                           True, counters)
+        status, more = stick_fallback(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol,
+                                      status, counters)
         solves += more
-        if status != OK:
-            status = pl_status  # the more telling reason: singular state or cycling
     return status, solves, last_slot

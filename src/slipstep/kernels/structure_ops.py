@@ -245,13 +245,19 @@ def gather_state(backend, sys, x, p, q):
     if backend != BANDED:
         gather(sys.A, sys.B, sys.g, x, p, q)
         return
+    motion_base(sys, p, q)
+    csr_gather(sys.A_ptr, sys.A_idx, sys.A_val, q, x, q)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def motion_base(sys, p, q):
+    """q = g - B p: the contact coordinates at x = 0 (any backend; B and g are dense)."""
     B, g = sys.B, sys.g
     for r in range(q.shape[0]):
         s = g[r]
         for j in range(B.shape[1]):
             s -= B[r, j] * p[j]
         q[r] = s
-    csr_gather(sys.A_ptr, sys.A_idx, sys.A_val, q, x, q)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
