@@ -577,19 +577,13 @@ def march(sys, st, ws, out, q0, f0):
 @njit(cache=True, error_model="numpy", inline="always")
 def _store(x, v, a, w, state, out, k, t, dt, solves):
     """Write the carried state of step k (time t) into the row of :func:`_keep_row` (the saved
-    DOFs and directions). Returns the row written."""
-    j = _keep_row(out, k, t, dt, solves)
-    o_x, o_v, o_a, dofs = out.x, out.v, out.a, out.dofs
+    DOFs and directions): :func:`_store_positions`, then v and a. Returns the row written."""
+    j = _store_positions(x, w, state, out, k, t, dt, solves)
+    o_v, o_a, dofs = out.v, out.a, out.dofs
     for ii in range(dofs.shape[0]):
         i = dofs[ii]
-        o_x[j, ii] = x[i]
         o_v[j, ii] = v[i]
         o_a[j, ii] = a[i]
-    o_w, o_state, dirs = out.w, out.state, out.dirs
-    for ii in range(dirs.shape[0]):
-        d = dirs[ii]
-        o_w[j, ii] = w[d]
-        o_state[j, ii] = state[d]
     return j
 
 
@@ -626,8 +620,9 @@ def _keep_row(out, k, t, dt, solves):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _store_positions(x, w, state, out, k, t, dt, solves):
-    """:func:`_store` without v and a: a quasi-static march, whose v = a = 0 stay as the
-    outputs were allocated (zeros), writes a fifth less per step."""
+    """The row of :func:`_keep_row` with x, w and the states (the saved DOFs and directions),
+    without v and a: a quasi-static march, whose v = a = 0 stay as the outputs were allocated
+    (zeros), writes a fifth less per step. Returns the row written."""
     j = _keep_row(out, k, t, dt, solves)
     o_x, dofs = out.x, out.dofs
     for ii in range(dofs.shape[0]):
