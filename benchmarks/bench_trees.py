@@ -5,8 +5,10 @@ order, and times ``Simulation.march()`` of every method on the paper case (one p
 quasi-static at 300 steps per period) after a warm-up, the methods interleaved within the
 process. Printed per method and tree: the min and median over all rounds, and the ratio of
 the second tree to the first (min and median). Noise on a shared machine hits both alike.
+``--periods 0.01``: runs of one to three steps, i.e. the fixed cost of a kernel call (argument
+unboxing, allocation, setup), which every short run and every sweep case pays.
 
-Usage:  python benchmarks/bench_trees.py BASE_TREE NEW_TREE [--rounds 4] [--repeats 40]
+Usage:  python benchmarks/bench_trees.py BASE_TREE NEW_TREE [--rounds 4] [--repeats 40] [--periods 1]
 """
 
 from __future__ import annotations
@@ -21,12 +23,12 @@ import textwrap
 
 SNIPPET = textwrap.dedent("""
     import json, sys, slipstep
-    repeats = int(sys.argv[1])
+    repeats, periods = int(sys.argv[1]), float(sys.argv[2])
     paper = slipstep.load_system("paper")
     methods = [m for m in slipstep.METHODS if not slipstep.METHODS[m].massless]
     sims = {}
     for m in methods:
-        opts = {"periods": 1}
+        opts = {"periods": periods}
         if slipstep.METHODS[m].quasi_static:
             opts["steps_per_period"] = 300
         sims[m] = slipstep.Simulation(paper, m, **opts)
@@ -41,9 +43,11 @@ SNIPPET = textwrap.dedent("""
 """)
 
 
-def run_tree(tree: str, repeats: int) -> dict:
+def run_tree(tree: str, repeats: int, periods: float) -> dict:
     env = dict(os.environ, PYTHONPATH=os.path.join(os.path.abspath(tree), "src"))
-    done = subprocess.run([sys.executable, "-c", SNIPPET, str(repeats)], env=env, capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-c", SNIPPET, str(repeats), str(periods)], env=env, capture_output=True, text=True
+    )
     if done.returncode != 0:
         raise SystemExit(f"{tree}: {done.stderr[-2000:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -55,14 +59,18 @@ def main(argv=None) -> dict:
     ap.add_argument("new")
     ap.add_argument("--rounds", type=int, default=4)
     ap.add_argument("--repeats", type=int, default=40)
+    ap.add_argument("--periods", type=float, default=1.0, help="periods per run (0.01: one to three steps)")
     args = ap.parse_args(argv)
     trees = [args.base, args.new]
     times: dict = {t: {} for t in trees}
     for k in range(args.rounds):
         for tree in trees if k % 2 == 0 else trees[::-1]:
-            for m, ts in run_tree(tree, args.repeats).items():
+            for m, ts in run_tree(tree, args.repeats, args.periods).items():
                 times[tree].setdefault(m, []).extend(ts)
-    print(f"kernel time [us] per method, {args.rounds} rounds x {args.repeats} repeats, trees interleaved")
+    print(
+        f"kernel time [us] per method, {args.periods:g} period(s) per run, {args.rounds} rounds x "
+        f"{args.repeats} repeats, trees interleaved"
+    )
     print(
         f"   {'method':28s} {'base min':>9s} {'base med':>9s} {'new min':>9s} {'new med':>9s} {'min ratio':>9s} {'med ratio':>9s}"
     )

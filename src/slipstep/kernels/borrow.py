@@ -19,7 +19,8 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 
-def _borrow_value(context, builder, ty, value):
+def borrow_value(context, builder, ty, value):
+    """``value`` (of numba type ``ty``) with the MemInfo of every array in it set to NULL."""
     if isinstance(ty, types.Array):
         ary = cgutils.create_struct_proxy(ty)(context, builder, value=value)
         ary.meminfo = ir.Constant(ary.meminfo.type, None)
@@ -27,7 +28,7 @@ def _borrow_value(context, builder, ty, value):
     if isinstance(ty, types.BaseTuple):
         for i, member in enumerate(ty.types):
             item = builder.extract_value(value, i)
-            value = builder.insert_value(value, _borrow_value(context, builder, member, item), i)
+            value = builder.insert_value(value, borrow_value(context, builder, member, item), i)
         return value
     return value
 
@@ -38,7 +39,7 @@ def borrowed(typingctx, value):
     reference counted (module docstring)."""
 
     def codegen(context, builder, signature, args):
-        return _borrow_value(context, builder, signature.args[0], args[0])
+        return borrow_value(context, builder, signature.args[0], args[0])
 
     return value(value), codegen
 

@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from slipstep.kernels.arguments import unpacked
 from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
@@ -236,3 +237,10 @@ def explicit_march(sys, st, ws, out, q0, f0):
             out.f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def explicit_march_packed(args, st):
+    """:func:`explicit_march` on a kernels.arguments.KernelArguments."""
+    sys, ws, out, q0, f0 = unpacked(args)
+    return explicit_march(sys, st, ws, out, q0, f0)

@@ -64,6 +64,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.banded import band_contact_stiffness, band_is_diagonal, band_lambda_max, band_to_lu_storage
+from slipstep.kernels.arguments import unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
@@ -633,3 +634,10 @@ def _store_positions(x, w, state, out, k, t, dt, solves):
         o_w[j, ii] = w[d]
         o_state[j, ii] = state[d]
     return j
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def march_packed(args, st):
+    """:func:`march` on a kernels.arguments.KernelArguments."""
+    sys, ws, out, q0, f0 = unpacked(args)
+    return march(sys, st, ws, out, q0, f0)

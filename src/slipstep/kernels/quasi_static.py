@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels import structure_ops as so
+from slipstep.kernels.arguments import unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.codes import (
     C_FAIL_STEP, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, C_STOP, CAPACITY, INTERRUPTED, LAW_CIRCLE, OK, SINGULAR,
@@ -163,3 +164,10 @@ def quasi_static_march(sys, st, ws, out, q0, f0):
     counters[C_STEPS] = k
     keep_alive((own_conv, own_kd))
     return status
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def quasi_static_march_packed(args, st):
+    """:func:`quasi_static_march` on a kernels.arguments.KernelArguments."""
+    sys, ws, out, q0, f0 = unpacked(args)
+    return quasi_static_march(sys, st, ws, out, q0, f0)

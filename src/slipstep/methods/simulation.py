@@ -21,8 +21,10 @@ from slipstep.live import call_kernel
 from slipstep.methods import memory
 from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
-from slipstep.kernels.events import event_arguments, event_march
-from slipstep.kernels.quasi_static import quasi_static_march
+from slipstep.kernels import explicit as E
+from slipstep.kernels.arguments import KernelArguments, pack_arguments
+from slipstep.kernels.events import event_arguments, event_march, event_march_packed
+from slipstep.kernels.quasi_static import quasi_static_march, quasi_static_march_packed
 from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods import save as SV
@@ -163,6 +165,7 @@ class Runner:
 
     failure_hint = ""
     _kernel = None
+    _packed = None  # (sys, ws, out, q0, f0, their KernelArguments): :meth:`_packed_arguments`
     progress = False  # draw a progress bar on stderr for runs longer than a second (the CLI sets it)
     keep_interrupted = False  # Ctrl-C: return the partial result (True) or raise Interrupted carrying it
 
@@ -174,14 +177,28 @@ class Runner:
         """The march kernel's arguments (sys, settings, ws, out, q0, f0)."""
         return (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
 
+    def _packed_arguments(self, args: tuple) -> tuple:
+        """(KernelArguments, settings) of the kernel arguments (sys, settings, ws, out, q0, f0):
+        the arrays unboxed once, when first seen (kernels/arguments.py), and again only when the
+        runner replaces one of them."""
+        sys, settings, ws, out, q0, f0 = args
+        held = (sys, ws, out, q0, f0)
+        if self._packed is None or any(a is not b for a, b in zip(self._packed, held)):
+            self._packed = (*held, pack_arguments(*held))
+        return self._packed[-1], settings
+
     def _run_kernel(self, dispatcher) -> Status:
         """Time one call of the march kernel on this runner's arrays; after the first call the
         compiled overload is called directly (no type dispatch). Sets status and kernel_time."""
         self.out.counters[:] = 0
         reset_outputs(self.out)
         args = self.kernel_arguments()
-        known = self._kernel is not None and self._kernel[0] is dispatcher  # (dispatcher, compiled entry)
-        kernel = self._kernel[1] if known else dispatcher
+        twin = PACKED_TWINS.get(dispatcher)
+        if twin is not None:
+            dispatcher, args = twin, self._packed_arguments(args)
+        layout = args[0]._type if twin is not None else None  # a new KernelArguments may hold other layouts
+        known = self._kernel is not None and self._kernel[0] is dispatcher and self._kernel[2] == layout
+        kernel = self._kernel[1] if known else dispatcher  # _kernel: (dispatcher, compiled entry, layout)
         # a long run marches in a worker thread: Ctrl-C stops it (INTERRUPTED), progress is shown
         plan = getattr(self, "save_plan", None)
         times = self.out.t  # the progress bar reads the time of step k from row k
@@ -192,7 +209,7 @@ class Runner:
             kernel, args, self.out.counters, times, self.t_end, int(self.out.plan[K.S_CAPACITY]) + 1, self.progress
         )
         if not known:
-            self._kernel = (dispatcher, compiled_entry(dispatcher, args))
+            self._kernel = (dispatcher, compiled_entry(dispatcher, args), layout)
         self.status = Status(status)
         if self.status == Status.INTERRUPTED and not self.keep_interrupted:
             partial = self.dataset()
@@ -584,7 +601,7 @@ class Simulation(Runner):
     # -- marching -------------------------------------------------------------------------
     def kernel_arguments(self) -> tuple:
         """The kernel's arguments; the event-driven kernel takes the slim system and workspace
-        tuples of kernels.events.event_arguments (fewer arrays to unbox per call)."""
+        tuples of kernels.events.event_arguments (fewer arrays to unbox or pass per call)."""
         if self.method.solver != K.EVENTS:
             return super().kernel_arguments()
         built = self._event_arguments  # built once per (compiled, ws)
@@ -634,6 +651,16 @@ class Simulation(Runner):
                 else {"massless_dofs": ", ".join(self.system.structure.dof_names[i] for i in self.massless)}
             ),
         }
+
+
+#: each march kernel's twin taking a kernels.arguments.KernelArguments (its arrays unboxed once,
+#: not on every call); Runner._run_kernel calls the twin of a kernel that has one
+PACKED_TWINS = {
+    K.march: K.march_packed,
+    quasi_static_march: quasi_static_march_packed,
+    event_march: event_march_packed,
+    E.explicit_march: E.explicit_march_packed,
+}
 
 
 def march_kernel(method: Method):
@@ -738,6 +765,8 @@ def _layout_key(value):
         return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned)
     if isinstance(value, tuple):
         return (type(value), tuple(_layout_key(item) for item in value))
+    if isinstance(value, KernelArguments):
+        return value._type  # its numba type: the layout of every array it holds
     return type(value)
 
 
