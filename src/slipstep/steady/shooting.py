@@ -46,7 +46,7 @@ from slipstep.steady.marching import (
     period_simulation,
     start,
 )
-from slipstep.steady.state import State, as_state, period_scales
+from slipstep.steady.state import State, SteadyState, as_state, period_scales
 from slipstep.system import System
 
 
@@ -229,6 +229,24 @@ def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, free: 
     return dz
 
 
+PREDICTOR_MAX_RATIO = 2.0  # extrapolate at most twice the last frequency step
+
+
+def predicted_start(history, frequency_hz: float, n: int, quasi: bool) -> State | None:
+    """The secant predictor between FRF points: from the orbits z_a, z_b of the last two points
+    (at f_a, f_b: ``history``, the SteadyState's ``orbit_history``), the start z_b + r (z_b - z_a),
+    r = (f - f_b) / (f_b - f_a), for the point at f = ``frequency_hz`` (None without two points,
+    or for a step more than PREDICTOR_MAX_RATIO times the last one)."""
+    if len(history) < 2:
+        return None
+    (f_a, s_a), (f_b, s_b) = history[-2], history[-1]
+    if f_a == f_b or abs(frequency_hz - f_b) > PREDICTOR_MAX_RATIO * abs(f_b - f_a):
+        return None
+    r = (frequency_hz - f_b) / (f_b - f_a)
+    z_a, z_b = _unknowns(s_a, quasi), _unknowns(s_b, quasi)
+    return _from_unknowns(z_b + r * (z_b - z_a), n, quasi, s_b.states)
+
+
 def shoot(
     system: System,
     *,
@@ -241,11 +259,15 @@ def shoot(
     settle_periods: int = 3,
     max_backtracks: int = 3,
     warmup_periods: int = 5,
+    predictor: bool = True,
     **run_options,
 ):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
-    ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
+    ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`;
+    predictor: with ``initial`` a SteadyState of an FRF point that carries the orbits of the two
+    points before (``orbit_history``), start from their secant extrapolation
+    (:func:`predicted_start`; the previous orbit if the predicted period fails)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
     for name, value, low in (
@@ -271,10 +293,13 @@ def shoot(
     T = sim.period
     t0 = math.ceil(max(cs.force_ramp, cs.motion_ramp) / T - 1e-9) * T  # shoot on the periodic map
     state = as_state(initial, n, nd) if initial is not None else None
+    history = initial.orbit_history if isinstance(initial, SteadyState) else ()
+    guess = predicted_start(history, 1.0 / T, n, quasi) if predictor else None
     periods, kernel, changes = 0, 0.0, []
     jacobian = JacobianCache()
     warmup = int(round(t0 / T)) + (warmup_periods if initial is None else 0)
-    if warmup > 0:  # march through the ramp, and from the preload past the start transient
+    if warmup > 0:
+        guess = None  # march through the ramp, and from the preload past the start transient
         start(sim, state, 0.0)
         status, k, ch, state, kt_ = march_periods(sim, 0, tolerance, warmup)
         periods, kernel = periods + k, kernel + kt_
@@ -301,16 +326,26 @@ def shoot(
     best = None  # (change, z0, dz, end state) of the best period so far
     backtracks = newton = 0
     for it in range(max_iterations):
-        start(sim, state, t0)
+        start(sim, guess if guess is not None else state, t0)
         status, s0, end, e = march_one_period(sim)
         periods += 1
         kernel += sim.kernel_time
         changes.append(e)
+        if guess is not None:  # the predicted start (the previous point's orbit if its period fails)
+            guess = None
+            if status != Status.OK:
+                continue  # from the previous point's orbit instead
         if status != Status.OK:
             return stop(status.name, end)
         if e <= tolerance:
             phi, free = jacobian(sim)
-            return stop("OK", end, floquet_multipliers=floquet(phi), neutral_directions=int(n_state + nd - free.size))
+            return stop(
+                "OK",
+                end,
+                floquet_multipliers=floquet(phi),
+                neutral_directions=int(n_state + nd - free.size),
+                orbit_history=(*history[-1:], (1.0 / T, s0)),
+            )
         if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
             if backtracks < max_backtracks:
                 backtracks += 1
