@@ -325,7 +325,9 @@ def frf_benchmark(args) -> None:
     rows, amps = {}, {}
     frf(system, freqs[:1], solver="shoot", linear=False, responses=[tip])  # compile outside the timings
     for name in solvers:
-        grid = freqs if name != "march" else freqs[:: max(1, len(freqs) // max(args.march_points, 1))][: args.march_points]
+        grid = (
+            freqs if name != "march" else freqs[:: max(1, len(freqs) // max(args.march_points, 1))][: args.march_points]
+        )
         t0 = time.perf_counter()
         if name == "hbm":
             ds = hbm_frf(system, grid, harmonics=args.harmonics, responses=[tip], check="none")
