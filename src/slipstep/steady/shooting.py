@@ -267,7 +267,10 @@ def shoot(
     ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`;
     predictor: with ``initial`` a SteadyState of an FRF point that carries the orbits of the two
     points before (``orbit_history``), start from their secant extrapolation
-    (:func:`predicted_start`; the previous orbit if the predicted period fails)."""
+    (:func:`predicted_start`; the previous orbit if the predicted period fails). When Newton
+    from a given start has not converged after half of ``max_iterations``, the search starts
+    afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
+    frequency can be a worse start than the preload."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
     for name, value, low in (
@@ -325,7 +328,16 @@ def shoot(
 
     best = None  # (change, z0, dz, end state) of the best period so far
     backtracks = newton = 0
+    restart_at = max_iterations // 2 if initial is not None else -1
     for it in range(max_iterations):
+        if it == restart_at:  # Newton from the given start stalls: start afresh from the preload
+            start(sim, None, 0.0)
+            status, k, ch, state, kt_ = march_periods(sim, 0, tolerance, int(round(t0 / T)) + warmup_periods)
+            periods, kernel = periods + k, kernel + kt_
+            changes += ch
+            guess, best, backtracks = None, None, 0
+            if status not in ("OK", "NOT_STEADY"):
+                return stop(status, state)
         start(sim, guess if guess is not None else state, t0)
         status, s0, end, e = march_one_period(sim)
         periods += 1
