@@ -260,8 +260,8 @@ def main():
 def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
     """The one-period Jacobian of shooting on a converged orbit: time with the free unknowns
     (x, v and the sliders that leave stick) against every slider as an unknown, and the floor
-    of its two products per step (n x (3n + na) times (3n + na) x m, and the moving sliders'
-    rows) at the dgemm rate of this machine measured here."""
+    of its matrix products per step (kernels/sensitivity.py) at the dgemm rate of a product of
+    the same shape measured here."""
     from slipstep.frequency.retune import retune
     from slipstep.steady import shoot
     from slipstep.steady.marching import march_one_period, period_simulation, start
@@ -285,17 +285,21 @@ def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
             t.append(time.perf_counter() - t0)
         timing[label] = min(t)
     na = free.size
-    rows, cols = 3 * n + na, 2 * n + na
-    flops = steps * 2.0 * (n * rows * cols + na * n * cols)  # worst case: every slider moving every step
-    a, b = np.random.default_rng(0).random((n, rows)), np.random.default_rng(1).random((rows, cols))
-    reps = 200
+    nc = int(np.count_nonzero(np.abs(system_f.compile().A).sum(axis=0)))  # the contact DOFs
+    cols = 2 * n + na
+    # the kernel's products per step (kernels/sensitivity.py): n x 3n, nc x na, n x nc, na x nc
+    # times m = cols columns; worst case: every slider moving every step
+    flops = steps * 2.0 * cols * (3 * n * n + nc * na + n * nc + na * nc)
+    a, b = np.random.default_rng(0).random((n, 3 * n)), np.random.default_rng(1).random((3 * n, cols))
+    reps = 400
     t0 = time.perf_counter()
     for _ in range(reps):
         a @ b
-    rate = reps * 2.0 * n * rows * cols / (time.perf_counter() - t0)
+    rate = reps * 2.0 * n * 3 * n * cols / (time.perf_counter() - t0)
     return {
         "steps_per_period": steps,
         "moving_sliders": int(na),
+        "contact_dofs": nc,
         "sliders": nd,
         "jacobian_free_s": timing["free"],
         "jacobian_all_sliders_s": timing["all"],

@@ -47,7 +47,13 @@ def period_sensitivity(
     """Propagate Z (rows x | v | a | w of the sliders d with wrow[d] >= 0, at row 3 n + wrow[d];
     columns: the unknowns) through steps 1..n_steps with step sizes dts[k] and accepted states
     states[k], in place (module docstring). A slider with wrow[d] < 0 must stay stuck over the
-    steps (its w is then constant and carries no row)."""
+    steps (its w is then constant and carries no row).
+
+    The sliders act on the structure through the contact DOFs c (those A gathers, nc of them)
+    only, so per (dt, S) the kernel forms P_s = J^-1 [G_x | G_v | G_a] (n x 3 n), Q = (J^-1)[:, c]
+    (n x nc), H_c = k_t A_t[:, c]^T over the stuck sliders (nc x na) and R_c = R[:, c] (na x nc),
+    and a step costs d(dx) = P_s Z_xva + Q (H_c Z_w) and dW_moving = R_c X_c: about
+    n (3 n + nc) m + 2 nc na m multiply-adds for m unknowns, against n (3 n + 2 na) m in full."""
     kn = lpar[:, P_KN]
     mu = lpar[:, P_MU]
     n = M.shape[0]
@@ -62,12 +68,25 @@ def period_sensitivity(
     for c in range(nrow.shape[0]):
         for d in range(fdir[c], fdir[c] + ndir[c]):
             owner[d] = c
-    G = np.zeros((n, nz))  # [-(K + K_D) | a2 M - b1 C | a3 M - b2 C | H]
-    P = np.zeros((n, nz))
-    R = np.zeros((max(na, 1), n))
+    touched = np.zeros(n, np.bool_)  # the contact DOFs
+    for r in range(A.shape[0]):
+        for i in range(n):
+            if A[r, i] != 0.0:
+                touched[i] = True
+    cdof = np.flatnonzero(touched)
+    nc = cdof.shape[0]
+    rhs = np.zeros((n, iw + nc))  # [G_x | G_v | G_a | E_c]: G_x = -(K + K_D), G_v = a2 M - b1 C, ...
+    for j in range(nc):
+        rhs[cdof[j], iw + j] = 1.0
+    Ps = np.zeros((n, iw))
+    Q = np.zeros((n, nc))
+    Hc = np.zeros((nc, max(na, 1)))
+    Rc = np.zeros((max(na, 1), nc))
     moving = np.zeros(max(na, 1), np.int64)
     n_moving = 0
     ddx = np.zeros((n, m))
+    hz = np.zeros((nc, m))
+    xc = np.zeros((nc, m))
     dw = np.zeros((max(na, 1), m))
     prev_state = np.full(nd, -1, np.int8)
     prev_dt = -1.0
@@ -85,34 +104,40 @@ def period_sensitivity(
                 a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
                 J += a0 * M + c1 * Cd
             contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, np.empty(0), np.empty(0), 1.0, J)
-            G[:, :] = 0.0
-            G[:, 0:n] = -J
+            rhs[:, 0:iw] = 0.0
+            rhs[:, 0:n] = -J
             if inertia:
-                G[:, 0:n] += a0 * M + c1 * Cd
-                G[:, iv:ia] = a2 * M - b1 * Cd
-                G[:, ia:iw] = a3 * M - b2 * Cd
+                rhs[:, 0:n] += a0 * M + c1 * Cd
+                rhs[:, iv:ia] = a2 * M - b1 * Cd
+                rhs[:, ia:iw] = a3 * M - b2 * Cd
+            sol = np.linalg.solve(J, rhs)
+            Ps[:, :] = sol[:, 0:iw]
+            Q[:, :] = sol[:, iw:]
+            Hc[:, :] = 0.0
             n_moving = 0
             for d in range(nd):
                 j = wrow[d]
                 if j < 0:
                     continue
                 tr = trow[d]
-                if S[d] == STICK:
-                    for i in range(n):
-                        G[i, iw + j] = kt[d] * A[tr, i]
+                if S[d] == STICK:  # df_b/dw = -k_t: dr = +k_t A_t^T dw
+                    for i in range(nc):
+                        Hc[i, j] = kt[d] * A[tr, cdof[i]]
                     continue
                 c = owner[d]
                 s = 0.0 if S[d] == LIFT else (mu[c] * kn[c] / kt[d] if S[d] == SLIP_POS else -mu[c] * kn[c] / kt[d])
                 nr = nrow[c]
-                for i in range(n):
-                    R[n_moving, i] = A[tr, i] - s * A[nr, i]
+                for i in range(nc):
+                    Rc[n_moving, i] = A[tr, cdof[i]] - s * A[nr, cdof[i]]
                 moving[n_moving] = iw + j
                 n_moving += 1
-            P[:, :] = np.linalg.solve(J, G)
             prev_dt = dt
             for d in range(nd):
                 prev_state[d] = S[d]
-        np.dot(P, Z, ddx)
+        np.dot(Ps, Z[0:iw], ddx)
+        if na > 0 and nc > 0:
+            np.dot(Hc, Z[iw:], hz)
+            ddx += np.dot(Q, hz)
         if inertia:
             for i in range(n):
                 for j in range(m):
@@ -127,7 +152,10 @@ def period_sensitivity(
             for j in range(m):
                 Z[i, j] += ddx[i, j]
         if n_moving > 0:
-            np.dot(R[:n_moving], Z[0:n], dw[:n_moving])
+            for i in range(nc):
+                for j in range(m):
+                    xc[i, j] = Z[cdof[i], j]
+            np.dot(Rc[:n_moving], xc, dw[:n_moving])
             for r in range(n_moving):
                 for j in range(m):
                     Z[moving[r], j] = dw[r, j]
