@@ -21,7 +21,6 @@ from slipstep.steady.state import (
     as_state,
     period_change,
     period_scales,
-    state_of,
 )
 from slipstep.system import System
 
@@ -80,21 +79,18 @@ def check_tolerance(tolerance: float, max_periods: int) -> None:
 
 
 def start(sim: Simulation, state: State | None, t_start: float) -> None:
-    """Set the state the next march starts from (None: the preload) at time t_start."""
-    if state is None:
-        pre = sim.preload_state
-        sim.start_from(pre[0], pre[1], pre[2], pre[5], pre[6], t_start=t_start)
-    else:
-        sim.start_from(state.x, state.v, state.a, state.w, state.states, t_start=t_start)
+    """Set the state the next march starts from (None: the current start, the preload unless
+    set otherwise) at time t_start."""
+    state = sim.start if state is None else state
+    sim.start_from(state.x, state.v, state.a, state.w, state.contact_state, t_start=t_start)
 
 
 def march_one_period(sim: Simulation):
     """March one period from the set start; (status, start state, end state, change e)."""
     quasi = sim.method.quasi_static
-    pre = sim.preload_state
-    s0 = State(pre[0].copy(), pre[1].copy(), pre[2].copy(), pre[5].copy(), pre[6].copy())
+    s0 = sim.start
     status = sim.march()
-    end = state_of(sim.ws, quasi)
+    end = sim.segment.end_state
     if status != Status.OK:
         return status, s0, end, math.inf
     n_steps = int(sim.out.counters[C_STEPS])
