@@ -98,3 +98,55 @@ def test_cli_run_refuses_a_scheme_that_does_not_apply(args, key, tmp_path):
     result = runner.invoke(app, ["run", "paper", "--periods", "0.5", "--output-dir", str(tmp_path), *args])
     assert result.exit_code == 2, result.output
     assert key in result.output and "Traceback" not in result.output
+
+
+def test_paper_time_ratios_are_the_papers():
+    """The ratios Figure 8 marks beside ours are those physics.md 7 states (the paper's Section
+    6), read from the text, one per paper method."""
+    import re
+
+    text = " ".join((Path(__file__).resolve().parents[1] / "docs" / "physics.md").read_text().split())
+    sentence = text[text.index("CPU time relative to Method 1:") :].split(". ")[0]
+    stated = {
+        label.replace("Methods", "Method"): (wording, float(value))
+        for label, wording, value in re.findall(r"(Methods? [\d+]+) (about|below) ([\d.]+)", sentence)
+    }
+    assert len(stated) == 4
+    for name in R.PAPER_METHODS:
+        method = R.get_method(name)
+        expected = ("about", 1.0) if name == "newmark" else stated[method.paper_label]
+        assert method.paper_time_ratio == expected
+    assert all(m.paper_time_ratio is None for m in R.METHODS.values() if m.name not in R.PAPER_METHODS)
+
+
+def test_comparison_figure_marks_the_papers_ratios(tmp_path, monkeypatch):
+    """fig8_time_ratios.png draws one paper marker per paper method other than Method 1, at its
+    stated ratio, and names it under the bar."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from slipstep import compare
+
+    rows = [
+        {"method": m, "paper_method": R.get_method(m).paper_label, "time_ratio": 0.3, "kernel_time_s": 1e-3}
+        for m in ("newmark", "piecewise-linear", "quasi-static", "quasi-static-events")
+    ]
+    seen = {}
+    original = plt.subplots
+
+    def subplots(*args, **kwargs):
+        fig, ax = original(*args, **kwargs)
+        seen["ax"] = ax
+        return fig, ax
+
+    monkeypatch.setattr(plt, "subplots", subplots)
+    compare.plot_time_ratios(rows, tmp_path / "fig8.png")
+    ax = seen["ax"]
+    heights = sorted(round(seg[0][1], 9) for c in ax.collections for seg in c.get_segments())
+    assert heights == [0.1, 0.5]
+    ticks = [t.get_text() for t in ax.get_xticklabels()]
+    assert "paper: about 0.5" in ticks[1] and "paper: < 0.1" in ticks[2]
+    assert "paper:" not in ticks[0] and "paper:" not in ticks[3]
+    assert (tmp_path / "fig8.png").stat().st_size > 0

@@ -347,7 +347,8 @@ def _pyplot():
 
 
 def plot_time_ratios(rows: list[dict], path, title: str = "") -> Path:
-    """Figure 8 of the paper: kernel CPU time of each method relative to Method 1."""
+    """Figure 8 of the paper: kernel CPU time of each method relative to Method 1, the paper's
+    stated ratios (Method.paper_time_ratio) marked beside the measured ones."""
     plt = _pyplot()
     labels = [f"{r['paper_method']}\n{r['method']}" for r in rows]
     ratios = [r["time_ratio"] for r in rows]
@@ -361,6 +362,13 @@ def plot_time_ratios(rows: list[dict], path, title: str = "") -> Path:
             va="bottom",
             fontsize=8,
         )
+    stated = {i: get_method(r["method"]).paper_time_ratio for i, r in enumerate(rows)}
+    stated = {i: p for i, p in stated.items() if p is not None and rows[i]["method"] != REFERENCE}
+    for k, (i, (wording, value)) in enumerate(stated.items()):  # the paper's ratios beside ours
+        ax.hlines(value, i - 0.45, i + 0.45, color="tab:orange", lw=2.5, label="paper (Fig. 8)" if k == 0 else None)
+        labels[i] += f"\npaper: {'< ' if wording == 'below' else 'about '}{value:g}"
+    if stated:
+        ax.legend(loc="upper right", fontsize=8)
     ax.set_xticks(range(len(rows)), labels, fontsize=8)
     ax.set_ylabel("kernel time / Method 1 kernel time [-]")
     ax.set_ylim(0, max(1.0, max(ratios)) * 1.25)

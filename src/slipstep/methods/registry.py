@@ -31,6 +31,9 @@ class Method:
     quasi_static: bool
     description: str
     massless: bool = False  # the DOFs of option massless_dofs without inertia (methods/massless.py)
+    #: the paper's CPU time relative to Method 1 on its case (Section 6, Fig. 8; physics.md 7):
+    #: (wording, value), e.g. ("about", 0.8) or ("below", 0.1); None for methods beyond the paper
+    paper_time_ratio: tuple[str, float] | None = None
 
     @property
     def variant(self) -> str | None:
@@ -53,6 +56,7 @@ METHODS: dict[str, Method] = {
             False,
             False,
             "standard Newmark: modified Newton with the full-stick tangent, fixed step",
+            paper_time_ratio=("about", 1.0),
         ),
         Method(
             "newmark-adaptive",
@@ -62,6 +66,7 @@ METHODS: dict[str, Method] = {
             False,
             "standard Newmark with the step adapted to the contact state; modified Newton with the tangent of "
             "the state that set the step",
+            paper_time_ratio=("about", 0.8),
         ),
         Method(
             "piecewise-linear",
@@ -70,6 +75,7 @@ METHODS: dict[str, Method] = {
             False,
             False,
             "piecewise-linear Newmark: postulate the state, one solve, check, re-solve on a transition",
+            paper_time_ratio=("about", 0.5),
         ),
         Method(
             "piecewise-linear-adaptive",
@@ -78,6 +84,7 @@ METHODS: dict[str, Method] = {
             True,
             False,
             "piecewise-linear Newmark with the contact-state adaptive step",
+            paper_time_ratio=("about", 0.4),
         ),
         Method(
             "quasi-static",
@@ -86,6 +93,7 @@ METHODS: dict[str, Method] = {
             False,
             True,
             "quasi-static time marching (no inertia), piecewise-linear state loop",
+            paper_time_ratio=("below", 0.1),
         ),
         Method(
             "full-newton",
