@@ -3,8 +3,9 @@
 Each tree runs in a fresh Python process (PYTHONPATH=<tree>/src) and stores, for the paper case:
 every registered method (``slipstep.run``, its default options: pilot step rule and step-doubling
 estimate included, 2 periods), the explicit schemes (rk4, central difference, fixed and adaptive),
-a periodic steady state by marching and by shooting, the harmonic balance's preload and the linear
-limit's stuck state. Every array of every result and every numeric attribute (except wall and
+a periodic steady state by marching and by shooting, frequency responses by marching and by
+shooting (4 points: each point starts from the one before), the harmonic balance's preload and the
+linear limit's stuck state. Every array of every result and every numeric attribute (except wall and
 kernel times) is compared with ``numpy.array_equal`` (NaN equal to NaN); the script prints the
 number of arrays and attributes compared and every difference, and exits 1 on any.
 
@@ -33,12 +34,14 @@ SNIPPET = textwrap.dedent("""
     from slipstep.hbm.residual import preload_sliders
     from slipstep.frequency.linear import stuck_state
 
-    TIMES = ("wall_time_s", "kernel_time_s")
+    TIMES = ("wall_time_s", "kernel_time_s", "point_time")
     paper = ss.load_system("paper")
     found = {}
 
     def keep(label, ds):
         for name, var in ds.variables.items():
+            if name in TIMES:
+                continue
             found[f"{label}/{name}"] = np.asarray(var.values)
         for key, value in ds.attrs.items():
             if key not in TIMES and isinstance(value, (int, float, np.number, str)):
@@ -66,6 +69,10 @@ SNIPPET = textwrap.dedent("""
         found[f"{label}.changes"] = np.asarray(result.changes)
         if result.floquet_multipliers is not None:
             found[f"{label}.floquet"] = np.asarray(result.floquet_multipliers)
+    from slipstep.frequency import frf
+
+    for solver in ("march", "shoot"):
+        keep(f"frf-{solver}", frf(paper, np.linspace(150.0, 240.0, 4), solver=solver))
     x, w = preload_sliders(paper)
     found["preload_sliders.x"], found["preload_sliders.w"] = x, w
     found["stuck_state"] = stuck_state(paper)

@@ -117,3 +117,46 @@ def test_a_pilot_plan_completes_the_plan_and_reuses_its_coarse_twin(paper):
     assert refined.dt <= plan.dt and refined.capacity > 0 and refined.settings.dt == refined.dt
     sim = ss.Simulation(paper, "newmark", periods=3)
     assert sim.dt == refined.dt and sim.max_step == refined.max_step
+
+
+def test_a_retuned_plan_keeps_the_matrices_and_equals_a_new_plan(paper):
+    from slipstep.frequency import retune
+
+    plan = plan_run(paper, "piecewise-linear", periods=1, error_estimate=False)
+    other = retune(paper, 173.0)
+    retuned = plan.retuned(173.0, system=other)
+    fresh = plan_run(other, "piecewise-linear", periods=1, error_estimate=False)
+    assert retuned.compiled.M is plan.compiled.M and retuned.t_min_stick == plan.t_min_stick  # no compile
+    for name, value in fresh.compiled._asdict().items():
+        np.testing.assert_array_equal(getattr(retuned.compiled, name), value, err_msg=name)
+    assert (retuned.dt, retuned.capacity, retuned.t_end, retuned.settings) == (
+        fresh.dt,
+        fresh.capacity,
+        fresh.t_end,
+        fresh.settings,
+    )
+    assert plan.retuned(173.0).period == pytest.approx(1 / 173.0, rel=1e-15)  # retune done by the plan
+    marcher = Marcher(plan)
+    out, ws = marcher.out, marcher.ws
+    marcher.retarget(retuned)  # a longer period: more steps than the rows hold, new rows
+    assert marcher.out is not out and marcher.ws is ws and marcher.plan is retuned
+    out = marcher.out
+    marcher.retarget(plan.retuned(230.0))  # a shorter one: the rows fit
+    assert marcher.out is out and int(out.plan[0]) == marcher.plan.capacity
+
+
+@pytest.mark.parametrize("solver", ["march", "shoot"])
+def test_an_frf_point_on_the_reused_marcher_equals_one_on_a_new_marcher(paper, solver):
+    from slipstep.frequency import retune
+    from slipstep.steady import march_to_steady, shoot
+
+    solve = shoot if solver == "shoot" else (lambda s, **kw: march_to_steady(s, max_periods=40, **kw))
+    first = solve(retune(paper, 190.0))
+    assert first._marcher is not None
+    reused = solve(retune(paper, 200.0), initial=first)
+    fresh = solve(retune(paper, 200.0), initial=dataclasses.replace(first, _marcher=None))
+    assert reused._marcher is first._marcher and fresh._marcher is not first._marcher
+    assert reused.status == fresh.status and reused.periods == fresh.periods
+    for name in ("displacement", "velocity", "slider", "contact_state", "time"):
+        np.testing.assert_array_equal(reused.period[name].values, fresh.period[name].values, err_msg=name)
+    np.testing.assert_array_equal(reused.final_state.x, fresh.final_state.x)

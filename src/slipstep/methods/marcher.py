@@ -249,9 +249,8 @@ class Marcher:
             out.plan[:], out.times[:] = ip, times
         else:
             self.out = allocate_outputs(cs, plan.capacity, plan.options.max_memory, plan.save_plan, plan.t_end)
-        if plan.compiled is not old.compiled:
-            reset_cache(self.ws)
-            self.ws.tmin_used[:] = False  # T_min per state belongs to the system
+        if plan.compiled.M is not old.compiled.M or plan.compiled.K is not old.compiled.K:
+            self.ws.tmin_used[:] = False  # T_min per state belongs to the matrices (a retune keeps them)
         self.plan, self.settings, self.kernel = plan, plan.settings, march_kernel(plan.method)
 
 

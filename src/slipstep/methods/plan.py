@@ -101,6 +101,16 @@ class RunPlan:
             and opt.rtol is None
         )
 
+    def retuned(self, frequency_hz: float, system: System | None = None, **option_changes) -> "RunPlan":
+        """The plan of the same run at the excitation frequency ``frequency_hz`` [Hz] (the next
+        FRF point): ``system`` is the retuned system when the caller has one (else
+        frequency.retune(self.system, frequency_hz)), ``option_changes`` the options that change
+        with the point (the steady solvers' step T / N). The compiled matrices, T_min and the
+        step limits are kept (no compile, no eigenvalue problem) when only the frequencies
+        change; the same array layout, so a marcher takes it (Marcher.retarget). Another system
+        or a change of a layout option is planned again from the start (plan_run)."""
+        return retuned_plan(self, frequency_hz, system, **option_changes)
+
     def replace(self, **changes) -> "RunPlan":
         """This plan with some fields changed (no field is recomputed: see :meth:`with_step`)."""
         return replace(self, **changes)
@@ -169,6 +179,35 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             "use method quasi-static-dofs or drop the option",
         )
     t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
+    dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
+    return _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
+
+
+def _step_limits(cs: CompiledSystem, method: Method, opt: RunOptions, t_min_stick: float) -> tuple[float, float]:
+    """(dt_limit, dt_stability) of the step rule: :func:`slipstep.methods.step_control.step_limits`."""
+    iterates = not (opt.rtol is not None and method.solver == K.PIECEWISE_LINEAR)
+    return SC.step_limits(
+        cs, opt.scheme, t_min_stick, opt.step_ratio, method.quasi_static, iterates, opt.dt is not None
+    )
+
+
+#: the options the step limits, the compiled system and the workspace depend on: a plan
+#: retuned with other values of these is planned again from the start (plan_run)
+_LAYOUT_OPTIONS = ("scheme", "step_ratio", "rtol", "linear_solver", "massless_dofs", "max_state_iterations")
+
+
+def _timed_plan(
+    system: System,
+    method: Method,
+    opt: RunOptions,
+    cs: CompiledSystem,
+    massless,
+    t_min_stick: float,
+    dt_limit: float,
+    dt_stability: float,
+) -> RunPlan:
+    """The part of :func:`plan_run` that depends on the excitation's period: the run's length,
+    the save plan, the step and the capacity."""
     period = system.period
     if opt.duration is not None:
         t_end = opt.duration
@@ -182,10 +221,6 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
         )
     save_plan = SV.resolve(opt.save, system, cs, 0.0, t_end, period)
     scheme = opt.scheme
-    iterates = not (opt.rtol is not None and method.solver == K.PIECEWISE_LINEAR)
-    dt_limit, dt_stability = SC.step_limits(
-        cs, scheme, t_min_stick, opt.step_ratio, method.quasi_static, iterates, opt.dt is not None
-    )
     max_step = opt.max_step if opt.max_step is not None else default_max_step(period, dt_limit)
     _check_time_scales(t_end, dt_limit, max_step, opt)
     plan = RunPlan(
@@ -202,6 +237,66 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
     if plan.pilot_allowed:  # the refinement may shorten the step: the length check waits for it
         return plan.replace(dt=dt)
     return plan.with_step(dt)
+
+
+def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = None, **option_changes) -> RunPlan:
+    """:meth:`RunPlan.retuned` (see there)."""
+    from slipstep.frequency.retune import retune  # (frequency/ imports the steady solvers, which import methods/)
+
+    system = retune(plan.system, frequency_hz) if system is None else system
+    opt = replace(plan.options, **option_changes).validated()
+    cs = _retuned_compiled(plan, system)
+    layout_same = all(_same(getattr(opt, k), getattr(plan.options, k)) for k in _LAYOUT_OPTIONS)
+    if cs is None or not layout_same or (opt.dt is None) != (plan.options.dt is None):
+        fields = {name: getattr(opt, name) for name in RunOptions.__dataclass_fields__}
+        return plan_run(system, plan.method, **fields)
+    return _timed_plan(system, plan.method, opt, cs, plan.massless, plan.t_min_stick, plan.dt_limit, plan.dt_stability)
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):  # arrays inside
+        return a is b
+
+
+def _retuned_compiled(plan: RunPlan, system: System) -> CompiledSystem | None:
+    """plan's compiled system with the excitation frequencies of ``system``, when ``system``
+    differs from plan's only by them (a retune: the same structure, contacts, constant loads,
+    amplitudes and phases); None otherwise. Equal to ``system.compile(...)`` array for array."""
+    from slipstep.model.excitation import compile_signal
+
+    old = plan.system
+    same = (
+        system.structure is old.structure
+        and len(system.contacts) == len(old.contacts)
+        and all(a is b for a, b in zip(system.contacts, old.contacts))
+        and system.motion_names == old.motion_names
+        and _same_array(system.excitation.constant_force, old.excitation.constant_force)
+    )
+    if not same:
+        return None
+    cs, n, m = plan.compiled, old.structure.n_dofs, len(old.motion_names)
+    frequencies = []
+    for what, count in (("force", n), ("motion", m)):
+        new_sig, old_sig = getattr(system.excitation, what), getattr(old.excitation, what)
+        if (new_sig is None) != (old_sig is None):
+            return None
+        a, b = compile_signal(new_sig, count), compile_signal(old_sig, count)
+        if a.table_time.size or b.table_time.size or a.ramp_time != b.ramp_time:
+            return None
+        if not np.array_equal(a.sin_coefficient, b.sin_coefficient):
+            return None
+        if not np.array_equal(a.cos_coefficient, b.cos_coefficient):
+            return None
+        frequencies.append(np.ascontiguousarray(a.frequency, dtype=np.float64))
+    return cs._replace(force_frequency=frequencies[0], motion_frequency=frequencies[1])
+
+
+def _same_array(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    return np.array_equal(np.asarray(a), np.asarray(b))
 
 
 def kernel_settings(plan: RunPlan, dt: float, max_step: float, low_rank: bool) -> K.MarchSettings:

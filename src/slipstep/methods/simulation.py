@@ -56,6 +56,7 @@ from slipstep.methods.start import (  # noqa: F401  (re-exported)
     static_equilibrium,
     structure_product,
 )
+from slipstep.methods.state import State
 from slipstep.methods.step_control import default_max_step, state_t_min  # noqa: F401  (re-exported)
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
 from slipstep.results import STATE_NAMES, build_dataset
@@ -197,13 +198,36 @@ class Simulation(Runner):
         plan = plan_run(system, method, **options)
         if plan.pilot_allowed:
             plan = accuracy.pilot_plan(plan)
-        self.plan = plan
-        self.marcher = Marcher(plan)
+        self._set_up(plan, Marcher(plan))
+        self.start = static_equilibrium(plan, self.marcher.ws)
+
+    @classmethod
+    def from_plan(cls, plan: RunPlan, marcher: Marcher | None = None) -> "Simulation":
+        """The facade of a plan (no pilot refinement) on ``marcher`` (one already holding the
+        plan: Marcher.retarget; default a new one). The static equilibrium is computed when
+        first needed (a march continued from a given state never needs it)."""
+        sim = cls.__new__(cls)
+        sim._set_up(plan, Marcher(plan) if marcher is None else marcher)
+        return sim
+
+    def _set_up(self, plan: RunPlan, marcher: Marcher) -> None:
+        self.plan, self.marcher = plan, marcher
         self.status = None
         self.kernel_time = math.nan
         self.segment: Segment | None = None
         self._accuracy = None
-        self.start = static_equilibrium(plan, self.marcher.ws)
+        self._start = None
+
+    @property
+    def start(self) -> State:
+        """The state the next march starts from (the static equilibrium unless start_from set another)."""
+        if self._start is None:
+            self._start = static_equilibrium(self.plan, self.marcher.ws)
+        return self._start
+
+    @start.setter
+    def start(self, state: State) -> None:
+        self._start = state
 
     # -- the plan's and the marcher's fields ---------------------------------------------
     system = property(lambda self: self.plan.system)

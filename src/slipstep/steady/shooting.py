@@ -275,7 +275,7 @@ def shoot(
     ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
-    sim = period_simulation(system, method, min_steps_per_period, run_options)
+    sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
     scheme = sim.options.scheme
     if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
         raise InputError(

@@ -60,6 +60,14 @@ class SteadyState:
     kernel_time_s: float = 0.0
     wall_time_s: float = 0.0
     orbit_history: tuple = ()  # shooting: ((f [Hz], orbit start State), ...) of this point and the one before
+    #: the marcher of the last period (methods/marcher.py), reused by the next point started from this one
+    _marcher: object = field(default=None, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the marcher (buffers and a compiled entry: not data)."""
+        state = dict(self.__dict__)
+        state["_marcher"] = None
+        return state
 
     @property
     def ok(self) -> bool:
