@@ -240,7 +240,9 @@ def test_api_reference_sees_the_lazily_exported_public_names():
         assert target.path.startswith("slipstep."), name
     assert pkg["run"].final_target.path == "slipstep.methods.simulation.run"
     # Sphinx roles became autorefs links
-    assert "[`RunOptions`][slipstep.methods.simulation.RunOptions]" in pkg["run"].docstring.value
+    assert (
+        "[`RunOptions`][slipstep.methods.options.RunOptions]" in pkg["run"].docstring.value
+    )  # (moved from simulation)
 
 
 def test_sweep_file_of_the_guide_is_a_valid_spec():

@@ -159,5 +159,6 @@ def test_pilot_step_keeps_the_step_when_the_fine_twin_dissipates_nothing(monkeyp
     sim = ss.Simulation(ss.load_system("paper"), "newmark", periods=1, error_estimate=False)
     energies = {sim.dt: 0.0, 2 * sim.dt: 5e-7}
     monkeypatch.setattr(accuracy, "twin", lambda s, method, dt, duration: (None, energies[dt]))
-    assert accuracy.pilot_step(sim, sim.dt) == sim.dt
-    assert sim.max_step > 0
+    dt, max_step, _ = accuracy.pilot_step(sim.plan, sim.dt)
+    assert dt == sim.dt
+    assert max_step > 0

@@ -149,7 +149,7 @@ def compare(
     ``cutoff_Hz``: low-pass cut-off (default: chosen by slipstep.post.filtering.choose_cutoff).
     ``datasets``: if a dict is given it receives the result Dataset of every method.
     ``fresh_process``: time the kernels in a fresh process (:func:`fresh_process_times`), else
-    in this one. ``options``: further :class:`~slipstep.methods.simulation.RunOptions` for every
+    in this one. ``options``: further :class:`~slipstep.methods.options.RunOptions` for every
     method. Each row's ``timed_in`` says where the kernels were timed.
     """
     names = _method_names(methods)

@@ -18,6 +18,8 @@ import xarray as xr
 
 from slipstep.frequency.retune import retune
 from slipstep.kernels.contact import LIFT, STICK, add_contact_stiffness
+from slipstep.methods.plan import plan_run
+from slipstep.methods.start import static_equilibrium
 from slipstep.system import System
 
 
@@ -33,11 +35,9 @@ def _phasors(signal, n_components: int) -> dict[float, np.ndarray]:
 
 def stuck_state(system: System) -> np.ndarray:
     """STICK for every direction of a contact closed at the static preload, LIFT otherwise."""
-    from slipstep.methods.simulation import Simulation
-
-    sim = Simulation(system, "quasi-static", periods=1.0, steps_per_period=2)
-    cs = sim.compiled
-    closed = sim.q0[cs.normal_row] > 0.0
+    plan = plan_run(system, "quasi-static", periods=1.0, steps_per_period=2)
+    cs = plan.compiled
+    closed = static_equilibrium(plan).terms.q[cs.normal_row] > 0.0
     return np.where(closed[cs.direction_contact], STICK, LIFT).astype(np.int8)
 
 

@@ -30,15 +30,16 @@ from slipstep.errors import InputError
 from slipstep.hbm.aft import AFT
 from slipstep.hbm.fourier import Basis, harmonic_set
 from slipstep.hbm.linear import LinearPart
+from slipstep.methods.plan import plan_run
+from slipstep.methods.start import static_equilibrium
 from slipstep.system import System
 
 
 def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:
-    """(x, w) of the static preload, the same one every time march starts from."""
-    from slipstep.methods.simulation import Simulation
-
-    sim = Simulation(system, "piecewise-linear", periods=1)
-    return sim.preload_state[0].copy(), sim.preload_state[5].copy()
+    """(x, w) of the static preload, the same one every time march starts from
+    (methods/start.py static_equilibrium)."""
+    start = static_equilibrium(plan_run(system, "piecewise-linear", periods=1, error_estimate=False))
+    return start.x.copy(), start.w.copy()
 
 
 _THREADPOOLS = None

@@ -75,7 +75,7 @@ def simulate(system, scheme: str | Integrator = "newmark", variant: str = "fixed
     """Simulate ``system`` with a scheme of :data:`INTEGRATORS` in one of its variants
     ('fixed', 'adaptive', 'piecewise-linear', 'both') and return the result Dataset.
 
-    Options: those of :class:`slipstep.methods.simulation.RunOptions` (periods, duration,
+    Options: those of :class:`slipstep.methods.options.RunOptions` (periods, duration,
     step_ratio, ...; ``scheme`` is given here instead)."""
     if "scheme" in options:
         raise InputError("scheme", "given twice", "pass the scheme as the second argument")

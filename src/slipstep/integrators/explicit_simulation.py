@@ -1,6 +1,8 @@
 """The Python face of an explicit march (central difference, RK4): options, preload,
-step size, kernel call, Dataset. Mirrors :class:`slipstep.methods.simulation.Simulation`
-and reuses its preload and allocation helpers, so the result has the standard schema.
+step size, kernel call, Dataset. Mirrors :class:`slipstep.methods.simulation.Simulation`:
+the options are validated by methods/plan.py, the start is methods/start.py's static
+equilibrium, the kernel is called by methods/marcher.py's KernelEntry, and the result has the
+standard schema (Runner.dataset).
 
     sim = ExplicitSimulation(system, get_integrator("rk4"), adaptive=True, periods=2)
     ds = sim.run()
@@ -16,8 +18,14 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.kernels.settings import march_settings
-from slipstep.methods.simulation import RunOptions, Runner, Simulation, _allocate_outputs, check_divergence
 from slipstep.methods import accuracy
+from slipstep.methods.buffers import allocate_outputs
+from slipstep.methods.divergence import check_divergence
+from slipstep.methods.marcher import KernelEntry
+from slipstep.methods.options import RunOptions
+from slipstep.methods.plan import plan_run
+from slipstep.methods.simulation import Runner
+from slipstep.methods.start import static_equilibrium
 from slipstep.methods import step_control as SC
 from slipstep.methods.eigen import mass_factor
 from slipstep.model.validate import positive
@@ -74,8 +82,8 @@ class ExplicitSimulation(Runner):
                 f"is {ratio}: an explicit scheme is unstable above its stability limit",
                 "use step_ratio <= 1 (the limit itself is marginal; 0.9 leaves a margin)",
             )
-        # preload (and validation of the common options) by the implicit set-up, quasi-static loads ramp
-        pre = Simulation(
+        # validation of the common options by the implicit plan; the preload: its static equilibrium
+        pre = plan_run(
             system,
             "newmark",
             error_estimate=False,
@@ -89,8 +97,8 @@ class ExplicitSimulation(Runner):
                 f"{integrator.name} needs the dense backend; this sparse structure compiles to the banded one",
                 "use an implicit method (newmark, piecewise-linear, ...), or linear_solver='direct' for a small model",
             )
-        self.preload_state = pre.preload_state
-        self.q0, self.f0 = pre.q0, pre.f0
+        self.start = static_equilibrium(pre)
+        self.q0, self.f0 = self.start.terms.q.copy(), self.start.terms.f.copy()
         self.t_min_stick, self.period, self.t_end = pre.t_min_stick, pre.period, pre.t_end
         factor = ratio * integrator.step_limit_factor
         # the stability limit over every visitable contact state (methods/step_control.py)
@@ -124,17 +132,36 @@ class ExplicitSimulation(Runner):
             max_redo=opt.max_redo,
         )
         self.ws = _allocate_explicit_workspace(cs)
-        self.out = _allocate_outputs(cs, capacity)
+        self.out = allocate_outputs(cs, capacity)
+        self.entry = KernelEntry()
         self.status = None
         self.kernel_time = math.nan
 
+    @property
+    def preload_state(self) -> tuple:
+        """The start as (x, v, a, fe, gf, w, state) (the former form; ``start`` is the State)."""
+        s = self.start
+        return (s.x, s.v, s.a, s.terms.fe, s.terms.gf, s.w, s.contact_state)
+
+    @property
+    def _packed(self):
+        return self.entry.packed
+
+    def kernel_arguments(self) -> tuple:
+        """The explicit kernel's arguments (sys, settings, ws, out, q0, f0)."""
+        return (self.compiled, self.settings, self.ws, self.out, self.q0, self.f0)
+
     def march(self) -> Status:
         """Run the kernel from the preload state; returns the status (also in self.status)."""
-        ws = self.ws
-        for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
+        ws, s = self.ws, self.start
+        for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (s.x, s.v, s.a, s.w, s.contact_state)):
             dst[:] = src
-        self._run_kernel(E.explicit_march)
-        return check_divergence(self)
+        self.status, self.kernel_time = self.entry.call(
+            E.explicit_march, self.kernel_arguments(), self.out, self.out.t, self.t_end, self.progress
+        )
+        self._check_interrupted()
+        self.status = check_divergence(self.status, self.compiled, self.out)
+        return self.status
 
     def _visited_states(self) -> str:
         return ""

@@ -18,7 +18,7 @@ Default step rule (item 4 of issue 8; README "Methods"; the limits: methods/step
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
     then, while the step-doubling estimate at dt exceeds DEFAULT_TARGET = 0.5 % on the loop
     energy, dt = dt sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period,
-    re-estimated (at most PILOT_ROUNDS = 3 rounds, methods/simulation.py).
+    re-estimated (at most PILOT_ROUNDS = 3 rounds): :func:`pilot_plan`, a refined RunPlan.
 A run whose final estimate exceeds WARN_LIMIT = 1 % warns and names the estimate.
 """
 
@@ -30,8 +30,13 @@ import warnings
 import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
-from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
+from slipstep.kernels.codes import C_STEPS
+from slipstep.methods.buffers import saved_rows
+from slipstep.methods.divergence import check_divergence, energy_diverged  # noqa: F401  (re-exported)
+from slipstep.methods.marcher import Marcher
+from slipstep.methods.plan import RunPlan, plan_run
 from slipstep.methods.save import Save, contact_columns
+from slipstep.methods.start import static_equilibrium
 from slipstep.methods.step_control import highest_frequency  # noqa: F401  (re-exported)
 
 DEFAULT_TARGET = 0.005
@@ -47,8 +52,6 @@ def loop_energy(out, n_steps: int, cs, period: float | None) -> tuple[float, flo
     from kernel outputs: D = sum_d int T_d dw_d (trapezoid rule, interpolated at the start
     of the period, as slipstep.post.energy.friction_energy_per_period). ``out`` must hold
     every contact at every step of the last period (``saved_rows`` rows: slipstep.methods.save)."""
-    from slipstep.methods.simulation import saved_rows
-
     k = saved_rows(out, n_steps)
     t = out.t[:k]
     if period is None or t[-1] - t[0] < period * (1 - 1e-9):
@@ -77,74 +80,14 @@ def richardson(fine: float, coarse: float, ratio: float = 2.0, order: int = 2) -
     return abs(fine - coarse) * q / (q - 1.0) / scale
 
 
-def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -> int:
-    """The first output point where the stored energy has grown beyond everything the loads
-    supplied (no source), 0 if it never does:
-
-        E(t) - E(0) > 2 max_{s <= t} max(W(s), 0) + 10 (E(0) + 1e-12 J)   for some t
-
-    E = 1/2 v^T M v + 1/2 x^T K x + contact elastic energy (1/2 N^2/k_n + 1/2 T^2/k_t),
-    W = int f_e . dx - int f . B dp (trapezoid rule). A dissipative march has
-    E(t) - E(0) <= W(t); an unstable scheme grows exponentially past any such bound."""
-    k = n_steps + 1
-    x, v = out.x[:k], out.v[:k]
-    f = out.f[:k]
-    if cs.banded:  # banded backend (issue 10): the quadratic forms on the band, in the kernel's DOF order
-        from slipstep.kernels.banded import band_quadratic_forms
-
-        x, v = x[:, cs.dof_order], v[:, cs.dof_order]  # saved columns are in the user's order
-
-        E = np.empty(k)
-        ek = np.empty(k)
-        band_quadratic_forms(cs.Mb, cs.kl, cs.ku, np.ascontiguousarray(v), E)
-        band_quadratic_forms(cs.Kb, cs.kl, cs.ku, np.ascontiguousarray(x), ek)
-        E = 0.5 * (E + ek)
-    else:
-        E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
-    nrow, trow = np.asarray(cs.normal_row), np.asarray(cs.tangential_row)
-    if nrow.size:
-        E = E + 0.5 * (f[:, nrow] ** 2 / cs.kn).sum(axis=1) + 0.5 * (f[:, trow] ** 2 / cs.kt).sum(axis=1)
-    W = np.concatenate([[0.0], np.cumsum(0.5 * ((fe[1:] + fe[:-1]) * np.diff(x, axis=0)).sum(axis=1))])
-    if cs.B.shape[1]:
-        fb = f @ cs.B
-        W = W - np.concatenate([[0.0], np.cumsum(0.5 * ((fb[1:] + fb[:-1]) * np.diff(motion[:k], axis=0)).sum(axis=1))])
-    budget = 2.0 * np.maximum.accumulate(np.maximum(W, 0.0)) + 10.0 * (E[0] + 1e-12)
-    over = ~(E - E[0] <= budget)  # NaN counts as over
-    return int(np.argmax(over)) if np.any(over) else 0
-
-
-def check_divergence(runner) -> Status:
-    """Set runner.status to DIVERGED when an OK dynamic march's stored energy grew beyond what
-    its loads supplied (:func:`energy_diverged`, from the first such point); returns the status."""
-    from slipstep.methods.simulation import _force_signal, _motion_signal
-    from slipstep.model.excitation import evaluate_compiled
-
-    plan = getattr(runner, "save_plan", None)
-    if plan is not None and not (plan.all_dofs and plan.all_contacts and plan.every_step):
-        return runner.status  # needs every DOF and contact at every step (not made; NON_FINITE still is)
-    if runner.status == Status.OK:
-        cs, out = runner.compiled, runner.out
-        n = int(out.counters[C_STEPS])
-        t = out.t[: n + 1]
-        fe = evaluate_compiled(_force_signal(cs), t) + cs.constant_force
-        p = evaluate_compiled(_motion_signal(cs), t)
-        first = energy_diverged(out, n, cs, fe, p)
-        if first:
-            runner.status = Status.DIVERGED
-            out.counters[C_FAIL_STEP] = first
-    return runner.status
-
-
-def twin(sim, method: str, **changes):
-    """A twin march of ``sim`` (same system, scheme and tolerances; the same method when it is
-    the partly quasi-static one) with ``changes`` to its options; returns (status, loop energy
-    [J], peak force [N]) or None when it cannot run."""
-    from slipstep.methods.simulation import Simulation
-
-    opt = sim.options
+def twin(plan: RunPlan, method: str, **changes):
+    """A twin march of ``plan`` (same system, scheme and tolerances; the same method when it is
+    the partly quasi-static one) with ``changes`` to its options, from its own static
+    equilibrium; returns (status, loop energy [J], peak force [N]) or None when it cannot run."""
+    opt = plan.options
     base = {
         "scheme": opt.scheme,
-        "duration": sim.t_end,
+        "duration": plan.t_end,
         "tolerance": opt.tolerance,
         "state_tolerance": opt.state_tolerance,
         "singular_tolerance": opt.singular_tolerance,
@@ -156,68 +99,82 @@ def twin(sim, method: str, **changes):
         "save": Save(dofs="none"),  # the loop energy needs the contacts at every step only
     }
     base.update(changes)
-    if sim.method.massless:
-        method = sim.method.name
+    if plan.method.massless:
+        method = plan.method.name
         base["massless_dofs"] = opt.massless_dofs
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            other = Simulation(sim.system, method, **base)
+            other = plan_run(plan.system, method, **base)
+            marcher = Marcher(other)
+            start = static_equilibrium(other, marcher.ws)
         except (InputError, SolverError):
             return None
-        status = other.march()
-    if status != Status.OK:
+        segment = marcher.advance(start)
+    if segment.status != Status.OK:
         return None
-    n = int(other.out.counters[C_STEPS])
-    return (status,) + loop_energy(other.out, n, other.compiled, sim.period)
+    return (segment.status,) + loop_energy(marcher.out, segment.trace.n_steps, other.compiled, plan.period)
 
 
-def pilot_step(sim, dt0: float) -> float:
+def pilot_step(plan: RunPlan, dt0: float) -> tuple[float, float, tuple | None]:
     """The default rule's refinement (module docstring): the step-doubling estimate of the loop
     energy at dt (piecewise-linear twins at dt and 2 dt over PILOT_PERIODS periods); above
-    DEFAULT_TARGET the step (and sim.max_step, the cap of adaptive steps) becomes
-    dt sqrt(DEFAULT_TARGET / estimate), whole steps per period, re-estimated up to PILOT_ROUNDS times."""
-    dt = dt0
-    duration = PILOT_PERIODS * sim.period
+    DEFAULT_TARGET the step (and max_step, the cap of adaptive steps) becomes
+    dt sqrt(DEFAULT_TARGET / estimate), whole steps per period, re-estimated up to PILOT_ROUNDS
+    times. Returns (dt, max_step, coarse): coarse = (2 dt, the twin's result) when the pilot
+    ran over the whole run (reused by :func:`estimate`), else None."""
+    dt, max_step = dt0, plan.max_step
+    duration = PILOT_PERIODS * plan.period
     for _ in range(PILOT_ROUNDS):
-        fine = twin(sim, "piecewise-linear", dt=dt, duration=duration)
-        coarse = twin(sim, "piecewise-linear", dt=2 * dt, duration=duration)
+        fine = twin(plan, "piecewise-linear", dt=dt, duration=duration)
+        coarse = twin(plan, "piecewise-linear", dt=2 * dt, duration=duration)
         if fine is None or coarse is None:
-            return dt
+            return dt, max_step, None
         est = richardson(fine[1], coarse[1])
         if not math.isfinite(est):  # no loop energy at dt (nothing slips): nothing to refine on
-            return dt
+            return dt, max_step, None
         if not est > DEFAULT_TARGET:
-            if abs(duration - sim.t_end) <= 1e-12 * duration:
-                sim._coarse = (2 * dt, coarse)  # reused by the final estimate
-            return dt
-        sim.max_step = dt * math.sqrt(DEFAULT_TARGET / est)
-        dt = sim._fixed_step(sim.dt_limit, sim.max_step)
-    return dt
+            whole = abs(duration - plan.t_end) <= 1e-12 * duration
+            return dt, max_step, ((2 * dt, coarse) if whole else None)
+        max_step = dt * math.sqrt(DEFAULT_TARGET / est)
+        dt = plan.fixed_step(max_step)
+    return dt, max_step, None
 
 
-def estimate(sim) -> dict:
+def pilot_plan(plan: RunPlan) -> RunPlan:
+    """``plan`` with the step of the default rule's refinement (:func:`pilot_step`)."""
+    dt, max_step, coarse = pilot_step(plan, plan.dt)
+    return plan.with_step(dt, max_step, coarse)
+
+
+def no_estimate(why: str = "none") -> dict:
+    """The estimate attrs when there is none (``why``: error_estimate_method)."""
+    return {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan, "error_estimate_method": why}
+
+
+def estimate(plan: RunPlan, status: Status, out) -> dict:
     """energy_error_estimate and peak_force_error_estimate (relative, NaN when not available)
-    of a finished march by step doubling (module docstring), and error_estimate_method.
-    Warns when the loop-energy estimate exceeds WARN_LIMIT (1 %)."""
-    nan = {"energy_error_estimate": math.nan, "peak_force_error_estimate": math.nan, "error_estimate_method": "none"}
-    if not sim.options.error_estimate or sim.status != Status.OK or sim.period is None:
+    of a finished march of ``plan`` from its static equilibrium (``out``: its outputs) by step
+    doubling (module docstring), and error_estimate_method. Warns when the loop-energy
+    estimate exceeds WARN_LIMIT (1 %)."""
+    nan = no_estimate()
+    if not plan.options.error_estimate or status != Status.OK or plan.period is None:
         return nan
-    plan = sim.save_plan
-    if not (plan.all_contacts and plan.every == 1 and plan.times is None):
-        return dict(nan, error_estimate_method="none (needs every contact at every step: the save option)")
-    n = int(sim.out.counters[C_STEPS])
-    energy, peak = loop_energy(sim.out, n, sim.compiled, sim.period)
-    opt = sim.options
-    if sim.method.quasi_static:
-        other = twin(sim, "quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
+    save = plan.save_plan
+    if not (save.all_contacts and save.every == 1 and save.times is None):
+        return no_estimate("none (needs every contact at every step: the save option)")
+    n = int(out.counters[C_STEPS])
+    energy, peak = loop_energy(out, n, plan.compiled, plan.period)
+    opt = plan.options
+    if plan.method.quasi_static:
+        other = twin(plan, "quasi-static", steps_per_period=max(opt.steps_per_period // 2, 1), dt=None)
         how = "step doubling: quasi-static twin at half the steps per period"
-    elif sim.method.adaptive or opt.rtol is not None:
+    elif plan.method.adaptive or opt.rtol is not None:
         other = twin(
-            sim,
+            plan,
             "piecewise-linear-adaptive" if opt.rtol is None else "piecewise-linear",
             step_ratio=2 * opt.step_ratio,
-            max_step=2 * sim.max_step,
+            max_step=2 * plan.max_step,
             rtol=None if opt.rtol is None else min(8 * opt.rtol, 0.2),
         )
         how = (
@@ -225,23 +182,23 @@ def estimate(sim) -> dict:
             if opt.rtol is None
             else "step doubling: piecewise-linear twin at 8 rtol (twice the step)"
         )
-    elif sim._coarse is not None and sim._coarse[0] == 2 * sim.dt:
-        other, how = sim._coarse[1], "step doubling: piecewise-linear twin at 2 dt"
+    elif plan.coarse is not None and plan.coarse[0] == 2 * plan.dt:
+        other, how = plan.coarse[1], "step doubling: piecewise-linear twin at 2 dt"
     else:
-        other, how = twin(sim, "piecewise-linear", dt=2 * sim.dt), "step doubling: piecewise-linear twin at 2 dt"
+        other, how = twin(plan, "piecewise-linear", dt=2 * plan.dt), "step doubling: piecewise-linear twin at 2 dt"
     if other is None:
         return nan
-    ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not sim.method.quasi_static else 2.0
-    out = {
+    ratio = 8.0 ** (1 / 3) if opt.rtol is not None and not plan.method.quasi_static else 2.0
+    result = {
         "energy_error_estimate": richardson(energy, other[1], ratio),
         "peak_force_error_estimate": richardson(peak, other[2], ratio),
         "error_estimate_method": how,
     }
-    if out["energy_error_estimate"] > WARN_LIMIT:
+    if result["energy_error_estimate"] > WARN_LIMIT:
         warnings.warn(
             f"the estimated time-discretisation error of the dissipated energy per cycle is "
-            f"{100 * out['energy_error_estimate']:.2g} % (step doubling): use a smaller step (max_step / "
+            f"{100 * result['energy_error_estimate']:.2g} % (step doubling): use a smaller step (max_step / "
             f"--steps-per-period) or set rtol (--rtol 1e-3)",
             stacklevel=4,
         )
-    return out
+    return result

@@ -177,3 +177,18 @@ def evaluate_compiled(sig: CompiledSignal, t: np.ndarray) -> np.ndarray:
         ramp = np.where(t < sig.ramp_time, 0.5 * (1 - np.cos(np.pi * np.clip(t, 0, None) / sig.ramp_time)), 1.0)
         out *= ramp[:, None]
     return out
+
+
+def force_signal(cs) -> CompiledSignal:
+    """The force signal of a compiled system (slipstep.system.CompiledSystem): f_e(t) is
+    ``evaluate_compiled(force_signal(cs), t) + cs.constant_force``."""
+    return CompiledSignal(
+        cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value, cs.force_ramp
+    )
+
+
+def motion_signal(cs) -> CompiledSignal:
+    """The prescribed motion p(t) of a compiled system: ``evaluate_compiled(motion_signal(cs), t)``."""
+    return CompiledSignal(
+        cs.motion_frequency, cs.motion_sin, cs.motion_cos, cs.motion_table_time, cs.motion_table_value, cs.motion_ramp
+    )

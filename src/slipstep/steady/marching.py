@@ -16,6 +16,7 @@ from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
 from slipstep.kernels.codes import PIECEWISE_LINEAR
 from slipstep.methods.registry import Method, get_method
+from slipstep.methods.options import RunOptions
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.state import (
     State,
@@ -23,7 +24,6 @@ from slipstep.steady.state import (
     as_state,
     period_change,
     period_scales,
-    state_of,
 )
 from slipstep.system import System
 
@@ -35,8 +35,13 @@ STEADY_STEPS_PER_PERIOD = 256
 STEP_OPTIONS = ("dt", "max_step", "step_ratio", "rtol")
 
 
-def period_simulation(system: System, method, min_steps_per_period: int | None, run_options: dict) -> Simulation:
-    """A Simulation that marches exactly one excitation period per call of ``march()``.
+def period_simulation(
+    system: System, method, min_steps_per_period: int | None, run_options: dict, initial=None
+) -> Simulation:
+    """A Simulation that marches exactly one excitation period per call of ``march()``; when
+    ``initial`` is a SteadyState carrying its marcher (the FRF point before), on that marcher
+    with its plan retuned (:func:`reused_simulation`: no compile, eigenvalue problem, allocation
+    or preload per point).
 
     The step: the piecewise-linear Newmark methods (Method 3, quasi-static-dofs) solve each step
     without iterating, so neither Newton's convergence nor the T_min rule of the paper bounds
@@ -84,7 +89,9 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
     elif min_steps_per_period is not None:
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
     opts.setdefault("save", "all")  # the period change and the shooting replay read every DOF at every step
-    sim = Simulation(system, method, periods=1.0, **opts)
+    sim = reused_simulation(initial, system, method, opts)
+    if sim is None:
+        sim = Simulation(system, method, periods=1.0, **opts)
     if sim.compiled.banded:  # issue 10: the steady-state search carries states in the user's DOF order
         raise InputError(
             "structure",
@@ -97,6 +104,39 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
     return sim
 
 
+def reused_simulation(initial, system: System, method, opts: dict) -> Simulation | None:
+    """The one-period Simulation of ``system`` on the marcher of ``initial`` (a SteadyState of
+    the same method): its plan retuned to the new frequency and options (RunPlan.retuned),
+    the marcher retargeted (or a new one when the layout differs); None without such a marcher.
+    The numbers are those of a new Simulation: the start is the given state, never the preload."""
+    marcher = getattr(initial, "_marcher", None)
+    if marcher is None or set(opts) - set(RunOptions.__dataclass_fields__):
+        return None
+    old = marcher.plan
+    spec = method if isinstance(method, Method) else get_method(method)
+    if spec.name != old.method.name:
+        return None
+    new = RunOptions(periods=1.0, **opts)
+    changes = {
+        k: getattr(new, k)
+        for k in RunOptions.__dataclass_fields__
+        if not _same(getattr(new, k), getattr(old.options, k))
+    }
+    plan = old.retuned(1.0 / system.period, system=system, **changes)
+    try:
+        marcher.retarget(plan)
+    except ValueError:  # another array layout
+        return Simulation.from_plan(plan)
+    return Simulation.from_plan(plan, marcher)
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):  # arrays inside
+        return a is b
+
+
 def check_tolerance(tolerance: float, max_periods: int) -> None:
     if not (isinstance(tolerance, (int, float)) and 0 < tolerance < 1):
         raise InputError("tolerance", f"is {tolerance!r}", "give a relative tolerance between 0 and 1 (e.g. 1e-6)")
@@ -105,21 +145,18 @@ def check_tolerance(tolerance: float, max_periods: int) -> None:
 
 
 def start(sim: Simulation, state: State | None, t_start: float) -> None:
-    """Set the state the next march starts from (None: the preload) at time t_start."""
-    if state is None:
-        pre = sim.preload_state
-        sim.start_from(pre[0], pre[1], pre[2], pre[5], pre[6], t_start=t_start)
-    else:
-        sim.start_from(state.x, state.v, state.a, state.w, state.states, t_start=t_start)
+    """Set the state the next march starts from (None: the current start, the preload unless
+    set otherwise) at time t_start."""
+    state = sim.start if state is None else state
+    sim.start_from(state.x, state.v, state.a, state.w, state.contact_state, t_start=t_start)
 
 
 def march_one_period(sim: Simulation):
     """March one period from the set start; (status, start state, end state, change e)."""
     quasi = sim.method.quasi_static
-    pre = sim.preload_state
-    s0 = State(pre[0].copy(), pre[1].copy(), pre[2].copy(), pre[5].copy(), pre[6].copy())
+    s0 = sim.start
     status = sim.march()
-    end = state_of(sim.ws, quasi)
+    end = sim.segment.end_state
     if status != Status.OK:
         return status, s0, end, math.inf
     n_steps = int(sim.out.counters[C_STEPS])
@@ -167,7 +204,7 @@ def march_to_steady(
     marched without reaching the tolerance (the last period is returned all the same)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
-    sim = period_simulation(system, method, min_steps_per_period, run_options)
+    sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
     n, nd = sim.compiled.M.shape[0], sim.compiled.kt.shape[0]
     if initial is not None:
         start(sim, as_state(initial, n, nd), 0.0)
@@ -203,5 +240,6 @@ def finish(
         changes=list(changes),
         kernel_time_s=kernel,
         wall_time_s=time.perf_counter() - wall,
+        _marcher=sim.marcher,
         **extra,
     )

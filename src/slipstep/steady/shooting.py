@@ -51,13 +51,11 @@ from slipstep.system import System
 
 
 def _unknowns(s: State, quasi: bool) -> np.ndarray:
-    return np.concatenate([s.x, s.w] if quasi else [s.x, s.v, s.w])
+    return s.unknowns(quasi)
 
 
 def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
-    if quasi:
-        return State(z[:n].copy(), np.zeros(n), np.zeros(n), z[n:].copy(), states)
-    return State(z[:n].copy(), z[n : 2 * n].copy(), None, z[2 * n :].copy(), states)
+    return State.from_unknowns(z, n, quasi, states)
 
 
 def period_jacobian(sim: Simulation, sliders: np.ndarray | None = None) -> np.ndarray:
@@ -155,8 +153,7 @@ def finite_difference_jacobian(sim: Simulation) -> np.ndarray:
     period stops gives way to the one-sided difference with P(z). The period from z itself is
     marched again last, so ``sim`` holds it as before."""
     quasi = sim.method.quasi_static
-    pre = sim.preload_state
-    s0 = State(pre[0].copy(), pre[1].copy(), pre[2].copy(), pre[5].copy(), pre[6].copy())
+    s0 = sim.start
     t0 = float(sim.settings.t_start)
     n = sim.compiled.M.shape[0]
     z = _unknowns(s0, quasi)
@@ -281,7 +278,7 @@ def shoot(
     ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
-    sim = period_simulation(system, method, min_steps_per_period, run_options)
+    sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
     scheme = sim.options.scheme
     if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
         raise InputError(

@@ -20,20 +20,12 @@ length scale (a motionless record then compares absolute changes).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
 
-
-class State(NamedTuple):
-    """A march state at a period boundary (what ``initial=`` accepts)."""
-
-    x: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    w: np.ndarray
-    states: np.ndarray  # int8 contact state per direction
+from slipstep.errors import InputError
+from slipstep.methods.state import FIELDS, State
 
 
 @dataclass
@@ -68,41 +60,48 @@ class SteadyState:
     kernel_time_s: float = 0.0
     wall_time_s: float = 0.0
     orbit_history: tuple = ()  # shooting: ((f [Hz], orbit start State), ...) of this point and the one before
+    #: the marcher of the last period (methods/marcher.py), reused by the next point started from this one
+    _marcher: object = field(default=None, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the marcher (buffers and a compiled entry: not data)."""
+        state = dict(self.__dict__)
+        state["_marcher"] = None
+        return state
 
     @property
     def ok(self) -> bool:
         return self.status == "OK"
 
 
-def state_of(ws, quasi_static: bool) -> State:
-    """Copy of the carried state of a march workspace."""
+def state_of(ws, quasi_static: bool, t: float = 0.0) -> State:
+    """Copy of the carried state of a (dense) march workspace at time t."""
     n = ws.x.shape[0]
     if quasi_static:
-        return State(ws.x.copy(), np.zeros(n), np.zeros(n), ws.w.copy(), ws.state.copy())
-    return State(ws.x.copy(), ws.v.copy(), ws.a.copy(), ws.w.copy(), ws.state.copy())
+        return State(t, ws.x.copy(), np.zeros(n), np.zeros(n), ws.w.copy(), ws.state.copy())
+    return State(t, ws.x.copy(), ws.v.copy(), ws.a.copy(), ws.w.copy(), ws.state.copy())
 
 
 def as_state(initial, n: int, nd: int) -> State:
-    """Accept a State, a SteadyState (its final state) or a mapping with x, v, a, w, states."""
+    """Accept a State, a SteadyState (its final state) or a mapping with x, v, a, w, states
+    (or contact_state)."""
     if isinstance(initial, SteadyState):
         return initial.final_state
     if isinstance(initial, State):
         return initial
-    from slipstep.errors import InputError
-
     if isinstance(initial, dict):
-        unknown = set(initial) - set(State._fields)
+        unknown = set(initial) - set(FIELDS)
         if unknown or "x" not in initial:
-            raise InputError(
-                "initial", f"has keys {sorted(initial)}", f"give x and optionally {list(State._fields[1:])}"
-            )
+            raise InputError("initial", f"has keys {sorted(initial)}", f"give x and optionally {list(FIELDS[1:5])}")
         get = initial.get
+        states = get("states", get("contact_state"))
         return State(
+            0.0,
             np.asarray(get("x"), float),
             None if get("v") is None else np.asarray(get("v"), float),
             None if get("a") is None else np.asarray(get("a"), float),
             None if get("w") is None else np.asarray(get("w"), float),
-            None if get("states") is None else np.asarray(get("states"), np.int8),
+            None if states is None else np.asarray(states, np.int8),
         )
     raise InputError(
         "initial",

@@ -1,0 +1,119 @@
+"""The options of a run (:class:`RunOptions`): every field, its default and its validation.
+
+One place for the defaults of a march; :func:`slipstep.methods.plan.plan_run` validates them
+(:meth:`RunOptions.validated`) before anything is computed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from slipstep.errors import InputError
+from slipstep.methods import memory
+from slipstep.methods import save as SV
+from slipstep.methods.schemes import Scheme, newmark
+from slipstep.model.validate import positive
+
+#: the values of RunOptions.linear_solver
+LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Options of a run; every field is validated in :meth:`validated`.
+
+    periods / duration: simulated time after the preload (duration [s] wins if given).
+    step_ratio: r in dt = r * T_min / (2 pi sqrt(beta)) (dynamic methods).
+    steps_per_period: quasi-static step count per excitation period.
+    tolerance: Newton stop (modified and full Newton), both tests at once (kernels/march.py):
+        increment: theta/(1-theta) eta <= 1, eta = max(max |A delta| / (tol L), max_j |delta_j| /
+        (tol L_j)), L_j = L / max_r |A_rj|, theta the larger of the last two contraction ratios; and
+        residual: max |r| <= tol * (the step's largest force term). Default 1e-11: with 1e-8 and
+        the increment test alone, Method 1 left 28 % of random small systems more than 1e-6 of
+        their range from the converged solution (benchmarks/random_systems.py).
+    state_tolerance: relative tolerance of the compatibility check (physics.md 3).
+    max_step: accuracy cap of dynamic steps, fixed and adaptive [s] (default: period / 50).
+    dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
+    linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
+        an nq x nq capacitance matrix per state: kernels/state_solve.py), 'banded' (the DOFs
+        reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.system,
+        kernels/banded.py) or 'auto' (banded for a sparse structure of at least
+        slipstep.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
+        coordinates are at most half the DOFs, else direct).
+    rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate
+        of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is
+        within about rtol; it never exceeds the contact-state / convergence rule of Newton
+        methods, nor the stability limit; the piecewise-linear solve obeys only the latter.
+    error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
+        peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
+        step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
+    max_memory: the memory a run may take [bytes] (estimate checked before any allocation,
+        slipstep.methods.memory); default: half of the available memory.
+    massless_dofs: the DOFs the quasi-static-dofs method treats without inertia: DOF names or
+        shell patterns ('damper*'), or 'auto' (the DOFs held by contacts only: methods/massless.py).
+    save: what the march stores (methods/save.py): 'auto' (everything for at most
+        save.FULL_SAVE_MAX_DOFS DOFs, else the contacts and the response DOFs, every step), 'all',
+        a slipstep.Save or a dict of its keys (dofs, contacts, every, last_periods, times, response).
+    """
+
+    periods: float = 3.0
+    duration: float | None = None
+    step_ratio: float = 1.0
+    steps_per_period: int = 300
+    scheme: Scheme = field(default_factory=newmark)
+    tolerance: float = 1e-11
+    state_tolerance: float = 1e-9
+    singular_tolerance: float = 1e-12
+    max_iterations: int = 500
+    max_state_iterations: int = 20
+    max_redo: int = 4
+    max_step: float | None = None
+    preload_increments: int = 45
+    fallback: bool = True
+    dt: float | None = None
+    linear_solver: str = "auto"
+    rtol: float | None = None
+    error_estimate: bool = True
+    max_memory: float | None = None
+    massless_dofs: object = "auto"
+    save: object = "auto"
+
+    def validated(self) -> "RunOptions":
+        positive("periods", self.periods)
+        if self.duration is not None:
+            positive("duration", self.duration)
+        r = positive("step_ratio", self.step_ratio)
+        if r > 50:
+            raise InputError(
+                "step_ratio",
+                f"is {r}: the step would be {r} times the stability/convergence limit",
+                "use a ratio of about 1 (below 1 for more accuracy)",
+            )
+        for name in ("steps_per_period", "max_iterations", "max_state_iterations", "preload_increments"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise InputError(name, f"is {value!r}", "give a whole number >= 1")
+        for name in ("tolerance", "state_tolerance", "singular_tolerance"):
+            value = positive(name, getattr(self, name))
+            if value >= 1:
+                raise InputError(name, f"is {value}", "give a small relative tolerance (e.g. 1e-6)")
+        if self.max_step is not None:
+            positive("max_step", self.max_step)
+        if self.dt is not None:
+            positive("dt", self.dt)
+        if self.rtol is not None:
+            value = positive("rtol", self.rtol)
+            if not 1e-8 <= value <= 0.2:
+                raise InputError("rtol", f"is {value}", "give a relative accuracy between 1e-8 and 0.2 (e.g. 1e-3)")
+        if self.max_memory is not None:
+            memory.parse_size("max_memory", self.max_memory)
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise InputError(
+                "linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct', 'low-rank' or 'banded'"
+            )
+        SV.as_save(self.save)
+        if not isinstance(self.scheme, Scheme):
+            raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
+        return self
