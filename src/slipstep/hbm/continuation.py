@@ -141,15 +141,15 @@ def _trace(
         return branch
     if span == 0:
         return branch
-    zs = max(hb.scale(first.Z), float(np.abs(first.Z[1:]).max(initial=0.0)))
-    shape = first.Z.shape
+    zs = max(hb.scale(first.Y, first.level), float(np.abs(first.Y[1:]).max(initial=0.0)))
+    shape = first.Y.shape
     max_dp = abs(span) / 20 if max_dp is None else abs(max_dp)
     ds = max_dp / ps if ds is None else ds
     ds_max = max_dp / ps * 4
-    y = np.concatenate([first.Z.ravel() / zs, [start / ps]])
+    y = np.concatenate([first.Y.ravel() / zs, [start / ps]])
     t_prev = np.zeros_like(y)
     t_prev[-1] = sign
-    R, J, Jp = prob.evaluate(first.Z, start)
+    R, J, Jp = prob.evaluate(first.Y, start)
     t = _tangent(J, Jp, t_prev, zs, ps)
     first.tangent = (t[:-1].reshape(shape).copy(), float(t[-1]), zs, ps, parameter)
     n = y.size - 1
@@ -159,7 +159,7 @@ def _trace(
         dp_frac = abs(t[-1]) * ds * ps
         if dp_frac > max_dp:
             ds *= max_dp / dp_frac
-        dz = np.abs(t[:n]).max() * ds
+        dz = np.abs(t[:n]).max(initial=0.0) * ds
         if dz > max_dz:
             ds *= max_dz / dz
         y_pred = y + ds * t
@@ -170,7 +170,7 @@ def _trace(
             p = yc[n] * ps
             R, J, Jp = prob.evaluate(Z, p)
             g = t @ (yc - y_pred)
-            if np.linalg.norm(R) <= tol * hb.scale(Z) and abs(g) <= 1e-12:
+            if hb.converged(R, Z, prob.args(p)[1], tol) and abs(g) <= 1e-12:
                 ok = True
                 break
             A = np.zeros((n + 1, n + 1))
@@ -210,7 +210,7 @@ def _trace(
             return branch
         Z = (yc[:n] * zs).reshape(shape)
         w, lv = prob.args(p)
-        pt = hb.point(Z, w, lv, its - 1, True, float(np.linalg.norm(R)))
+        pt = hb.point(Z, w, lv, its - 1, True, hb.residual_norm(R))
         t_new = _tangent(J, Jp, t, zs, ps)
         pt.tangent = (t_new[:n].reshape(shape).copy(), float(t_new[n]), zs, ps, parameter)
         done(pt)

@@ -81,7 +81,7 @@ def _sequential(hb, parameter, values, fixed, progress):
         if progress:
             progress(pt)
         if pt.converged:
-            Z = pt.Z
+            Z = pt.Y
         else:
             branch.status, branch.message = "NOT_CONVERGED", f"Newton did not converge at {parameter} = {v:.6g}"
     return branch
