@@ -81,7 +81,7 @@ class Adequacy:
             out[2 * j - 1], out[2 * j] = Z[2 * i - 1], Z[2 * i]
         return out
 
-    def extended_solution(self, point: Point, iterations: int = 12):
+    def extended_solution(self, point: Point, iterations: int = 25):
         """(Y', omega', level') of the extended balance near ``point``: Newton at the point's own
         frequency and level (a few iterations from the embedded solution); where that fails (at
         or near a turning point, where dR/dZ is singular) corrector steps with the branch's tangent.
