@@ -169,7 +169,7 @@ class AFT:
         self._last_state = np.zeros(self.nd, np.int8)
         self._cycle = 0  # cycles evaluated
         self._coefficients_of = -1  # the cycle whose Ac, Mc, src are current
-        self._Wt = None
+        self._pairs = None  # workspace of gathered_jacobian
         self._products = product_indices(basis.h, n)
         Fw = self.tables[1]
         own = np.zeros((self.nq, self.nd), bool)
@@ -234,19 +234,30 @@ class AFT:
         """L^T (dF/dZ) L of the last evaluated cycle for the gather q = L y (L (nq, r)), as an
         (n_coef r) x (n_coef r) matrix (index j r + m), without forming dF/dZ:
 
-            d(L^T F)_j / dy_i = sum_k sum_s P[j, k] Wt[k, s] E[s, i]
+            d(L^T F)_j / dy_i = sum over the sample pairs (k, s) of P[j, k] E[s, i] W[k, s]
 
-        with Wt the gathered sample tangents (kernels/aft.py gathered_tangent, N x N blocks of r x r)."""
+        with W the gathered sample tangents (kernels/aft.py gathered_tangent: r x r blocks, the
+        diagonal k = s and the slider-memory pairs only)."""
         b = self.basis
         Ac, Mc, src = self._sample_tangents()
         n, r = Ac.shape[0], L.shape[1]
-        if self._Wt is None or self._Wt.shape != (n, n, r, r):
-            self._Wt = np.zeros((n, n, r, r))
+        if self._pairs is None or self._pairs[3].shape[1] != r:
+            self._pairs = (
+                np.full((n, n), -1, np.int64),
+                np.zeros(n * n, np.int64),
+                np.zeros(n * n, np.int64),
+                np.zeros((n * n, r, r)),
+            )
+        pair_of, pk, ps, blocks = self._pairs
         _, contact_of_row, row_start = self.rows
-        gathered_tangent(Ac, Mc, src, contact_of_row, row_start, np.ascontiguousarray(L, dtype=np.float64), self._Wt)
-        T = np.tensordot(b.forward, self._Wt, axes=(1, 0))  # (n_coef, N_s, r, r)
-        J = np.tensordot(T, b.inverse, axes=(1, 0))  # (n_coef, r, r, n_coef): [j, m, m2, i]
-        return np.ascontiguousarray(J.transpose(0, 1, 3, 2)).reshape(b.n_coef * r, b.n_coef * r)
+        count = gathered_tangent(
+            Ac, Mc, src, contact_of_row, row_start, np.ascontiguousarray(L, dtype=np.float64), pair_of, pk, ps, blocks
+        )
+        pk, ps = pk[:count], ps[:count]
+        weights = b.forward[:, None, pk] * b.inverse.T[None, :, ps]  # (n_coef, n_coef, pairs): P[j, k] E[s, i]
+        nc = b.n_coef
+        J = (weights.reshape(nc * nc, count) @ blocks[:count].reshape(count, r * r)).reshape(nc, nc, r, r)
+        return np.ascontiguousarray(J.transpose(0, 2, 1, 3)).reshape(nc * r, nc * r)
 
     def tangent_times(self, V: np.ndarray) -> np.ndarray:
         """(dF/dZ) V of the last evaluated cycle for coefficients V (n_coef, nq), sample by sample."""

@@ -104,36 +104,50 @@ def cycle_coefficients(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def gathered_tangent(Ac, Mc, src, contact_of_row, row_start, L, Wt):
+def gathered_tangent(Ac, Mc, src, contact_of_row, row_start, L, pair_of, pair_k, pair_s, blocks):
     """The sample tangents seen through the gather q = L y (L (nq, r)): the generalised force
-    g_k = L^T f_k changes as dg_k = sum_s Wt[k, s] dy_s with
+    g_k = L^T f_k changes as dg_k = sum_s W[k, s] dy_s with
 
-        Wt[k, k] += L[r]^T Ac[k, r, l] L[r0 + l],   Wt[k, src[k, r]] += L[r]^T Mc[k, r, l] L[r0 + l]
+        W[k, k] += L[r]^T Ac[k, r, l] L[r0 + l],   W[k, src[k, r]] += L[r]^T Mc[k, r, l] L[r0 + l]
 
-    summed over rows r and their contact's columns l. Wt (N, N, r, r) is overwritten."""
+    summed over rows r and their contact's columns l. Only the sample pairs (k, s) that occur
+    are stored: pair p is (pair_k[p], pair_s[p]) with the r x r block blocks[p]. pair_of (N, N)
+    must be -1 on entry and is left so (workspace). Returns the number of pairs."""
     n, nq, width = Ac.shape
     nr = L.shape[1]
-    Wt[:] = 0.0
+    count = 0
     for k in range(n):
         for row in range(nq):
             c = contact_of_row[row]
             r0, r1 = row_start[c], row_start[c + 1]
             s = src[k, row]
-            for m in range(nr):
-                lm = L[row, m]
-                if lm == 0.0:
-                    continue
-                for l in range(r1 - r0):
-                    a = lm * Ac[k, row, l]
-                    b = lm * Mc[k, row, l] if s >= 0 else 0.0
-                    if a == 0.0 and b == 0.0:
+            for l in range(r1 - r0):
+                for which in range(2):
+                    if which == 0:
+                        a, t = Ac[k, row, l], k
+                    else:
+                        if s < 0:
+                            break
+                        a, t = Mc[k, row, l], s
+                    if a == 0.0:
                         continue
-                    for m2 in range(nr):
-                        v = L[r0 + l, m2]
-                        if v != 0.0:
-                            Wt[k, k, m, m2] += a * v
-                            if b != 0.0:
-                                Wt[k, s, m, m2] += b * v
+                    p = pair_of[k, t]
+                    if p < 0:
+                        p = count
+                        pair_of[k, t] = p
+                        pair_k[p] = k
+                        pair_s[p] = t
+                        blocks[p] = 0.0
+                        count += 1
+                    for m in range(nr):
+                        lm = L[row, m] * a
+                        if lm == 0.0:
+                            continue
+                        for m2 in range(nr):
+                            blocks[p, m, m2] += lm * L[r0 + l, m2]
+    for p in range(count):
+        pair_of[pair_k[p], pair_s[p]] = -1
+    return count
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
