@@ -10,7 +10,7 @@
 
 import numpy as np
 import pytest
-from hbm_cases import jenkins_1dof, jenkins_2dof, wedge
+from hbm_cases import base_driven, jenkins_1dof, jenkins_2dof, wedge
 
 from slipstep.hbm import HarmonicBalance
 from slipstep.hbm.energy import contact_energy
@@ -49,7 +49,7 @@ def test_aft_jacobian_matches_finite_differences(make, f):
 
 
 @pytest.mark.parametrize("condense", ["dofs", "contacts"])
-@pytest.mark.parametrize("make, f", [(jenkins_2dof, 300.0), (wedge, 200.0)])
+@pytest.mark.parametrize("make, f", [(jenkins_2dof, 300.0), (wedge, 200.0), (base_driven, 300.0)])
 def test_residual_jacobians_match_finite_differences(make, f, condense):
     hb = HarmonicBalance(make(), 5, 64, condense=condense)
     pt = hb.solve(2 * np.pi * f)

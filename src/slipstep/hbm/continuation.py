@@ -1,19 +1,25 @@
-"""Pseudo-arclength continuation of the harmonic balance over frequency or excitation level.
+"""Continuation of the harmonic balance over frequency or excitation level, through asked values.
 
-The branch y(s) = (Z(s), p(s)) of R(Z, p) = 0 (p = Omega or the excitation level lambda) is
-followed in scaled variables y_s = (Z / z_scale, p / p_scale). From a solved point y_i with
-unit tangent t_i (solution of [dR/dy_s; t_{i-1}^T] t = [0; 1], oriented along t_{i-1}), the
-predictor is y_i + ds t_i and the corrector Newton's method on
+The branch y(s) = (Y(s), p(s)) of R(Y, p) = 0 (Y the unknowns of slipstep.hbm.residual,
+p = Omega or the excitation level lambda) is followed in scaled variables
+y_s = (Y / z_scale, p / p_scale) from the first asked value to the last, landing on every
+asked value in between (points marked "asked"; the others "continuation", or "turning" where
+p reverses). From an asked point the next one is first tried by Newton at its value from the
+tangent predictor (:func:`_natural_step`, refused where Newton jumps to another branch or a
+fold lies between). Otherwise pseudo-arclength: from a solved point y_i with unit tangent t_i
+(solution of [dR/dy_s; t_{i-1}^T] t = [0; 1], oriented along t_{i-1}), the predictor is
+y_i + ds t_i and the corrector Newton's method (with backtracking) on
 
-    R(Z, p) = 0,    t_i . (y_s - y_i - ds t_i) = 0          (the pseudo-arclength condition)
+    R(Y, p) = 0,    t_i . (y_s - y_i - ds t_i) = 0          (the pseudo-arclength condition)
 
-with the exact Jacobian [[dR/dZ, dR/dp]; t_i^T]. It follows turning points (p reverses while
+with the exact Jacobian [[dR/dY, dR/dp]; t_i^T]. It follows turning points (p reverses while
 s keeps growing) and so both branches around a jump. Step control: ds grows by up to 2x
 when the corrector needs few iterations (ds *= clip(target / iterations, 0.5, 2)), halves
 after a failed corrector, and is capped so that a step moves p by at most ``max_dp`` and
-the response by at most ``max_dz`` (relative); below ``min_ds`` the continuation stops with
-status NOT_CONVERGED. The last point lands on the end value of p exactly (a natural-parameter
-Newton solve from the interpolated crossing).
+the response by at most ``max_dz`` (relative). When a step crosses the next asked value the
+continuation lands on it (Newton at that value from the interpolated crossing) and restarts
+there; below ``min_ds``, or after ``max_between`` continuation points without reaching it,
+the next asked value is solved by Newton from the last point instead.
 """
 
 from __future__ import annotations
@@ -228,7 +234,7 @@ def _trace(
             if not pt.converged:
                 return _remaining(prob, branch, targets, last_good.Y, done, parameter)
             y, t = restart(pt, target, along)
-            ds, last_good, natural = ds0, pt, True
+            ds, last_good, natural, between = ds0, pt, True, 0
             continue
         p = yc[n] * ps
         target = targets[0]
@@ -242,7 +248,7 @@ def _trace(
                 if not targets:
                     return branch
                 y, t = restart(pt, target, t)
-                last_good, natural = pt, True
+                last_good, natural, between = pt, True, 0
                 ds = min(ds * min(2.0, max(0.5, target_iterations / max(its - 1, 1))), ds_max)
                 continue
             ds *= 0.5  # the landing failed: a shorter step lands closer
