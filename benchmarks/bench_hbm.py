@@ -50,7 +50,7 @@ def hbm_grid(hb: HarmonicBalance, freqs) -> tuple[float, list]:
     t = time.perf_counter()
     for f in freqs:
         p = hb.solve(2 * np.pi * f, 1.0, Z)
-        Z = p.Z
+        Z = p.Y
         pts.append(p)
     return (time.perf_counter() - t) / len(freqs), pts
 

@@ -66,3 +66,24 @@ def wedge(frequency=200.0):
         force=ss.Signal(("x", "y", "z"), (ss.Harmonic(frequency, [40.0, 90.0, 30.0], [0.0, 0.7, 1.3]),)),
     )
     return ss.System(st, (c1, c2), exc, name="wedge")
+
+
+def base_driven(frequency=300.0, base=2.0e-5):
+    """jenkins_1dof driven through its Jenkins element by a prescribed base motion p (the
+    contact's tangential coordinate u = x - p) besides a force on x."""
+    m, k = 2.5, 1.0e7
+    st = ss.Structure(np.array([[m]]), np.array([[40.0 * m]]), np.array([[k]]), dof_names=("x",))
+    c = ss.ContactElement(
+        "J",
+        np.array([[1.0], [0.0]]),
+        tangential_stiffness=1.0e7,
+        normal_stiffness=KN,
+        friction_coefficient=1.0,
+        normal_offset=50.0 / KN,
+        motion_gather=np.array([[1.0], [0.0]]),
+    )
+    exc = ss.Excitation(
+        force=ss.Signal(("x",), (ss.Harmonic(frequency, [40.0]),)),
+        motion=ss.Signal(("base",), (ss.Harmonic(frequency, [base]),)),
+    )
+    return ss.System(st, (c,), exc, name="base-driven")

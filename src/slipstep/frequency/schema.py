@@ -85,6 +85,12 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
         "with more harmonics (harmonic balance only: slipstep.hbm.adequacy)",
     ),
     "status": (("frequency",), "1", "status of the point: OK or the name of the failure"),
+    "point_kind": (
+        ("frequency",),
+        "1",
+        "asked (a requested frequency), continuation (a point the continuation took between "
+        "them) or turning (a continuation point where the branch turns back)",
+    ),
 }
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),
 ``sweep`` ("up" or "down"), ``method`` (time-marching method, where one is used),

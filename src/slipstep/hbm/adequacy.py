@@ -70,7 +70,7 @@ class Adequacy:
         self.hb = hb
         h_ext = extended_set(hb.h)
         samples = max(2 * hb.basis.samples, default_samples(int(h_ext.max())))  # and finer sampling
-        self.ext = HarmonicBalance(hb.system, h_ext, samples, preload=(hb.x_pre, hb.w_pre))
+        self.ext = HarmonicBalance(hb.system, h_ext, samples, preload=(hb.x_pre, hb.w_pre), condense=hb.gather.mode)
         self.index = np.searchsorted(self.ext.h, hb.h)  # positions of the retained harmonics
         self.responses = responses
 
@@ -81,17 +81,17 @@ class Adequacy:
             out[2 * j - 1], out[2 * j] = Z[2 * i - 1], Z[2 * i]
         return out
 
-    def extended_solution(self, point: Point, iterations: int = 12):
-        """(Z', omega', level') of the extended balance near ``point``: Newton at the point's own
+    def extended_solution(self, point: Point, iterations: int = 25):
+        """(Y', omega', level') of the extended balance near ``point``: Newton at the point's own
         frequency and level (a few iterations from the embedded solution); where that fails (at
         or near a turning point, where dR/dZ is singular) corrector steps with the branch's tangent.
         None when neither converges."""
         ext = self.ext
-        Z = self._embed(point.Z)
+        Z = self._embed(point.Y)
         omega, level = point.omega, point.level
         fixed = ext.solve(omega, level, Z, max_iterations=iterations)
         if fixed.converged:
-            return fixed.Z, omega, level
+            return fixed.Y, omega, level
         if point.tangent is None:
             return None
         tz, tp, zs, ps, parameter = point.tangent
@@ -105,7 +105,7 @@ class Adequacy:
             w_i, l_i = (p, level) if parameter == "omega" else (omega, p)
             R, J, dw, dl = ext.evaluate(Zi, w_i, l_i)
             g = row @ (y - y0)
-            if np.linalg.norm(R) <= 1e-10 * ext.scale(Zi) and abs(g) <= 1e-12:
+            if ext.converged(R, Zi, l_i, 1e-10) and abs(g) <= 1e-12:
                 return Zi, w_i, l_i
             A = np.zeros((n + 1, n + 1))
             A[:n, :n], A[:n, n], A[n] = J * zs, (dw if parameter == "omega" else dl) * ps, row
@@ -126,10 +126,10 @@ class Adequacy:
         sol = self.extended_solution(point)
         if sol is None:
             return float("inf")
-        Z1, omega, level = sol
+        Y1, omega, level = sol
         ext.linear.at(omega, level)
-        F1, _ = ext.aft.evaluate(Z1, False)
-        X1 = ext.dofs(Z1, F1)
+        p1 = ext.point(Y1, omega, level, 0, True, 0.0)
+        Z1, F1, X1 = p1.Z, p1.F, p1.X
         a0 = half_peak_to_peak(hb.h, point.X[:, self.responses])
         a1 = half_peak_to_peak(ext.h, X1[:, self.responses])
         amp = float(np.abs(a1 - a0).max(initial=0.0) / max(a0.max(initial=0.0), 1e-300))

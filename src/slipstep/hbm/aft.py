@@ -31,32 +31,30 @@ entries are the DFT of the sample weights a_k at h_i -+ h_j (one FFT per tangent
 second one outer product P_I c_I (x) E_s per stick interval I (its source s is constant).
 It is the exact derivative of the discrete AFT wherever no sample sits exactly on
 a state boundary (checked against finite differences in tests/test_hbm_aft.py).
+
+Gathered form (:meth:`AFT.gathered_jacobian`, issue 24). When the contacts see the structure
+through few coordinates y (q = L y + const, L (nq, r), r << nq: the contacts sit on a few
+rigid-body DOFs), the balance needs only L^T (dF/dZ) L, an (n_coef r)^2 matrix: the sample
+tangents are gathered per sample pair (k, s) into r x r blocks Wt[k, s] = L^T (Fq or the memory
+term) L (kernels/aft.py gathered_tangent, O(N nq width r) work) and transformed once,
+P Wt E; dF/dZ itself ((n_coef nq)^2 entries) is never formed.
+
+The compiled loops (the law over the samples, the sample tangents, their gathered form) are
+in :mod:`slipstep.kernels.aft`.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from slipstep.kernels import contact as _law
+from slipstep.kernels.aft import (
+    apply_linear_law,
+    cycle_coefficients,
+    gathered_tangent,
+    march_cycle,
+    tangent_product,
+)
 from slipstep.kernels.settings import contact_table
-
-# ---- the kernels' contact law (its table: kernels.settings.contact_table) --------------------
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def apply_law(args, q, w_old, f, w_new, state):
-    """The kernels' nonlinear law at one sample (see slipstep.kernels.contact.law)."""
-    nrow, lcode, lpar, fdir, ndir, trow, kt = args
-    _law.law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def apply_linear_law(args, state, q, w_old, f, w_new):
-    """The kernels' piecewise-linear law for a postulated state (slipstep.kernels.contact.piecewise_law)."""
-    nrow, lcode, lpar, fdir, ndir, trow, kt = args
-    _law.piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
-
 
 # ---- tangents of the piecewise-linear form ---------------------------------------------------
 
@@ -120,77 +118,6 @@ def row_tables(cs):
     return dir_of_row, contact_of_row, row_start
 
 
-# ---- the compiled AFT cycle and its Jacobian -------------------------------------------------
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def march_cycle(args, qt, w_init, max_periods, w_tol, resets, ft, wt, st, src0, src0_state):
-    """March the law over the samples qt (N, nq) from w_init until the sliders repeat after a
-    period (max |w_N - w_0| <= w_tol). Writes the last period's forces ft, sliders wt and
-    states st, and per direction the sample and state of its last slider reset (resets[state, d]:
-    the state sets the slider from the current sample) before that period began (src0 = -1:
-    none since w_init); returns the periods marched (negative: not
-    converged within max_periods)."""
-    n = qt.shape[0]
-    nd = w_init.shape[0]
-    w_start = w_init.copy()
-    w_old = w_init.copy()
-    last = np.full(nd, -1, np.int64)
-    last_state = np.zeros(nd, np.int8)
-    for p in range(1, max_periods + 1):
-        for d in range(nd):
-            src0[d] = last[d]
-            src0_state[d] = last_state[d]
-        for k in range(n):
-            apply_law(args, qt[k], w_old, ft[k], wt[k], st[k])
-            for d in range(nd):
-                if resets[st[k, d], d]:
-                    last[d] = k
-                    last_state[d] = st[k, d]
-                w_old[d] = wt[k, d]
-        change = 0.0
-        for d in range(nd):
-            change = max(change, abs(w_old[d] - w_start[d]))
-            w_start[d] = w_old[d]
-        if change <= w_tol:
-            return p
-    return -max_periods
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def cycle_coefficients(st, src0, src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Ac, Mc, src):
-    """The time-sample tangents of the converged cycle (see the module docstring), per row r
-    and column l of r's contact:  df_k[r] = sum_l Ac[k, r, l] dq_k[r0 + l] + Mc[k, r, l] dq_s[r0 + l]
-    with s = src[k, r] (-1: no memory term), the last slider reset of r's direction before k
-    (src0, src0_state: its last reset before the cycle, in any earlier period)."""
-    n = st.shape[0]
-    nq = dir_of_row.shape[0]
-    nd = st.shape[1]
-    Ac[:] = 0.0
-    Mc[:] = 0.0
-    last = src0.copy()
-    last_state = src0_state.copy()
-    for k in range(n):
-        for r in range(nq):
-            d = dir_of_row[r]
-            s_r = st[k, d]
-            c = contact_of_row[r]
-            r0, r1 = row_start[c], row_start[c + 1]
-            for l in range(r1 - r0):
-                Ac[k, r, l] = Fq[s_r, r, r0 + l]
-            b = Fw[s_r, r, d]
-            if b != 0.0 and last[d] >= 0:
-                src[k, r] = last[d]
-                for l in range(r1 - r0):
-                    Mc[k, r, l] = b * Wq[last_state[d], d, r0 + l]
-            else:
-                src[k, r] = -1
-        for d in range(nd):
-            if Ww[st[k, d], d, d] == 0.0:
-                last[d] = k
-                last_state[d] = st[k, d]
-
-
 def product_indices(h: np.ndarray, n: int):
     """For the real basis of harmonics h (fourier.Basis order) the indices and weights that turn
     the DFT of a sample weight a_k into P diag(a) E (phi_i phi_j = (alpha cos((h_i - h_j) t) +
@@ -237,6 +164,12 @@ class AFT:
         self._Ac = np.zeros((n, self.nq, width))
         self._Mc = np.zeros((n, self.nq, width))
         self._src = np.zeros((n, self.nq), np.int64)
+        self._scratch = np.zeros((2, self.nd))
+        self._last = np.zeros(self.nd, np.int64)
+        self._last_state = np.zeros(self.nd, np.int8)
+        self._cycle = 0  # cycles evaluated
+        self._coefficients_of = -1  # the cycle whose Ac, Mc, src are current
+        self._pairs = None  # workspace of gathered_jacobian
         self._products = product_indices(basis.h, n)
         Fw = self.tables[1]
         own = np.zeros((self.nq, self.nd), bool)
@@ -262,23 +195,87 @@ class AFT:
             self.st,
             self.src0,
             self.src0_state,
+            self._scratch,
+            self._last,
+            self._last_state,
         )
+        self._cycle += 1
         F = b.forward @ self.ft
         if not jacobian:
             return F, None
         return F, self.jacobian()
+
+    def _sample_tangents(self):
+        """Ac, Mc, src of the last evaluated cycle (kernels/aft.py cycle_coefficients), once per cycle."""
+        if self._coefficients_of != self._cycle:
+            Fq, Fw, Wq, Ww = self.tables
+            dir_of_row, contact_of_row, row_start = self.rows
+            cycle_coefficients(
+                self.st,
+                self.src0,
+                self.src0_state,
+                Fq,
+                Fw,
+                Wq,
+                Ww,
+                dir_of_row,
+                contact_of_row,
+                row_start,
+                self._Ac,
+                self._Mc,
+                self._src,
+                self._last,
+                self._last_state,
+            )
+            self._coefficients_of = self._cycle
+        return self._Ac, self._Mc, self._src
+
+    def gathered_jacobian(self, L: np.ndarray) -> np.ndarray:
+        """L^T (dF/dZ) L of the last evaluated cycle for the gather q = L y (L (nq, r)), as an
+        (n_coef r) x (n_coef r) matrix (index j r + m), without forming dF/dZ:
+
+            d(L^T F)_j / dy_i = sum over the sample pairs (k, s) of P[j, k] E[s, i] W[k, s]
+
+        with W the gathered sample tangents (kernels/aft.py gathered_tangent: r x r blocks, the
+        diagonal k = s and the slider-memory pairs only)."""
+        b = self.basis
+        Ac, Mc, src = self._sample_tangents()
+        n, r = Ac.shape[0], L.shape[1]
+        if self._pairs is None or self._pairs[3].shape[1] != r:
+            self._pairs = (
+                np.full((n, n), -1, np.int64),
+                np.zeros(n * n, np.int64),
+                np.zeros(n * n, np.int64),
+                np.zeros((n * n, r, r)),
+            )
+        pair_of, pk, ps, blocks = self._pairs
+        _, contact_of_row, row_start = self.rows
+        count = gathered_tangent(
+            Ac, Mc, src, contact_of_row, row_start, np.ascontiguousarray(L, dtype=np.float64), pair_of, pk, ps, blocks
+        )
+        pk, ps = pk[:count], ps[:count]
+        weights = b.forward[:, None, pk] * b.inverse.T[None, :, ps]  # (n_coef, n_coef, pairs): P[j, k] E[s, i]
+        nc = b.n_coef
+        J = (weights.reshape(nc * nc, count) @ blocks[:count].reshape(count, r * r)).reshape(nc, nc, r, r)
+        return np.ascontiguousarray(J.transpose(0, 2, 1, 3)).reshape(nc * r, nc * r)
+
+    def tangent_times(self, V: np.ndarray) -> np.ndarray:
+        """(dF/dZ) V of the last evaluated cycle for coefficients V (n_coef, nq), sample by sample."""
+        b = self.basis
+        Ac, Mc, src = self._sample_tangents()
+        _, contact_of_row, row_start = self.rows
+        dq = np.ascontiguousarray(b.inverse @ V)
+        df = np.zeros_like(dq)
+        tangent_product(Ac, Mc, src, contact_of_row, row_start, dq, df)
+        return b.forward @ df
 
     def jacobian(self) -> np.ndarray:
         """dF/dZ of the last evaluated cycle: P diag(Ac) E by one FFT per tangent column (the
         product-to-sum identities of :func:`product_indices`), plus the memory terms grouped by
         their source sample (one outer product per stick interval)."""
         b, nq = self.basis, self.nq
-        Fq, Fw, Wq, Ww = self.tables
-        dir_of_row, contact_of_row, row_start = self.rows
-        Ac, Mc, src = self._Ac, self._Mc, self._src
-        cycle_coefficients(
-            self.st, self.src0, self.src0_state, Fq, Fw, Wq, Ww, dir_of_row, contact_of_row, row_start, Ac, Mc, src
-        )
+        contact_of_row, row_start = self.rows[1], self.rows[2]
+        Ac, Mc, src = self._sample_tangents()
         n, _, width = Ac.shape
         dm, sm, wa, wb, wg, wd = self._products
         spec = np.fft.fft(Ac.reshape(n, -1), axis=0)  # a_hat[m] = sum_k a_k exp(-i m theta_k)

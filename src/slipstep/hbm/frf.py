@@ -43,6 +43,7 @@ from slipstep.hbm.energy import (
     viscous_dissipation,
 )
 from slipstep.frequency.response import check_frequencies as valid_frequencies
+from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
 
@@ -76,24 +77,63 @@ def _sequential(hb, parameter, values, fixed, progress):
         t0 = time.perf_counter()
         pt = solve_point(hb, w, lv, Z) if parameter == "omega" else hb.solve(w, lv, Z)
         pt.wall_time = time.perf_counter() - t0
+        pt.kind = "asked"
         branch.points.append(pt)
         branch.steps += 1
         if progress:
             progress(pt)
         if pt.converged:
-            Z = pt.Z
+            Z = pt.Y
         else:
             branch.status, branch.message = "NOT_CONVERGED", f"Newton did not converge at {parameter} = {v:.6g}"
     return branch
 
 
-def _solve_branch(system, parameter, values, fixed, harmonics, samples, continuation, progress, tol, max_dp):
-    hb = HarmonicBalance(system, harmonics, samples)
-    if continuation and len(values) > 1:
-        span = abs(values[-1] - values[0])
-        dp = max_dp if max_dp is not None else span / max(len(values) - 1, 1)
-        branch = trace(hb, parameter, values[0], values[-1], fixed, max_dp=dp, tol=tol, progress=progress)
-    else:
+def monotone_runs(values) -> list[list[float]]:
+    """The asked values split where the sweep turns: consecutive runs share their end points
+    (340, 360, 350 -> [340, 360], [360, 350])."""
+    v = [float(x) for x in values]
+    if len(v) < 2:
+        return [v]
+    runs, cur = [], [v[0], v[1]]
+    for x in v[2:]:
+        if (x - cur[-1]) * (cur[-1] - cur[-2]) > 0:
+            cur.append(x)
+        else:
+            runs.append(cur)
+            cur = [cur[-1], x]
+    return [*runs, cur]
+
+
+def _continued(hb, parameter, values, fixed, progress, tol, max_dp):
+    """Pseudo-arclength through the asked values, run by monotone run, each from the end of
+    the previous one (whose shared first point is not repeated)."""
+    branch, Y = Branch(), None
+    for i, run in enumerate(monotone_runs(values)):
+        span = abs(run[-1] - run[0])
+        dp = max_dp if max_dp is not None else span / max(len(run) - 1, 1)
+        part = trace(
+            hb, parameter, run[0], run[-1], fixed, asked=run[1:-1], max_dp=dp, tol=tol, progress=progress, Z0=Y
+        )
+        branch.points += part.points[1:] if i else part.points
+        branch.steps += part.steps
+        branch.failed_correctors += part.failed_correctors
+        branch.turning_points += part.turning_points
+        if part.status != "OK" or part.message != "completed":
+            branch.status = part.status if part.status != "OK" else branch.status
+            branch.message = part.message if branch.message == "completed" else f"{branch.message}; {part.message}"
+        last = next((p for p in reversed(part.points) if p.converged), None)
+        Y = None if last is None else last.Y
+    return branch
+
+
+def _solve_branch(
+    system, parameter, values, fixed, harmonics, samples, continuation, progress, tol, max_dp, condense="auto"
+):
+    hb = HarmonicBalance(system, harmonics, samples, condense=condense)
+    if continuation and len(values) > 1 and hb.nq:
+        branch = _continued(hb, parameter, values, fixed, progress, tol, max_dp)
+    else:  # one point, no continuation asked, or no contacts (a linear system: nothing to follow)
         branch = _sequential(hb, parameter, values, fixed, progress)
     return hb, branch
 
@@ -125,6 +165,8 @@ def _response_body(
     tol,
     max_dp,
     sweep,
+    condense="auto",
+    asked_only=False,
 ):
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
@@ -134,12 +176,16 @@ def _response_body(
     start = time.perf_counter()
     callback = (lambda pt: progress(pt)) if progress else None
     hb, branch = _solve_branch(
-        system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp
+        system, parameter, values, fixed, harmonics, samples, continuation, callback, tol, max_dp, condense
     )
+    if asked_only:
+        branch.points = [p for p in branch.points if p.kind == "asked"]
     estimates = np.full(len(branch.points), np.nan)
     if adequacy:
         ad = Adequacy(hb, resp)
-        estimates = np.array([ad.estimate(p) if p.converged else np.nan for p in branch.points])
+        estimates = np.array(
+            [ad.estimate(p) if p.converged and p.kind != "continuation" else np.nan for p in branch.points]
+        )  # at the asked and turning points
         worst = float(np.max(estimates[~np.isnan(estimates)])) if np.any(~np.isnan(estimates)) else 0.0
         if worst > adequacy_tolerance and auto_harmonics and int(extended_set(hb.h).max()) <= max_harmonics:
             return _response_body(
@@ -162,6 +208,8 @@ def _response_body(
                 tol=tol,
                 max_dp=max_dp,
                 sweep=sweep,
+                condense=condense,
+                asked_only=asked_only,
             )
         if worst > adequacy_tolerance:
             i = int(np.nanargmax(estimates))
@@ -210,6 +258,8 @@ def frf(
     progress=None,
     tol: float = 1e-10,
     max_df: float | None = None,
+    asked_only: bool = False,
+    condense: str = "auto",
 ) -> xr.Dataset:
     """Frequency response of ``system`` by harmonic balance over ``frequencies`` [Hz].
 
@@ -222,14 +272,18 @@ def frf(
     march from the HBM state at t = 0 (default) rather than the static preload, run options).
     adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
     threshold, and whether to raise H (up to ``max_harmonics``) and recompute instead of warning.
-    progress: a callable called with each solved point (slipstep.hbm.Point)."""
+    progress: a callable called with each solved point (slipstep.hbm.Point).
+    Every asked frequency is returned (``point_kind`` "asked"), in the asked order; the
+    continuation's own points between them are "continuation" (or "turning" where the branch
+    turns back); ``asked_only``: return the asked points only. condense: the unknowns of the
+    balance, "auto" (default), "dofs" or "contacts" (slipstep.hbm.linear.choose_gather)."""
     f = valid_frequencies(frequencies)
     fund = system.excitation.fundamental_frequency if isinstance(system, System) else None
     if isinstance(system, System) and fund is None:
         raise InputError("excitation", "has no harmonic force or motion", "give [[force]] or [[motion]] harmonics")
     level = _positive_level(level)
     sweep = "down" if f.size > 1 and f[-1] < f[0] else "up"
-    return _response(
+    ds = _response(
         system,
         "omega",
         2 * np.pi * f,
@@ -249,7 +303,15 @@ def frf(
         tol=tol,
         max_dp=None if max_df is None else 2 * np.pi * max_df,
         sweep=sweep,
+        condense=condense,
+        asked_only=bool(asked_only),
     )
+    asked = ds["point_kind"].values == "asked"
+    if asked.sum() == f.size:  # the asked values exactly as given (not 2 pi f / 2 pi)
+        freq = ds["frequency"].values.copy()
+        freq[asked] = f
+        ds = ds.assign_coords(frequency=("frequency", freq, ds["frequency"].attrs))
+    return ds
 
 
 def level_response(system: System, frequency_hz: float, levels, **options) -> xr.Dataset:
@@ -276,6 +338,8 @@ def level_response(system: System, frequency_hz: float, levels, **options) -> xr
         "progress": None,
         "tol": 1e-10,
         "max_dp": None,
+        "condense": "auto",
+        "asked_only": False,
     }
     unknown = set(options) - set(opts)
     if unknown:
@@ -370,10 +434,17 @@ def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, p
             v["energy_balance_residual"][i] = (W - Dv - v["energy_per_cycle"][i].sum()) / W
         if "point_time" in v:
             v["point_time"][i] = p.wall_time
-        v["status"][i] = "OK" if p.converged and p.aft_periods > 0 else "NOT_CONVERGED"
+        v["status"][i] = "OK" if p.converged and (p.aft_periods > 0 or hb.nq == 0) else "NOT_CONVERGED"
     v["harmonic_truncation_estimate"][:] = estimates
     v["linear_free_amplitude"][:], v["linear_stuck_amplitude"][:] = _linear_limits(system, freq, level, names)
-    return finalise(ds)
+    ds = finalise(ds)
+    units, long_name = FRF_SCHEMA["point_kind"][1:]
+    ds["point_kind"] = (
+        "frequency",
+        np.array([p.kind for p in pts], dtype=str),
+        {"units": units, "long_name": long_name},
+    )
+    return ds
 
 
 def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:

@@ -18,13 +18,59 @@ then gives the DOF phasors from the contact force phasors
 with Q_h the local displacement phasors (q = A x - B p + g), P_h the prescribed-motion
 phasors and Fe_h the external force phasors; the constant loads are Fe_0. The dynamic
 compliance seen by the contacts is G_h = A D_h^-1 A^T.
+
+The gather (:class:`Gather`, issue 24): A = L W with W x the coordinates y the contacts see,
+either the DOFs with a nonzero column in A (W a selection, L = A[:, dofs]: few when the
+contacts sit on a few rigid-body DOFs, however many contact points) or the contact
+coordinates themselves (W = A, L = I). The balance is written on y (r per harmonic) with the
+compliance S_h = W D_h^-1 W^T (r x r), so that G_h = L S_h L^T is never formed.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from slipstep.errors import InputError
+
+CONDENSE = ("auto", "dofs", "contacts")
+
+
+@dataclass(frozen=True)
+class Gather:
+    """q = L y - B p + g with y = W x: ``mode`` "dofs" (y = x[dofs], L = A[:, dofs]) or
+    "contacts" (y = A x, L = I, dofs None)."""
+
+    mode: str
+    L: np.ndarray  # (nq, r)
+    dofs: np.ndarray | None  # (r,) DOF indices of y (mode "dofs")
+
+    @property
+    def size(self) -> int:
+        """r, the gathered coordinates per harmonic coefficient."""
+        return self.L.shape[1]
+
+    def of_dofs(self, X: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """W X for DOF values X (..., n): (..., r)."""
+        return X[..., self.dofs] if self.dofs is not None else X @ A.T
+
+    def columns(self, Minv: np.ndarray, AT: np.ndarray) -> np.ndarray:
+        """Minv W^T for matrices Minv (..., n, n): (..., n, r)."""
+        return Minv[..., self.dofs] if self.dofs is not None else Minv @ AT
+
+
+def choose_gather(cs, condense: str = "auto") -> Gather:
+    """The gather of a CompiledSystem: ``condense`` "dofs", "contacts", or "auto" (the DOFs
+    with a nonzero column in A when they are fewer than the contact coordinates)."""
+    if condense not in CONDENSE:
+        raise InputError("condense", f"is {condense!r}", f"use one of {list(CONDENSE)}")
+    A = np.asarray(cs.A, dtype=float)
+    nq = A.shape[0]
+    dofs = np.flatnonzero(np.abs(A).sum(axis=0) > 0)
+    if condense == "dofs" or (condense == "auto" and dofs.size < nq):
+        return Gather("dofs", np.ascontiguousarray(A[:, dofs]), dofs)
+    return Gather("contacts", np.eye(nq), None)
 
 
 def excitation_multiples(system, fundamental_hz: float | None = None):
@@ -71,8 +117,9 @@ class LinearPart:
     ``h``: retained harmonics (with 0); ``cs``: CompiledSystem. ``at(omega)`` factorises
     the D_h (batched); the excitation is scaled by ``level`` (constant loads and offsets are not)."""
 
-    def __init__(self, system, cs, h: np.ndarray):
+    def __init__(self, system, cs, h: np.ndarray, gather: Gather | None = None):
         self.cs, self.h = cs, np.asarray(h)
+        self.gather = choose_gather(cs) if gather is None else gather
         self.f0, force, motion, self.f_const = excitation_multiples(system)
         n, nq = cs.M.shape[0], cs.A.shape[0]
         nm = cs.B.shape[1]
@@ -97,15 +144,15 @@ class LinearPart:
         self.g0[0] = cs.g
 
     def at(self, omega: float, level: float = 1.0):
-        """Factorise D_h(omega) and form G_h, the linear local response and D_h^-1."""
+        """Invert D_h(omega) and form S_h = W D_h^-1 W^T (the compliance on the gathered coordinates)."""
         cs, h = self.cs, self.h
         w = h * omega
         D = cs.K[None] - (w**2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD
         self.omega, self.level = omega, level
         self.D = D
         self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
-        self.DinvAT = self.Dinv @ cs.AT[None]  # (nh, n, nq)
-        self.G = cs.A[None] @ self.DinvAT  # (nh, nq, nq)
+        self.DinvWT = self.gather.columns(self.Dinv, cs.AT)  # (nh, n, r)
+        self.S = np.ascontiguousarray(np.swapaxes(self.gather.of_dofs(np.swapaxes(self.DinvWT, 1, 2), cs.A), 1, 2))
         return self
 
     def external(self, level: float | None = None) -> np.ndarray:

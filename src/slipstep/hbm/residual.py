@@ -1,21 +1,26 @@
-"""The multi-harmonic balance condensed onto the contact coordinates.
+"""The multi-harmonic balance condensed onto the coordinates the contacts see.
 
-Unknowns: the harmonic coefficients Z (n_coef x nq) of the local contact displacements
-q = A x - B p + g over the retained harmonics (:mod:`slipstep.hbm.fourier`). With the
-linear part of :mod:`slipstep.hbm.linear` (G_h = A D_h^-1 A^T, the dynamic compliance) the
-balance of harmonic h, condensed onto the contacts, is (phasors, lambda the excitation level)
+Unknowns: the harmonic coefficients Y (n_coef x r) of the gathered coordinates y = W x
+(:class:`slipstep.hbm.linear.Gather`: the DOFs the contacts act on, or the contact coordinates
+themselves), over the retained harmonics (:mod:`slipstep.hbm.fourier`); the local contact
+displacements are q = L y - lambda B p + g (A = L W). With the linear part of
+:mod:`slipstep.hbm.linear` (S_h = W D_h^-1 W^T, the dynamic compliance on y) the balance of
+harmonic h condensed onto y is (phasors, lambda the excitation level)
 
-    R_h = Q_h - Q^lin_h + G_h U_h = 0,
-    U_h = F_h(Q) - Kc_h (Q_h + lambda B P_h - g [h = 0]),
-    Q^lin_h = A D_h^-1 (Fc_h + lambda Fe_h) - lambda B P_h + g [h = 0],
+    R_h = Y_h - W D_h^-1 (Fc_h + lambda Fe_h) + S_h L^T U_h = 0,
+    U_h = F_h(Q) - Kc_h L Y_h,        Q_h = L Y_h - lambda B P_h + g [h = 0],
 
-F_h(Q) the AFT contact forces (:mod:`slipstep.hbm.aft`). Its Jacobian is exact:
+F_h(Q) the AFT contact forces (:mod:`slipstep.hbm.aft`); R_h = W X_h(U) - Y_h with the DOF
+phasors X_h = D_h^-1 (Fc_h + lambda Fe_h - A^T U_h). Its Jacobian is exact:
 
-    dR/dZ = I + G (dF/dZ - Kc)              (G in real 2x2 block form per harmonic),
-    dR_h/dOmega = A D_h^-1 (dD_h/dOmega) X_h,   dD_h/dOmega = -2 h^2 Omega M + i h C,
-    dR_h/dlambda = -A D_h^-1 Fe_h + B P_h - G_h Kc_h B P_h,
+    dR/dY = I + S (L^T (dF/dZ) L - L^T Kc L)     (S in real 2x2 block form per harmonic),
+    dR_h/dOmega = W D_h^-1 (dD_h/dOmega) X_h,   dD_h/dOmega = -2 h^2 Omega M + i h C,
+    dR_h/dlambda = -W D_h^-1 Fe_h - S_h L^T (dF/dZ B P)_h,
 
-with X_h = D_h^-1 (Fc_h + lambda Fe_h - A^T U_h) the DOF phasors (the response).
+L^T (dF/dZ) L from the gathered sample tangents (:meth:`slipstep.hbm.aft.AFT.gathered_jacobian`)
+when y are DOFs, dF/dZ itself when y are the contact coordinates (L = I: the balance of
+issue 13, R = Q - Q^lin + G U with G = A D^-1 A^T). Convergence is judged on the residual
+seen by the contacts, |L R| <= tol x (displacement scale), the same number in both forms.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from threadpoolctl import ThreadpoolController
 from slipstep.errors import InputError
 from slipstep.hbm.aft import AFT
 from slipstep.hbm.fourier import Basis, harmonic_set
-from slipstep.hbm.linear import LinearPart
+from slipstep.hbm.linear import LinearPart, choose_gather
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
 from slipstep.system import System
@@ -77,18 +82,29 @@ class Point:
     aft_periods: int
     ft: np.ndarray | None = None  # (N, nq) the AFT force samples
     qt: np.ndarray | None = None  # (N, nq) the local displacement samples
-    tangent: tuple | None = None  # continuation: (t_Z (n_coef, nq), t_p, z_scale, p_scale, parameter), scaled
+    tangent: tuple | None = None  # continuation: (t_Y (n_coef, r), t_p, z_scale, p_scale, parameter), scaled
     wall_time: float = float("nan")  # s spent on the point (set by the FRF drivers)
+    Y: np.ndarray | None = None  # (n_coef, r) the unknowns: coefficients of the gathered coordinates
+    kind: str = "continuation"  # "asked" (a requested frequency), "continuation" or "turning"
 
 
 class HarmonicBalance:
     """The condensed balance of one System on one harmonic set.
 
     ``harmonics``: int H (0..H) or a set like (1, 3, 5); the excitation's own multiples are
-    added when missing. ``samples``: AFT time samples per period (default 8 H, power of 2)."""
+    added when missing. ``samples``: AFT time samples per period (default 8 H, power of 2).
+    ``condense``: the unknowns, "dofs" (the DOFs the contacts act on), "contacts" (the contact
+    coordinates) or "auto" (the fewer; slipstep.hbm.linear.choose_gather)."""
 
     def __init__(
-        self, system: System, harmonics=5, samples: int | None = None, *, aft_max_periods: int = 50, preload=None
+        self,
+        system: System,
+        harmonics=5,
+        samples: int | None = None,
+        *,
+        aft_max_periods: int = 50,
+        preload=None,
+        condense: str = "auto",
     ):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
@@ -104,10 +120,12 @@ class HarmonicBalance:
         h = harmonic_set(harmonics)
         self.system = system
         self.cs = cs = system.compile_dense("harmonic balance")
-        lin0 = LinearPart(system, cs, h)
+        self.gather = choose_gather(cs, condense)
+        self.L = self.gather.L
+        lin0 = LinearPart(system, cs, h, self.gather)
         if lin0.missing:
             h = np.unique(np.concatenate([h, lin0.missing]))
-            lin0 = LinearPart(system, cs, h)
+            lin0 = LinearPart(system, cs, h, self.gather)
         self.h = h
         if samples is None:
             samples = default_samples(int(h.max()))
@@ -123,18 +141,28 @@ class HarmonicBalance:
         self.length_scale = cs.length_scale
 
     # -- pieces ---------------------------------------------------------------------------
+    @property
+    def r(self) -> int:
+        """Gathered coordinates per harmonic coefficient."""
+        return self.gather.size
+
     def initial_guess(self) -> np.ndarray:
-        """Z at the static preload (q constant: every contact stuck, one Newton step from it
+        """Y at the static preload (y constant: every contact stuck, one Newton step from it
         gives the stuck linear response)."""
-        Z = np.zeros((self.basis.n_coef, self.nq))
-        Z[0] = self.cs.A @ self.x_pre + self.cs.g
-        return Z
+        Y = np.zeros((self.basis.n_coef, self.r))
+        Y[0] = self.gather.of_dofs(self.x_pre, self.cs.A)
+        return Y
+
+    def local(self, Y: np.ndarray, level: float) -> np.ndarray:
+        """Z (n_coef, nq): the coefficients of q = L y - lambda B p + g."""
+        lin = self.linear
+        return Y @ self.L.T + self.basis.coefficients(lin.g0 - level * (lin.P @ self.cs.B.T))
 
     def _real_blocks(self, G: np.ndarray) -> np.ndarray:
-        """The real (n_coef nq)^2 form of per-harmonic complex matrices G (nh, nq, nq) acting
+        """The real (n_coef r)^2 form of per-harmonic complex matrices G (nh, r, r) acting
         on phasors Y = a - i b: [y_a; y_b] = [[Gr, Gi], [-Gi, Gr]] [u_a; u_b]."""
-        nq, nc = self.nq, self.basis.n_coef
-        out = np.zeros((nc, nq, nc, nq))
+        r, nc = G.shape[1], self.basis.n_coef
+        out = np.zeros((nc, r, nc, r))
         out[0, :, 0, :] = G[0].real
         for i in range(1, G.shape[0]):
             a, b = 2 * i - 1, 2 * i
@@ -142,107 +170,133 @@ class HarmonicBalance:
             out[a, :, b, :] = G[i].imag
             out[b, :, a, :] = -G[i].imag
             out[b, :, b, :] = G[i].real
-        return out.reshape(nc * nq, nc * nq)
+        return out.reshape(nc * r, nc * r)
+
+    def _gathered_tangent(self) -> np.ndarray:
+        """L^T (dF/dZ) L of the last AFT cycle, (n_coef r)^2."""
+        if self.gather.mode == "contacts":
+            return self.aft.jacobian()
+        return self.aft.gathered_jacobian(self.L)
 
     def evaluate(
-        self, Z: np.ndarray, omega: float, level: float = 1.0, *, jacobian: bool = True, refactor: bool = True
+        self, Y: np.ndarray, omega: float, level: float = 1.0, *, jacobian: bool = True, refactor: bool = True
     ):
-        """R (n_coef nq,), and with ``jacobian`` dR/dZ, dR/dOmega, dR/dlambda, at (Z, omega, level)."""
-        b, lin, cs = self.basis, self.linear, self.cs
+        """R (n_coef r,), and with ``jacobian`` dR/dY, dR/dOmega, dR/dlambda, at (Y, omega, level)."""
+        b, lin, cs, L = self.basis, self.linear, self.cs, self.L
         if refactor or getattr(lin, "omega", None) != omega:
             lin.at(omega, level)
         lin.level = level
-        F, dF = self.aft.evaluate(Z, jacobian)
-        Q, Fp = b.phasors(Z), b.phasors(F)
-        BP = level * (lin.P @ cs.B.T)
-        U = Fp - lin.Kc * (Q + BP - lin.g0)
+        Z = self.local(Y, level)
+        F, _ = self.aft.evaluate(Z, False)
+        LY = b.phasors(Y) @ L.T
+        U = b.phasors(F) - lin.Kc * LY
+        LtU = U @ L
         Xe = np.einsum("hnm,hm->hn", lin.Dinv, lin.external(level))
-        Qlin = Xe @ cs.AT - BP + lin.g0
-        R = Q - Qlin + np.einsum("hrs,hs->hr", lin.G, U)
-        self._last = (F, U, Xe)
+        R = b.phasors(Y) - self.gather.of_dofs(Xe, cs.A) + np.einsum("hrs,hs->hr", lin.S, LtU)
         Rr = b.coefficients(R).ravel()
         if not jacobian:
             return Rr
-        Gr = self._real_blocks(lin.G)
-        kc = np.zeros((b.n_coef, self.nq))
-        kc[0] = lin.Kc[0]
-        J = np.eye(Rr.size) + Gr @ (dF - np.diag(kc.ravel()))
-        X = Xe - np.einsum("hnm,hm->hn", lin.DinvAT, U)
+        Sr = self._real_blocks(lin.S)
+        T = self._gathered_tangent()
+        r = self.r
+        T[:r, :r] -= (L.T * lin.Kc[0]) @ L
+        J = Sr @ T
+        J[np.diag_indices_from(J)] += 1.0
+        X = Xe - np.einsum("hnm,hm->hn", lin.DinvWT, LtU)
         dD = lin.dD_domega()
-        dR_dw = np.einsum("hnm,hm->hn", lin.Dinv, np.einsum("hmk,hk->hm", dD, X)) @ cs.AT
-        Pb = lin.P @ cs.B.T
-        dR_dl = -(np.einsum("hnm,hm->hn", lin.Dinv, lin.Fe) @ cs.AT) + Pb - np.einsum("hrs,hs->hr", lin.G, lin.Kc * Pb)
+        dR_dw = self.gather.of_dofs(np.einsum("hnm,hm->hn", lin.Dinv, np.einsum("hmk,hk->hm", dD, X)), cs.A)
+        dR_dl = -self.gather.of_dofs(np.einsum("hnm,hm->hn", lin.Dinv, lin.Fe), cs.A)
+        if cs.B.shape[1] and np.any(lin.P != 0):
+            V = b.coefficients(-(lin.P @ cs.B.T))
+            dF = (self.aft.jacobian() @ V.ravel()).reshape(V.shape) if self.gather.mode == "contacts" else None
+            dF = self.aft.tangent_times(V) if dF is None else dF
+            dR_dl = dR_dl + np.einsum("hrs,hs->hr", lin.S, b.phasors(dF) @ L)
         return Rr, J, b.coefficients(dR_dw).ravel(), b.coefficients(dR_dl).ravel()
 
-    def dofs(self, Z: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
-        """DOF phasors X_h (nh, n) of a solution (after :meth:`evaluate` at its omega, level)."""
-        b = self.basis
-        if F is None:
-            F, _ = self.aft.evaluate(Z, False)
-        return self.linear.dofs(b.phasors(Z), b.phasors(F))
+    def dofs(self, Y: np.ndarray, level: float | None = None) -> np.ndarray:
+        """DOF phasors X_h (nh, n) of a solution Y (after :meth:`evaluate` at its omega, level)."""
+        b, lin = self.basis, self.linear
+        Z = self.local(Y, lin.level if level is None else level)
+        F, _ = self.aft.evaluate(Z, False)
+        return lin.dofs(b.phasors(Z), b.phasors(F))
 
-    def scale(self, Z: np.ndarray | None = None) -> float:
-        """Displacement scale for tolerances [m]: the largest coefficient, at least the system's length scale."""
+    def scale(self, Y: np.ndarray | None = None, level: float = 1.0) -> float:
+        """Displacement scale for tolerances [m]: the largest local displacement coefficient
+        (harmonics >= 1), at least the system's length scale."""
         s = self.length_scale
-        if Z is not None:
-            s = max(s, float(np.abs(Z[1:]).max(initial=0.0)))
+        if Y is not None and self.nq:
+            s = max(s, float(np.abs(self.local(Y, level)[1:]).max(initial=0.0)))
         return s
 
     # -- one point --------------------------------------------------------------------------
+    def residual_norm(self, R: np.ndarray) -> float:
+        """|L R|: the residual seen by the contacts [m] (R flat, n_coef r)."""
+        return float(np.linalg.norm(R.reshape(self.basis.n_coef, self.r) @ self.L.T))
+
+    def converged(self, R: np.ndarray, Y: np.ndarray, level: float, tol: float) -> bool:
+        """The convergence test of every solver here: |L R| <= tol x scale(Y)."""
+        return self.residual_norm(R) <= tol * self.scale(Y, level)
+
     def solve(
         self,
         omega: float,
         level: float = 1.0,
-        Z0: np.ndarray | None = None,
+        Y0: np.ndarray | None = None,
         *,
         tol: float = 1e-10,
         max_iterations: int = 50,
     ) -> Point:
-        """Newton on R(Z) = 0 at fixed (omega, level), exact Jacobian, backtracking on |R|."""
+        """Newton on R(Y) = 0 at fixed (omega, level), exact Jacobian, backtracking on |R|."""
         with blas_threads(self.size):
-            return self._solve(omega, level, Z0, tol, max_iterations)
+            return self._solve(omega, level, Y0, tol, max_iterations)
 
     @property
     def size(self) -> int:
-        """Number of unknowns (harmonic coefficients of the local displacements)."""
-        return self.basis.n_coef * self.nq
+        """Number of unknowns (harmonic coefficients of the gathered coordinates)."""
+        return self.basis.n_coef * self.r
 
-    def _solve(self, omega, level, Z0, tol, max_iterations) -> Point:
-        Z = self.initial_guess() if Z0 is None else np.array(Z0, dtype=float)
-        shape = Z.shape
+    def _solve(self, omega, level, Y0, tol, max_iterations) -> Point:
+        Y = self.initial_guess() if Y0 is None else np.array(Y0, dtype=float)
+        shape = Y.shape
         self.linear.at(omega, level)
-        R, J, _, _ = self.evaluate(Z, omega, level, refactor=False)
+        R, J, _, _ = self.evaluate(Y, omega, level, refactor=False)
         norm = np.linalg.norm(R)
         it, converged = 0, False
         for it in range(1, max_iterations + 1):
-            if norm <= tol * self.scale(Z):
+            if self.converged(R, Y, level, tol):
                 converged = True
                 it -= 1
                 break
-            dz = np.linalg.solve(J, -R)
+            try:
+                dy = np.linalg.solve(J, -R)
+            except np.linalg.LinAlgError:
+                break
             alpha = 1.0
             for _ in range(8):
-                Zt = Z + alpha * dz.reshape(shape)
-                Rt = self.evaluate(Zt, omega, level, jacobian=False, refactor=False)
+                Yt = Y + alpha * dy.reshape(shape)
+                Rt = self.evaluate(Yt, omega, level, jacobian=False, refactor=False)
                 nt = np.linalg.norm(Rt)
-                if nt < norm * (1 - 1e-4 * alpha) or nt <= tol * self.scale(Zt):
+                if nt < norm * (1 - 1e-4 * alpha) or self.converged(Rt, Yt, level, tol):
                     break
                 alpha *= 0.5
-            Z = Zt
-            R, J, _, _ = self.evaluate(Z, omega, level, refactor=False)
+            Y = Yt
+            R, J, _, _ = self.evaluate(Y, omega, level, refactor=False)
             norm = np.linalg.norm(R)
         else:
-            converged = norm <= tol * self.scale(Z)
-        return self.point(Z, omega, level, it, converged, norm)
+            converged = self.converged(R, Y, level, tol)
+        return self.point(Y, omega, level, it, converged, self.residual_norm(R))
 
-    def point(self, Z, omega, level, iterations, converged, residual) -> Point:
-        """Package a solution (the AFT state must be that of Z)."""
+    def point(self, Y, omega, level, iterations, converged, residual) -> Point:
+        """Package a solution: Y, its local displacements Z, the AFT forces F and the DOF
+        phasors X (the linear part must be at omega)."""
+        self.linear.level = level
+        Z = self.local(Y, level)
         F, _ = self.aft.evaluate(Z, False)
         X = self.linear.dofs(self.basis.phasors(Z), self.basis.phasors(F))
         return Point(
             omega,
             level,
-            Z.copy(),
+            Z,
             F,
             X,
             iterations,
@@ -251,4 +305,5 @@ class HarmonicBalance:
             int(self.aft.periods),
             self.aft.ft.copy(),
             self.aft.qt.copy(),
+            Y=np.array(Y, dtype=float),
         )
