@@ -288,3 +288,15 @@ def test_error_variables_are_in_the_schema_with_units():
     ds = frf_at_defaults("shoot", FREQUENCIES[:2])[0]
     assert ds["status_message"].dtype.kind == "U" and ds["error_estimate"].attrs["units"] == "1"
     assert not math.isnan(reference(FREQUENCIES[0])["excitation_work"])
+
+
+def test_a_point_not_steady_keeps_its_status_and_step_without_an_estimate(tmp_path):
+    ds = frf(ss.load_system(JENKINS), [350.0], solver="march", max_periods=2, linear=False)
+    assert ds["status"].values[0] == "NOT_STEADY" and "not steady after 2" in ds["status_message"].values[0]
+    assert np.isnan(ds["error_estimate"].values[0]) and ds["steps_per_period"].values[0] == DEFAULT_STEPS
+    r = _cli(
+        "frf", str(JENKINS), "-f", "340,350", "--solver", "march", "--max-periods", "2", "-o", str(tmp_path), "--json"
+    )
+    assert r.exit_code == 1, r.output
+    s = _strict_json(r.stdout)
+    assert s["points_not_ok"] == 2 and s["max_error_estimate"] is None and s["points_without_estimate"] == 2

@@ -208,12 +208,12 @@ def sweep(
 def _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements) -> dict:
     """The FRF values of one point from its first steady state: refined by step doubling when it
     converged (slipstep.frequency.error_estimate), else as it ended, with the solver's message."""
-    if steady.status != "OK":
-        values = (
-            point_values(steady, system_f, responses, n_harmonics)
-            if steady.status == "NOT_STEADY"
-            else {"status": steady.status, "periods_to_steady": steady.periods}
-        )
+    if steady.status != "OK":  # no estimate; the step of a period that was marched is recorded
+        if steady.status == "NOT_STEADY":
+            values = point_values(steady, system_f, responses, n_harmonics)
+            values.update(steps_per_period=steps_of(steady), time_step=system_f.period / steps_of(steady))
+        else:
+            values = {"status": steady.status, "periods_to_steady": steady.periods}
         values.update(steady=steady, status_message=steady.message)
         return values
     result = refine(
