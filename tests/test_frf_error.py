@@ -300,3 +300,15 @@ def test_a_point_not_steady_keeps_its_status_and_step_without_an_estimate(tmp_pa
     assert r.exit_code == 1, r.output
     s = _strict_json(r.stdout)
     assert s["points_not_ok"] == 2 and s["max_error_estimate"] is None and s["points_without_estimate"] == 2
+
+
+def test_rtol_none_gives_the_points_as_solved():
+    system = ss.load_system(JENKINS)
+    ds = frf(system, [350.0], solver="shoot", rtol=None, linear=False)
+    s = retune(system, 350.0)
+    v = point_values(shoot(s), s, ["x"], 1)
+    assert float(ds["energy_per_cycle"].values.sum()) == pytest.approx(float(v["energy_per_cycle"].sum()), rel=1e-9)
+    assert ds["steps_per_period"].values[0] == DEFAULT_STEPS and np.isnan(ds["error_estimate"].values[0])
+    assert "rtol" not in ds.attrs and ds.attrs["error_estimate_method"] == "none"
+    with pytest.raises(InputError, match="rtol"):
+        frf(system, [350.0], solver="hbm", rtol=None)

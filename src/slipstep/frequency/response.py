@@ -208,7 +208,13 @@ def sweep(
 def _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements) -> dict:
     """The FRF values of one point from its first steady state: refined by step doubling when it
     converged (slipstep.frequency.error_estimate), else as it ended, with the solver's message."""
-    if steady.status != "OK":  # no estimate; the step of a period that was marched is recorded
+    if steady.status != "OK" or rtol is None:  # no estimate; the step of a period that was marched is recorded
+        if steady.status == "OK":  # rtol None: the point as solved, without the step doubling
+            values = point_values(steady, system_f, responses, n_harmonics)
+            values.update(
+                steady=steady, steps_per_period=steps_of(steady), time_step=system_f.period / steps_of(steady)
+            )
+            return values
         if steady.status == "NOT_STEADY":
             values = point_values(steady, system_f, responses, n_harmonics)
             values.update(steps_per_period=steps_of(steady), time_step=system_f.period / steps_of(steady))
@@ -284,7 +290,7 @@ def frf(
     steady-state solver (max_periods, min_steps_per_period, initial, RunOptions ...).
     rtol: the relative error of the energy per cycle allowed per point (error_estimate: step
     doubling for march and shoot, refined up to ``max_refinements`` times; the truncation
-    estimate for hbm); a point above it keeps its status, gets a status_message, and one
+    estimate for hbm; None: march and shoot points as solved, no step doubling, no estimate); a point above it keeps its status, gets a status_message, and one
     FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
     frequency, steady) is called after every point (hbm: every continuation step, steady None).
     Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep
@@ -294,7 +300,7 @@ def frf(
         raise InputError("solver", f"is {solver!r}", f"use one of {', '.join(SOLVERS)}")
     if direction not in ("up", "down", "both"):
         raise InputError("direction", f"is {direction!r}", "use 'up', 'down' or 'both'")
-    check_accuracy_options(rtol, max_refinements)
+    check_accuracy_options(DEFAULT_RTOL if rtol is None and solver != "hbm" else rtol, max_refinements)
     f = np.sort(check_frequencies(frequencies))
     reason = ""
     if solver == "auto":
@@ -328,10 +334,11 @@ def frf(
         )
         _accuracy_warning(out, rtol)
     out.attrs.update(
-        rtol=rtol,
         solver_reason=reason,
-        error_estimate_method=HBM_ERROR_METHOD if solver == "hbm" else METHOD_TEXT,
+        error_estimate_method=HBM_ERROR_METHOD if solver == "hbm" else (METHOD_TEXT if rtol is not None else "none"),
     )
+    if rtol is not None:
+        out.attrs["rtol"] = rtol
     return finalise(out)
 
 
@@ -455,6 +462,8 @@ def _hbm(system, f, direction, responses, harmonics, method, tolerance, rtol, pr
 
 def _accuracy_warning(ds: xr.Dataset, rtol: float) -> None:
     """One FrfAccuracyWarning for the points whose error estimate stays above rtol."""
+    if rtol is None:
+        return
     est = np.asarray(ds["error_estimate"].values, float).ravel()
     above = np.flatnonzero(est > rtol)
     if above.size:
