@@ -23,8 +23,23 @@ Printed:
 * with ``--full``: the same march on the unreduced assembly (Method 3), as an independent
   check of the reduction on the nonlinear response (tip amplitude difference).
 
+With ``--frf`` (issue 24: the designer's job at the designer's size): the forced response
+between 0.7 and 1.1 times the first stuck frequency on ``--frf-points`` frequencies, side by
+side for the solvers a user would pick, each timed on the same model in the same run:
+* shoot (slipstep.frequency.frf, solver "shoot"): every point, its status and Floquet stability;
+  the one-period Jacobian's cost split (free unknowns only, as shooting builds it, against all
+  sliders as unknowns: the pre-issue-24 column count) and the arithmetic floor of its two
+  matrix products at the dgemm rate measured in this run;
+* hbm (slipstep.hbm.frf at H = ``--harmonics``, without the marching cross-check): every point;
+* march (solver "march", the steady state by marching): on ``--march-points`` points only
+  (it needs hundreds of periods per point where the stuck damper rings undamped);
+and the largest amplitude difference between the solvers at the common points. The figures of
+the issue (this machine kind, before): shoot 487 s for 61 points, HBM unfinished after 1,500 s.
+
 Usage:  python benchmarks/bench_blade_pair.py [--quick] [--elements 60] [--points 50]
             [--modes 10] [--periods 3] [--repeats 5] [--full] [--json FILE]
+        python benchmarks/bench_blade_pair.py --frf [--elements 166 --points 100 --modes 10]
+            [--frf-points 61] [--harmonics 7] [--march-points 3] [--solvers shoot,hbm,march]
 """
 
 from __future__ import annotations
@@ -144,7 +159,14 @@ def main():
     ap.add_argument("--frequency", type=float, default=None, help="Hz (default 0.9 x first stuck mode)")
     ap.add_argument("--full", action="store_true", help="also march the unreduced assembly (Method 3)")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--frf", action="store_true", help="time the forced response by shoot, hbm and march")
+    ap.add_argument("--frf-points", type=int, default=61)
+    ap.add_argument("--harmonics", type=int, default=7)
+    ap.add_argument("--march-points", type=int, default=3)
+    ap.add_argument("--solvers", default="shoot,hbm,march")
     args = ap.parse_args()
+    if args.frf:
+        return frf_benchmark(args)
     if args.quick:
         args.points, args.periods, args.repeats = 20, 2.0, 3
 
@@ -230,6 +252,118 @@ def main():
             f" tip amplitude {amp * 1e6:.3f} um, reduced/full - 1 = {amps['3'] / amp - 1:.2e}"
         )
         rows["full"] = {"dofs": full_system.structure.n_dofs, "tip_amplitude_m": amp, "status": ds.attrs["status"]}
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=2)
+
+
+def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
+    """The one-period Jacobian of shooting on a converged orbit: time with the free unknowns
+    (x, v and the sliders that leave stick) against every slider as an unknown, and the floor
+    of its two products per step (n x (3n + na) times (3n + na) x m, and the moving sliders'
+    rows) at the dgemm rate of this machine measured here."""
+    from slipstep.frequency.retune import retune
+    from slipstep.steady import shoot
+    from slipstep.steady.marching import march_one_period, period_simulation, start
+    from slipstep.steady.shooting import moving_sliders, period_jacobian
+
+    system_f = retune(system, frequency_hz)
+    steady = shoot(system_f)
+    sim = period_simulation(system_f, "piecewise-linear", None, {})
+    start(sim, steady.final_state, 0.0)
+    march_one_period(sim)
+    n, nd = system_f.n_dofs, len(system_f.direction_names())
+    free = moving_sliders(sim)
+    steps = int(sim.dataset().attrs["steps"])
+    timing = {}
+    for label, sliders in (("free", free), ("all", None)):
+        period_jacobian(sim, sliders)
+        t = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            period_jacobian(sim, sliders)
+            t.append(time.perf_counter() - t0)
+        timing[label] = min(t)
+    na = free.size
+    rows, cols = 3 * n + na, 2 * n + na
+    flops = steps * 2.0 * (n * rows * cols + na * n * cols)  # worst case: every slider moving every step
+    a, b = np.random.default_rng(0).random((n, rows)), np.random.default_rng(1).random((rows, cols))
+    reps = 200
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        a @ b
+    rate = reps * 2.0 * n * rows * cols / (time.perf_counter() - t0)
+    return {
+        "steps_per_period": steps,
+        "moving_sliders": int(na),
+        "sliders": nd,
+        "jacobian_free_s": timing["free"],
+        "jacobian_all_sliders_s": timing["all"],
+        "dgemm_flops_per_s": rate,
+        "jacobian_floor_s": flops / rate,
+        "march_period_s": float(sim.kernel_time),
+    }
+
+
+def frf_benchmark(args) -> None:
+    """The --frf comparison (module docstring)."""
+    from slipstep.frequency.response import frf
+    from slipstep.hbm import frf as hbm_frf
+
+    cb = reduced(blade(args.elements), args.modes)
+    f1 = stuck_frequencies(pair(cb, args.points, None), 1)[0]
+    system = pair(cb, args.points, f1)
+    cs = system.compile()
+    freqs = np.linspace(0.7 * f1, 1.1 * f1, args.frf_points)
+    tip = "blade1." + cb.points["tip"].dofs["x"]
+    print(
+        f"blade pair: {cs.M.shape[0]} DOFs after Craig-Bampton ({args.elements} elements per blade), "
+        f"{len(system.contacts)} contact points ({cs.A.shape[0]} contact coordinates); first stuck mode "
+        f"{f1:.2f} Hz; {args.frf_points} points {freqs[0]:.1f}-{freqs[-1]:.1f} Hz"
+    )
+    solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
+    rows, amps = {}, {}
+    frf(system, freqs[:1], solver="shoot", linear=False, responses=[tip])  # compile outside the timings
+    for name in solvers:
+        grid = freqs if name != "march" else freqs[:: max(1, len(freqs) // max(args.march_points, 1))][: args.march_points]
+        t0 = time.perf_counter()
+        if name == "hbm":
+            ds = hbm_frf(system, grid, harmonics=args.harmonics, responses=[tip], check="none")
+        else:
+            ds = frf(system, grid, solver=name, responses=[tip], linear=False)
+        wall = time.perf_counter() - t0
+        status = [str(s) for s in ds["status"].values.ravel()]
+        ok = sum(s == "OK" for s in status)
+        f_out = ds["frequency"].values
+        amp = ds["amplitude"].sel(response=tip).values.ravel()
+        amps[name] = dict(zip(np.round(f_out, 9), amp))
+        extra = ""
+        if "floquet_multiplier_max" in ds and name == "shoot":
+            fm = ds["floquet_multiplier_max"].values.ravel()
+            extra = f", stable {int(np.sum(fm < 1))} of {fm.size} (|Floquet| max {np.nanmax(fm):.4f})"
+        print(
+            f"{name:>6}: {len(f_out):3d} points in {wall:7.1f} s ({wall / max(len(f_out), 1):6.3f} s per point), "
+            f"{ok} OK{extra}"
+        )
+        rows[name] = {"points": len(f_out), "wall_s": wall, "per_point_s": wall / max(len(f_out), 1), "ok": ok}
+    if "shoot" in amps:
+        peak = max(amps["shoot"], key=amps["shoot"].get)
+        for name in amps:
+            common = [f for f in amps[name] if f in amps["shoot"]]
+            if name != "shoot" and common:
+                d = max(abs(amps[name][f] / amps["shoot"][f] - 1) for f in common)
+                print(f"  {name} against shoot: largest relative amplitude difference {d:.2e} at {len(common)} points")
+        split = jacobian_split(system, float(peak))
+        print(
+            f"  shooting at the peak ({peak:.2f} Hz): {split['steps_per_period']} steps per period, "
+            f"{split['moving_sliders']} of {split['sliders']} sliders leave stick; period march "
+            f"{split['march_period_s'] * 1e3:.1f} ms; Jacobian {split['jacobian_free_s'] * 1e3:.1f} ms over the free "
+            f"unknowns, {split['jacobian_all_sliders_s'] * 1e3:.1f} ms with every slider as an unknown, floor "
+            f"{split['jacobian_floor_s'] * 1e3:.1f} ms ({split['jacobian_free_s'] / split['jacobian_floor_s']:.1f}x) "
+            f"at {split['dgemm_flops_per_s'] / 1e9:.1f} GFLOP/s"
+        )
+        rows["jacobian"] = split
+    print("issue 24 (before): shoot 487 s for 61 points (8 s per point); hbm not finished after 1,500 s")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=2)

@@ -99,11 +99,19 @@ def test_blades_quasi_static_damper_shooting():
     scaled = lambda J: J * scale[None, :] / scale[:, None]  # noqa: E731
     assert np.abs(scaled(phi) - scaled(fd)).max() <= 1e-5 * np.abs(scaled(fd)).max()
 
-    shot = shoot(system, method="quasi-static-dofs", tolerance=1e-9)
-    marched = march_to_steady(system, "quasi-static-dofs", tolerance=1e-9, max_periods=3000)
-    dynamic = shoot(system, tolerance=1e-9)
+    # at a resolved step (1,024 per period: both within 5e-4 of 4,096): the quasi-static damper
+    # 1.8950e-4 m, the dynamic one 1.7986e-4 m. The 5.4 % between them is the damper's inertia,
+    # which this case does not make negligible (at T / 50 the two happened to agree within 1 %:
+    # the discretisation error of the coarse step)
+    shot = shoot(system, method="quasi-static-dofs", tolerance=1e-9, steps_per_period=1024)
+    marched = march_to_steady(system, "quasi-static-dofs", tolerance=1e-9, max_periods=3000, steps_per_period=1024)
+    dynamic = shoot(system, tolerance=1e-9, steps_per_period=1024)
     assert shot.ok and marched.ok and dynamic.ok
     tip = [np.ptp(r.period["displacement"].sel(dof=TIP).values) / 2 for r in (shot, marched, dynamic)]
     assert tip[0] == pytest.approx(tip[1], rel=1e-4)
-    assert tip[0] == pytest.approx(tip[2], rel=0.01)
-    assert shot.period.attrs["steps"] < dynamic.period.attrs["steps"]  # the blades set the step, not the damper
+    assert tip[0] == pytest.approx(tip[2], rel=0.07)
+    assert tip[0] > tip[2]  # without its inertia the damper holds less: the blade moves more
+    # under the T_min rule of runs the damper without inertia no longer sets the step: the blades do
+    qs_rule = shoot(system, method="quasi-static-dofs", tolerance=1e-9, step_ratio=1.0)
+    dyn_rule = shoot(system, tolerance=1e-9, step_ratio=1.0)
+    assert qs_rule.period.attrs["steps"] < dyn_rule.period.attrs["steps"]

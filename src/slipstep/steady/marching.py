@@ -14,6 +14,8 @@ import numpy as np
 from slipstep.methods import save as SV
 from slipstep.errors import InputError, Status
 from slipstep.kernels.codes import C_STEPS
+from slipstep.kernels.codes import PIECEWISE_LINEAR
+from slipstep.methods.registry import Method, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.state import (
     State,
@@ -26,12 +28,27 @@ from slipstep.steady.state import (
 from slipstep.system import System
 
 
+#: the steady states' fixed step T / N of the piecewise-linear Newmark methods (see period_simulation)
+STEADY_STEPS_PER_PERIOD = 256
+
+#: run options that set the step themselves (the steady step rule then leaves it to them)
+STEP_OPTIONS = ("dt", "max_step", "step_ratio", "rtol")
+
+
 def period_simulation(system: System, method, min_steps_per_period: int | None, run_options: dict) -> Simulation:
     """A Simulation that marches exactly one excitation period per call of ``march()``.
 
-    ``min_steps_per_period`` caps the step at T / N (accuracy: the phase error of the
-    trapezoidal rule is about (Omega dt)^2 / 12, amplified near a resonance by its quality
-    factor); without it the run options' max_step rule applies."""
+    The step: the piecewise-linear Newmark methods (Method 3, quasi-static-dofs) solve each step
+    without iterating, so neither Newton's convergence nor the T_min rule of the paper bounds
+    their step; the trapezoidal rule is unconditionally stable. Their steady states march with
+    the fixed step dt = T / N, N = ``steps_per_period`` of the run options (default
+    STEADY_STEPS_PER_PERIOD; at least ``min_steps_per_period``): accuracy alone sets it (phase
+    error about (Omega dt)^2 / 12, amplified near a resonance by its quality factor; the FRF's
+    error estimate says how large). A fixed step also keeps the discrete period map the same
+    function of the start from one Newton iteration to the next. The other methods (Newton
+    iterations, adaptive steps, quasi-static) keep the run options' step rule, with
+    ``min_steps_per_period`` capping the step at T / N; so do the piecewise-linear methods when
+    a step option (dt, max_step, step_ratio, rtol) is given."""
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
     T = system.period
@@ -47,8 +64,8 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
                 key, "is set by the steady-state solver (one period per march)", "use max_periods and tolerance instead"
             )
     opts = dict(run_options)
-    # one-period continued marches: the step is the T_min / max_step / min_steps_per_period rule
-    # (the default rule's step-doubling refinement pilots a run from the preload: issue 8)
+    # one-period continued marches (the default rule's step-doubling refinement pilots a run from
+    # the preload: issue 8)
     opts.setdefault("error_estimate", False)
     if min_steps_per_period is not None:
         if (
@@ -57,6 +74,14 @@ def period_simulation(system: System, method, min_steps_per_period: int | None, 
             or min_steps_per_period < 2
         ):
             raise InputError("min_steps_per_period", f"is {min_steps_per_period!r}", "give a whole number >= 2")
+    spec = method if isinstance(method, Method) else get_method(method)
+    fixed = spec.solver == PIECEWISE_LINEAR and not spec.adaptive and not spec.quasi_static
+    if fixed and not any(opts.get(key) is not None for key in STEP_OPTIONS):
+        n_steps = opts.pop("steps_per_period", STEADY_STEPS_PER_PERIOD)
+        if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 2:
+            raise InputError("steps_per_period", f"is {n_steps!r}", "give a whole number >= 2 (e.g. 256)")
+        opts["dt"] = T / max(int(n_steps), min_steps_per_period or 0)
+    elif min_steps_per_period is not None:
         opts["max_step"] = min(opts.get("max_step") or math.inf, T / min_steps_per_period)
     opts.setdefault("save", "all")  # the period change and the shooting replay read every DOF at every step
     sim = Simulation(system, method, periods=1.0, **opts)

@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 from slipstep.errors import InputError, SolverError, Status
-from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED
+from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED, STICK
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.kernels.settings import contact_table
 from slipstep.methods.massless import inverse_mass
@@ -46,7 +46,7 @@ from slipstep.steady.marching import (
     period_simulation,
     start,
 )
-from slipstep.steady.state import State, as_state, period_scales
+from slipstep.steady.state import State, SteadyState, as_state, period_scales
 from slipstep.system import System
 
 
@@ -60,22 +60,31 @@ def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
     return State(z[:n].copy(), z[n : 2 * n].copy(), None, z[2 * n :].copy(), states)
 
 
-def period_jacobian(sim: Simulation) -> np.ndarray:
-    """Phi = dP/dz of the period just marched by ``sim`` (from the start set by start_from):
-    exact through the recorded steps (kernels/sensitivity.py) when every step's state has a
+def period_jacobian(sim: Simulation, sliders: np.ndarray | None = None) -> np.ndarray:
+    """Phi = dP/dz of the period just marched by ``sim`` (from the start set by start_from), over
+    the unknowns z = (x, v, w[sliders]) (quasi-static: (x, w[sliders])); ``sliders`` default:
+    all. Exact through the recorded steps (kernels/sensitivity.py) when every step's state has a
     piecewise-linear form, by central differences of the period map when a friction-circle
-    contact slipped (:func:`finite_difference_jacobian`: there the step depends on the slip
-    direction, not on the state alone)."""
+    contact slipped (:func:`finite_difference_jacobian`, all sliders: there the step depends on
+    the slip direction, not on the state alone). A slider left out must stay stuck over the
+    period (:func:`moving_sliders`): its w is then constant."""
     if coupled_period(sim):
-        return finite_difference_jacobian(sim)
+        phi = finite_difference_jacobian(sim)
+        if sliders is None:
+            return phi
+        n_state = sim.compiled.M.shape[0] * (1 if sim.method.quasi_static else 2)
+        keep = np.r_[0:n_state, n_state + np.asarray(sliders, np.int64)]
+        return phi[np.ix_(keep, keep)]
     cs = sim.compiled
     n, nd, nq = cs.M.shape[0], cs.kt.shape[0], cs.A.shape[0]
+    sliders = np.arange(nd) if sliders is None else np.asarray(sliders, np.int64)
+    na = sliders.size
     quasi = sim.method.quasi_static
-    m = (n if quasi else 2 * n) + nd
-    Z = np.zeros((3 * n + nd, m))
+    m = (n if quasi else 2 * n) + na
+    Z = np.zeros((3 * n + na, m))
     iw = n if quasi else 2 * n
     Z[:n, :n] = np.eye(n)
-    Z[3 * n :, iw:] = np.eye(nd)
+    Z[3 * n :, iw:] = np.eye(na)
     if not quasi:
         Z[n : 2 * n, n : 2 * n] = np.eye(n)
         # consistent a0: da = -M^-1 (K dx + C dv + A^T (G dx + H dw)), f elastic at the start
@@ -92,25 +101,41 @@ def period_jacobian(sim: Simulation) -> np.ndarray:
         Minv = inverse_mass(cs.M)  # 0 on DOFs without mass (a = 0 there)
         Z[2 * n : 3 * n, :n] = -Minv @ (cs.K + cs.A.T @ G)
         Z[2 * n : 3 * n, n : 2 * n] = -Minv @ cs.C
-        Z[2 * n : 3 * n, iw:] = -Minv @ (cs.A.T @ H)
+        Z[2 * n : 3 * n, iw:] = -Minv @ (cs.A.T @ H[:, sliders])
+    wrow = np.full(nd, -1, np.int64)
+    wrow[sliders] = np.arange(na)
     scheme = sim.options.scheme
+    nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(cs)
     period_sensitivity(
         cs.M,
         cs.C,
         cs.K,
         cs.A,
-        cs.AT,
-        *contact_table(cs),
+        nrow,
+        lcode,
+        lpar,
+        fdir,
+        ndir,
+        trow,
+        kt,
         scheme.beta,
         scheme.gamma,
         not quasi,
         sim.out.dt,
         sim.out.state,
         int(sim.out.counters[C_STEPS]),
+        wrow,
         Z,
     )
-    rows = np.r_[0:n, 3 * n : 3 * n + nd] if quasi else np.r_[0 : 2 * n, 3 * n : 3 * n + nd]
+    rows = np.r_[0:n, 3 * n : 3 * n + na] if quasi else np.r_[0 : 2 * n, 3 * n : 3 * n + na]
     return Z[rows]
+
+
+def moving_sliders(sim: Simulation) -> np.ndarray:
+    """The sliders that leave stick (slip or lift off) in some step of the period just marched;
+    the others keep their position over the period: neutral directions of the period map."""
+    k = int(sim.out.counters[C_STEPS]) + 1
+    return np.flatnonzero((sim.out.state[1:k] != STICK).any(axis=0)).astype(np.int64)
 
 
 def coupled_period(sim: Simulation) -> bool:
@@ -164,50 +189,62 @@ def finite_difference_jacobian(sim: Simulation) -> np.ndarray:
 
 
 class JacobianCache:
-    """Phi depends only on the recorded (dt, contact state) sequence of the period and on which
+    """Phi over the free unknowns of the period just marched: (x, v) and the sliders that leave
+    stick in it (:func:`moving_sliders`; the others are neutral directions, kept fixed). Phi
+    depends only on the recorded (dt, contact state) sequence of the period and on which
     contacts are closed at its start: a period that repeats the last sequence reuses its Phi
-    (not a period with a coupled slip, whose Phi also depends on the slip directions)."""
+    (not a period with a coupled slip, whose Phi also depends on the slip directions).
+    Returns (Phi, free), free the indices of Phi's unknowns in z = (x, v, w)."""
 
     def __init__(self):
-        self.key, self.phi, self.built = None, None, 0
+        self.key, self.value, self.built = None, None, 0
 
-    def __call__(self, sim: Simulation) -> np.ndarray:
+    def __call__(self, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
         k = int(sim.out.counters[C_STEPS]) + 1
         key = (sim.out.state[:k].tobytes(), sim.out.dt[:k].tobytes(), (sim.q0[sim.compiled.normal_row] > 0.0).tobytes())
         if key != self.key or coupled_period(sim):
-            self.key, self.phi = key, period_jacobian(sim)
+            n_state = sim.compiled.M.shape[0] * (1 if sim.method.quasi_static else 2)
+            sliders = moving_sliders(sim)
+            self.key = key
+            self.value = (period_jacobian(sim, sliders), np.r_[0:n_state, n_state + sliders].astype(np.int64))
             self.built += 1
-        return self.phi
+        return self.value
 
 
-def neutral_sliders(phi: np.ndarray, n_state: int, nd: int) -> np.ndarray:
-    """Unknown indices of sliders stuck over the whole period (row of Phi = unit vector)."""
-    out = []
-    for d in range(nd):
-        i = n_state + d
-        row = phi[i].copy()
-        row[i] -= 1.0
-        if np.abs(row).max(initial=0.0) == 0.0:
-            out.append(i)
-    return np.array(out, dtype=np.int64)
-
-
-def floquet(phi: np.ndarray, neutral: np.ndarray) -> np.ndarray:
-    """Eigenvalues of Phi without the neutral slider directions, by decreasing modulus."""
-    keep = np.setdiff1d(np.arange(phi.shape[0]), neutral)
-    ev = np.linalg.eigvals(phi[np.ix_(keep, keep)]) if keep.size else np.zeros(0, complex)
+def floquet(phi: np.ndarray) -> np.ndarray:
+    """Eigenvalues of Phi over the free unknowns (neutral slider directions left out), by
+    decreasing modulus."""
+    ev = np.linalg.eigvals(phi) if phi.size else np.zeros(0, complex)
     return ev[np.argsort(-np.abs(ev))]
 
 
-def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, neutral: np.ndarray) -> np.ndarray:
-    """dz solving (Phi - I) dz = -R in scaled unknowns (least squares), neutral sliders fixed."""
-    free = np.setdiff1d(np.arange(phi.shape[0]), neutral)
+def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """dz solving (Phi - I) dz = -R over the free unknowns in scaled unknowns (least squares),
+    the neutral sliders fixed (dz = 0 there); phi is over z[free], residual and scale over z."""
     s = scale[free]
-    Ahat = (phi[np.ix_(free, free)] - np.eye(free.size)) * s[None, :] / s[:, None]
+    Ahat = (phi - np.eye(free.size)) * s[None, :] / s[:, None]
     dhat = np.linalg.lstsq(Ahat, -residual[free] / s, rcond=1e-13)[0]
-    dz = np.zeros(phi.shape[0])
+    dz = np.zeros(residual.size)
     dz[free] = dhat * s
     return dz
+
+
+PREDICTOR_MAX_RATIO = 2.0  # extrapolate at most twice the last frequency step
+
+
+def predicted_start(history, frequency_hz: float, n: int, quasi: bool) -> State | None:
+    """The secant predictor between FRF points: from the orbits z_a, z_b of the last two points
+    (at f_a, f_b: ``history``, the SteadyState's ``orbit_history``), the start z_b + r (z_b - z_a),
+    r = (f - f_b) / (f_b - f_a), for the point at f = ``frequency_hz`` (None without two points,
+    or for a step more than PREDICTOR_MAX_RATIO times the last one)."""
+    if len(history) < 2:
+        return None
+    (f_a, s_a), (f_b, s_b) = history[-2], history[-1]
+    if f_a == f_b or abs(frequency_hz - f_b) > PREDICTOR_MAX_RATIO * abs(f_b - f_a):
+        return None
+    r = (frequency_hz - f_b) / (f_b - f_a)
+    z_a, z_b = _unknowns(s_a, quasi), _unknowns(s_b, quasi)
+    return _from_unknowns(z_b + r * (z_b - z_a), n, quasi, s_b.states)
 
 
 def shoot(
@@ -222,11 +259,15 @@ def shoot(
     settle_periods: int = 3,
     max_backtracks: int = 3,
     warmup_periods: int = 5,
+    predictor: bool = True,
     **run_options,
 ):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
     whose ``periods`` counts every period marched (Newton residuals, settling, fallback) and
-    ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`."""
+    ``jacobians`` the one-period Jacobians built. Options as :func:`march_to_steady`;
+    predictor: with ``initial`` a SteadyState of an FRF point that carries the orbits of the two
+    points before (``orbit_history``), start from their secant extrapolation
+    (:func:`predicted_start`; the previous orbit if the predicted period fails)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
     for name, value, low in (
@@ -252,10 +293,13 @@ def shoot(
     T = sim.period
     t0 = math.ceil(max(cs.force_ramp, cs.motion_ramp) / T - 1e-9) * T  # shoot on the periodic map
     state = as_state(initial, n, nd) if initial is not None else None
+    history = initial.orbit_history if isinstance(initial, SteadyState) else ()
+    guess = predicted_start(history, 1.0 / T, n, quasi) if predictor else None
     periods, kernel, changes = 0, 0.0, []
     jacobian = JacobianCache()
     warmup = int(round(t0 / T)) + (warmup_periods if initial is None else 0)
-    if warmup > 0:  # march through the ramp, and from the preload past the start transient
+    if warmup > 0:
+        guess = None  # march through the ramp, and from the preload past the start transient
         start(sim, state, 0.0)
         status, k, ch, state, kt_ = march_periods(sim, 0, tolerance, warmup)
         periods, kernel = periods + k, kernel + kt_
@@ -282,17 +326,26 @@ def shoot(
     best = None  # (change, z0, dz, end state) of the best period so far
     backtracks = newton = 0
     for it in range(max_iterations):
-        start(sim, state, t0)
+        start(sim, guess if guess is not None else state, t0)
         status, s0, end, e = march_one_period(sim)
         periods += 1
         kernel += sim.kernel_time
         changes.append(e)
+        if guess is not None:  # the predicted start (the previous point's orbit if its period fails)
+            guess = None
+            if status != Status.OK:
+                continue  # from the previous point's orbit instead
         if status != Status.OK:
             return stop(status.name, end)
         if e <= tolerance:
-            phi = jacobian(sim)
-            neutral = neutral_sliders(phi, n_state, nd)
-            return stop("OK", end, floquet_multipliers=floquet(phi, neutral), neutral_directions=int(neutral.size))
+            phi, free = jacobian(sim)
+            return stop(
+                "OK",
+                end,
+                floquet_multipliers=floquet(phi),
+                neutral_directions=int(n_state + nd - free.size),
+                orbit_history=(*history[-1:], (1.0 / T, s0)),
+            )
         if best is not None and e >= best[0]:  # no progress: a shorter step along the last Newton step
             if backtracks < max_backtracks:
                 backtracks += 1
@@ -307,12 +360,11 @@ def shoot(
                     return stop(status, end)
                 state, best, backtracks = end, None, 0
                 continue
-        phi = jacobian(sim)
+        phi, free = jacobian(sim)
         newton += 1
-        neutral = neutral_sliders(phi, n_state, nd)
         scales = period_scales(sim.out, int(sim.out.counters[C_STEPS]), cs, system.structure.dof_units, quasi)
         z0 = _unknowns(s0, quasi)
-        dz = newton_step(phi, _unknowns(end, quasi) - z0, scales.vector(quasi, nd), neutral)
+        dz = newton_step(phi, _unknowns(end, quasi) - z0, scales.vector(quasi, nd), free)
         best, backtracks = (e, z0, dz, end), 0
         state = _from_unknowns(z0 + dz, n, quasi, end.states)
     # fallback: plain marching from the last iterate

@@ -47,7 +47,9 @@ class SteadyState:
     final_state: the state at the end of the last period, to start the next point from;
     floquet_multipliers: eigenvalues of the one-period map's Jacobian at the orbit (shooting;
     None for marching), the neutral multipliers 1 of sliders stuck over the whole period
-    removed (their number in ``neutral_directions``).
+    removed (their number in ``neutral_directions``);
+    orbit_history: the start of the orbit of this point and of the FRF point before it, with
+    their frequencies (shooting's predictor for the next point).
     """
 
     period: xr.Dataset
@@ -65,6 +67,7 @@ class SteadyState:
     changes: list[float] = field(default_factory=list)
     kernel_time_s: float = 0.0
     wall_time_s: float = 0.0
+    orbit_history: tuple = ()  # shooting: ((f [Hz], orbit start State), ...) of this point and the one before
 
     @property
     def ok(self) -> bool:
