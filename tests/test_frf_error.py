@@ -17,8 +17,9 @@ from slipstep.frequency import SOLVERS, choose_solver, frf, retune
 from slipstep.frequency.error_estimate import FrfAccuracyWarning
 from slipstep.frequency.response import point_values
 from slipstep.steady import shoot
+from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD as DEFAULT_STEPS  # the steady step T / N
 
-DEFAULT_STEPS = 50  # the default accuracy cap of the march: period / 50
+COARSE = 50  # steps per period of the checks that need errors above 1e-3
 
 
 def _cli(*args):
@@ -63,10 +64,11 @@ def test_jenkins_at_defaults_within_rtol_or_warns_and_the_estimate_tracks_the_er
 
 @pytest.mark.parametrize("solver", ["march", "shoot"])
 def test_the_warning_follows_the_true_error(solver):
-    """rtol 2e-3 and no refinement: the points whose true error is above 2 rtol warn, those
-    below rtol / 3 do not (both kinds occur on the grid), with one summary warning."""
+    """At 50 steps per period (100 in the returned points), rtol 2e-3 and no refinement: the
+    points whose true error is above 2 rtol warn, those below rtol / 3 do not (both kinds occur
+    on the grid), with one summary warning."""
     rtol = 2e-3
-    ds, warned = frf_at_defaults(solver, rtol=rtol, max_refinements=0)
+    ds, warned = frf_at_defaults(solver, rtol=rtol, max_refinements=0, steps_per_period=COARSE)
     points = rows(ds)
     big = [p for p in points if p["true_error"] > 2 * rtol]
     small = [p for p in points if p["true_error"] < rtol / 3]
@@ -75,24 +77,25 @@ def test_the_warning_follows_the_true_error(solver):
     assert not any(p["status_message"] for p in small), small
     assert all(p["status"] == "OK" for p in points)  # a warning keeps the status
     assert len(warned) == 1 and issubclass(warned[0].category, FrfAccuracyWarning)
-    assert (ds["step_refinements"].values == 0).all() and (ds["steps_per_period"].values == 2 * DEFAULT_STEPS).all()
+    assert (ds["step_refinements"].values == 0).all() and (ds["steps_per_period"].values == 2 * COARSE).all()
 
 
 def test_the_point_is_the_finer_solution_and_the_estimate_is_richardsons():
-    """At 350 Hz: the returned point equals the orbit shot at 100 steps per period, and its
-    estimate is |E_50 - E_100| / |E_100| / 3 of the two energies (the larger)."""
+    """At 350 Hz from 50 steps per period: the returned point equals the orbit shot at 100 steps
+    per period, and its estimate is |E_50 - E_100| / |E_100| / 3 of the two energies (the larger)."""
     system = ss.load_system(JENKINS)
-    ds = frf(system, [350.0], solver="shoot", linear=False)
+    ds = frf(system, [350.0], solver="shoot", linear=False, steps_per_period=COARSE)
     s = retune(system, 350.0)
     e = {}
-    for n in (DEFAULT_STEPS, 2 * DEFAULT_STEPS):
-        v = point_values(shoot(s, min_steps_per_period=n), s, ["x"], 1)
+    for n in (COARSE, 2 * COARSE):
+        v = point_values(shoot(s, steps_per_period=n), s, ["x"], 1)
         e[n] = (float(v["energy_per_cycle"].sum()), float(v["excitation_work"]))
     assert float(ds["energy_per_cycle"].values.sum()) == pytest.approx(e[100][0], rel=1e-7)
     assert float(ds["excitation_work"].values[0]) == pytest.approx(e[100][1], rel=1e-7)
     expected = max(abs(e[50][k] - e[100][k]) / abs(e[100][k]) / 3 for k in (0, 1))
     assert float(ds["error_estimate"].values[0]) == pytest.approx(expected, rel=1e-5)
     assert int(ds["steps_per_period"].values[0]) == 100 and ds.attrs["rtol"] == 1e-2
+    assert float(ds["error_estimate"].values[0]) > 1e-3  # an error the check can see
     assert "step doubling" in ds.attrs["error_estimate_method"]
 
 

@@ -19,7 +19,7 @@ or two for shooting).
 
 **The returned point is the finer solution**, the one the estimate is about. When the
 estimate exceeds ``REFINE_SHARE * rtol`` (a margin for the estimate's own error: on the
-Jenkins check of benchmarks/bench_frf_accuracy.py it is 0.9 to 2.5 times the true error) the
+Jenkins check of benchmarks/bench_frf_accuracy.py it is 0.5 to 2.5 times the true error) the
 step is halved again from the finer orbit (``max_refinements`` times at most); a point still
 above ``rtol`` keeps its status (the orbit did converge), gets a ``status_message`` and the
 FRF one summary :class:`FrfAccuracyWarning`.
@@ -27,6 +27,7 @@ FRF one summary :class:`FrfAccuracyWarning`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -89,6 +90,16 @@ def halved_step_options(options: dict, steady) -> dict:
     return out
 
 
+def _with_history(fine, first):
+    """``fine`` carrying the point's orbit history as shooting's FRF predictor needs it: the
+    previous point's orbit (from the first solve of this point), then this point's fine orbit
+    (a re-solve at the same frequency would otherwise leave two entries at one frequency)."""
+    history = getattr(first, "orbit_history", ())
+    if not history or not getattr(fine, "orbit_history", ()):
+        return fine
+    return dataclasses.replace(fine, orbit_history=(*history[:-1], fine.orbit_history[-1]))
+
+
 @dataclass
 class PointResult:
     """The returned steady state of a point with its error (module docstring)."""
@@ -125,6 +136,7 @@ def refine(
                 + ("" if level else ", without an error estimate")
             )
             return best
+        fine = _with_history(fine, steady)
         fv = values_of(fine)
         estimate = relative_error(cv, fv, steps_of(fine) / steps_of(coarse))
         best = PointResult(fine, fv, estimate, level, periods, "")
