@@ -431,7 +431,9 @@ def run(
         None,
         help="Simulated time \\[s] after the preload, instead of periods (default: the case's \\[run] duration_s).",
     ),
-    output_dir: str = typer.Option("slipstep-out", help="Directory of the result file <case-file-stem>_<method>.nc."),
+    output_dir: str = typer.Option(
+        "slipstep-out", "--output-dir", "-o", help="Directory of the result file <case-file-stem>_<method>.nc."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (no table, no progress bar)."),
     max_memory: Optional[str] = typer.Option(None, help=MAX_MEMORY_HELP),
     rtol: Optional[float] = typer.Option(
@@ -607,7 +609,10 @@ def compare(
         help="Comma-separated methods (names or paper numbers); Method 1 (newmark) always runs as the reference.",
     ),
     output_dir: str = typer.Option(
-        "slipstep-out", help="Directory of the comparisons: the files go to OUTPUT_DIR/<case-file-stem>/."
+        "slipstep-out",
+        "--output-dir",
+        "-o",
+        help="Directory of the comparisons: the files go to OUTPUT_DIR/<case-file-stem>/.",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the table as a JSON list (one object per method)."),
     schemes: Optional[str] = typer.Option(

@@ -1,13 +1,15 @@
 """The ``slipstep frf`` command: the forced response of a case against frequency.
 
-    slipstep frf CASE --frequencies 150:450:61 [--solver march|shoot|hbm] [--direction up|down|both]
-                      [--harmonics 1,3,5] [--samples N] [--check-frequencies f1,f2]
+    slipstep frf CASE --frequencies 150:450:61 [--solver auto|march|shoot|hbm] [--direction up|down|both]
+                      [--rtol 1e-2] [--harmonics 1,3,5] [--samples N] [--check-frequencies f1,f2]
                       [--sine-sweep] [-o DIR] [--json]
 
 Writes ``DIR/<case-stem>_frf.nc`` (the layout of slipstep.frequency.schema) and
 ``DIR/<case-stem>_frf.png`` (amplitude with both linear limits, energy per cycle). No
-numerics here: the solvers are called through the table ``SOLVERS`` (one line per solver).
-Exit codes: 0 every point steady, 1 some point not steady or failed (results written), 2 bad input.
+numerics here: every solver is slipstep.frequency.frf (the sine sweep: sine_sweep). The
+default solver is auto (slipstep.frequency.choice), printed with its reason.
+Exit codes: 0 every point converged, 1 some point not converged (results written; an error
+estimate above --rtol warns without changing the code), 2 bad input.
 """
 
 from __future__ import annotations
@@ -25,14 +27,13 @@ from slipstep.cli import out as _out
 from slipstep.cli import user_errors as _user_errors
 from slipstep.errors import InputError
 
+SOLVER_NAMES = ("auto", "march", "shoot", "hbm")  # slipstep.frequency.SOLVERS (not imported: start-up time)
 
-def _steady_solver(name: str):
-    def run(system, frequencies, direction, options, progress):
-        from slipstep.frequency import frf
 
-        return frf(system, frequencies, solver=name, direction=direction, progress=progress, **options)
+def _steady(system, frequencies, direction, options, progress):
+    from slipstep.frequency import frf
 
-    return run
+    return frf(system, frequencies, direction=direction, progress=progress, **options)
 
 
 def _sine_sweep(system, frequencies, direction, options, progress):
@@ -40,6 +41,7 @@ def _sine_sweep(system, frequencies, direction, options, progress):
     from slipstep.frequency.dataset import concat_sweeps
 
     keep = {k: v for k, v in options.items() if k in ("method", "responses", "min_steps_per_period")}
+    keep["method"] = keep.get("method") or "piecewise-linear"
     keep["min_steps_per_period"] = keep.get("min_steps_per_period") or 50
     parts = []
     for i, d in enumerate(("up", "down") if direction == "both" else (direction,)):
@@ -49,34 +51,17 @@ def _sine_sweep(system, frequencies, direction, options, progress):
     return parts[0] if len(parts) == 1 else concat_sweeps(*parts)
 
 
-def _hbm(system, frequencies, direction, options, progress):
-    """Harmonic balance (slipstep.hbm.frf): pseudo-arclength continuation over the range, the
-    time-marching cross-check at the peak (and at --check-frequencies); progress over the range."""
-    from slipstep.hbm import frf as hbm_frf
-
-    grid = list(frequencies)[::-1] if direction == "down" else list(frequencies)
-    n = len(grid)
-    span = grid[-1] - grid[0]
-
-    def step(point):
-        f = point.omega / (2 * 3.141592653589793)
-        done = n if span == 0 else round(n * min(max((f - grid[0]) / span, 0.0), 1.0))
-        if progress is not None:
-            progress(done, n, f, None)
-
-    keep = {k: options[k] for k in ("harmonics", "samples", "responses", "check_frequencies") if options.get(k)}
-    check = {"method": options["method"], "tolerance": options["tolerance"], "max_periods": options["max_periods"]}
-    if options.get("min_steps_per_period"):
-        check["steps_per_period"] = options["min_steps_per_period"]
-    return hbm_frf(system, grid, progress=step, check_options=check, **keep)
-
-
-# solver name -> f(system, frequencies, direction, options, progress) -> FRF Dataset
-SOLVERS = {
-    "march": _steady_solver("march"),
-    "shoot": _steady_solver("shoot"),
-    "hbm": _hbm,
-}
+def json_safe(value):
+    """``value`` with every non-finite float as None (JSON has no NaN or Infinity)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def frf(
@@ -84,13 +69,23 @@ def frf(
     frequencies: str = typer.Option(
         ..., "--frequencies", "-f", help="start:stop:count [Hz], both ends included, or a comma list"
     ),
-    solver: str = typer.Option("march", "--solver", help="steady-state solver: " + ", ".join(SOLVERS)),
+    solver: str = typer.Option(
+        "auto", "--solver", help="auto (printed with its reason), march, shoot or hbm (harmonic balance)"
+    ),
     direction: str = typer.Option("up", "--direction", help="up, down or both (shows jumps)"),
     sine_sweep: bool = typer.Option(
         False, "--sine-sweep", help="one transient run with the frequency swept (envelope), not steady states"
     ),
-    method: str = typer.Option("piecewise-linear", "--method", help="time-marching method"),
+    method: str | None = typer.Option(
+        None, "--method", "-m", help="time-marching method (default: auto's choice, else piecewise-linear)"
+    ),
     tolerance: float = typer.Option(1e-6, help="steady state: relative change of the state over one period"),
+    rtol: float = typer.Option(
+        1e-2,
+        "--rtol",
+        help="relative error of the energy per cycle allowed per point (the step is refined, then it warns)",
+    ),
+    max_refinements: int = typer.Option(3, help="march/shoot: step halvings beyond the step doubling of each point"),
     max_periods: int = typer.Option(200, help="periods marched at most per frequency point"),
     harmonics: str = typer.Option(
         "5",
@@ -109,8 +104,9 @@ def frf(
     as_json: bool = typer.Option(False, "--json", help="print one JSON object (no progress bar)"),
 ):
     """Forced response of CASE against frequency: steady state per point (each from the previous
-    one), harmonics, energies per cycle, both linear limits; netCDF + PNG."""
+    one) with its error estimate, harmonics, energies per cycle, both linear limits; netCDF + PNG."""
     with _user_errors():
+        from rich.markup import escape
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -121,18 +117,24 @@ def frf(
 
         from slipstep.config import load_system
         from slipstep.frequency.response import check_frequencies, parse_frequencies
-        from rich.markup import escape
-
+        from slipstep.plots_frf import plot_frf
         from slipstep.results import save as save_netcdf
         from slipstep.text import escape_text
-        from slipstep.plots_frf import plot_frf
 
         if direction not in ("up", "down", "both"):
             raise InputError("--direction", f"is {direction!r}", "use up, down or both")
-        if not sine_sweep and solver not in SOLVERS:
-            raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(SOLVERS)}")
+        if not sine_sweep and solver not in SOLVER_NAMES:
+            raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(SOLVER_NAMES)}")
         freqs = check_frequencies(parse_frequencies(frequencies))
         system = load_system(case)
+        reason = ""
+        if solver == "auto" and not sine_sweep:
+            from slipstep.frequency.choice import choose
+
+            chosen = choose(system, method)
+            solver, method, reason = chosen.solver, chosen.method, chosen.reason
+            if not as_json:
+                _err.print(f"solver: {solver} ({reason})", markup=False, highlight=False, soft_wrap=True)
         hbm = solver == "hbm" and not sine_sweep
         if hbm:
             from slipstep.hbm.cli_support import parse_harmonics
@@ -155,23 +157,29 @@ def frf(
                     "give the highest reported harmonic H as a whole number (a set like 1,3,5 is for --solver hbm)",
                 ) from None
         options = dict(
+            solver=solver,
             method=method,
             tolerance=tolerance,
+            rtol=rtol,
             max_periods=max_periods,
             harmonics=kept,
-            min_steps_per_period=min_steps_per_period,
             responses=None if responses is None else [r.strip() for r in responses.split(",")],
         )
+        if min_steps_per_period is not None:
+            options["min_steps_per_period"] = min_steps_per_period
         if hbm:
             options.update(
-                samples=samples,
                 check_frequencies=[]
                 if check_at is None
-                else list(parse_frequencies(check_at, field="--check-frequencies")),
+                else list(parse_frequencies(check_at, field="--check-frequencies"))
             )
+            if samples is not None:
+                options["samples"] = samples
+        else:
+            options["max_refinements"] = max_refinements
         folder = _output_dir(output_dir)
         start = time.perf_counter()
-        run = _sine_sweep if sine_sweep else SOLVERS[solver]
+        run = _sine_sweep if sine_sweep else _steady
         total = freqs.size * (2 if direction == "both" else 1)
         with Progress(
             TextColumn("[bold]frf[/] {task.description}"),
@@ -199,6 +207,8 @@ def frf(
                 bar.update(task, completed=done[0], description=f"{label}{text}")
 
             ds = run(system, freqs, direction, options, progress)
+        if reason:
+            ds.attrs["solver_reason"] = reason
         stem = _case_stem(case)
         nc, png = folder / f"{stem}_frf.nc", folder / f"{stem}_frf.png"
         save_netcdf(ds, nc)
@@ -227,7 +237,7 @@ def frf(
             )
         summary.update(output=str(nc), figure=str(png))
         if as_json:
-            print(json.dumps(summary))
+            print(json.dumps(json_safe(summary), allow_nan=False))
         else:
             _out.print(_text(summary), markup=False, highlight=False, soft_wrap=True)
         if summary["points_not_ok"]:
@@ -259,6 +269,29 @@ def _summary(ds, wall: float) -> dict:
         "peak_unit": str(ds["response_unit"].values[j]),
         "periods_total": float(np.nansum(periods)) if np.isfinite(periods).any() else None,
         "wall_time_s": wall,
+        **_accuracy(ds),
+    }
+
+
+def _accuracy(ds) -> dict:
+    """The error estimates of the points (slipstep.frequency.error_estimate): rtol, the largest
+    estimate, the points above rtol, the steps per period (AFT samples for hbm) used."""
+    import numpy as np
+
+    if "error_estimate" not in ds:  # (a Dataset without the error variables)
+        return {}
+    est = np.asarray(ds["error_estimate"].values, float).ravel()
+    steps = np.asarray(ds["steps_per_period"].values, float).ravel()
+    rtol = ds.attrs.get("rtol")
+    finite = est[np.isfinite(est)]
+    return {
+        "solver_reason": ds.attrs.get("solver_reason", ""),
+        "rtol": rtol,
+        "max_error_estimate": float(finite.max()) if finite.size else None,
+        "points_without_estimate": int(est.size - finite.size),
+        "points_above_rtol": int((est > rtol).sum()) if rtol is not None else 0,
+        "steps_per_period_min": float(np.nanmin(steps)) if np.isfinite(steps).any() else None,
+        "steps_per_period_max": float(np.nanmax(steps)) if np.isfinite(steps).any() else None,
     }
 
 
@@ -272,6 +305,17 @@ def _text(s: dict) -> str:
         lines.append(f"periods marched: {s['periods_total']:.0f}")
     if s["points_not_ok"]:
         lines.append(f"{s['points_not_ok']} point(s) not steady or failed (see the status variable)")
+    if s.get("rtol") is not None:
+        worst = s["max_error_estimate"]
+        steps = s["steps_per_period_min"], s["steps_per_period_max"]
+        kind = "AFT samples" if "checks" in s else "steps"
+        lines.append(
+            f"error estimate (energy per cycle): max {'n/a' if worst is None else f'{worst:.2g}'}, rtol {s['rtol']:g}"
+            + ("" if steps[0] is None else f"; {steps[0]:.0f}-{steps[1]:.0f} {kind} per period")
+            + (f"; {s['points_without_estimate']} point(s) without an estimate" if s["points_without_estimate"] else "")
+        )
+        if s["points_above_rtol"]:
+            lines.append(f"WARNING: {s['points_above_rtol']} point(s) above rtol (see the status_message variable)")
     if "checks" in s:  # harmonic balance: the retained harmonics, the adequacy estimate, the cross-check
         from slipstep.hbm.cli_support import harmonics_text
 

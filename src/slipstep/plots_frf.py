@@ -63,7 +63,12 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         ok = np.asarray(part["status"].values) == "OK"
         ax.plot(f, y, "-", color=color, marker=marker, ms=3.5, lw=1.2, label=f"{text} ({solver})")
         unstable = part["floquet_multiplier_max"].values > 1.0 + 1e-6  # beyond round-off of |mu| = 1
-        for mask, style, text in ((~ok, "x", "not steady / failed"), (unstable, "s", "unstable orbit (|Floquet| > 1)")):
+        inaccurate = _above_rtol(part, ds.attrs.get("rtol"))
+        for mask, style, text in (
+            (~ok, "x", "not steady / failed"),
+            (unstable, "s", "unstable orbit (|Floquet| > 1)"),
+            (inaccurate & ok, "^", f"error estimate above rtol {ds.attrs.get('rtol', 0):g}"),
+        ):
             if mask.any():
                 ax.plot(f[mask], y[mask], style, mfc="none", color="k", ms=7, label=None if text in labelled else text)
                 labelled.add(text)
@@ -110,3 +115,10 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
     return path
+
+
+def _above_rtol(part, rtol) -> np.ndarray:
+    """Points whose error estimate exceeds rtol (none when the Dataset has no estimate)."""
+    if rtol is None or "error_estimate" not in part:
+        return np.zeros(part.sizes["frequency"], bool)
+    return np.asarray(part["error_estimate"].values, float) > float(rtol)

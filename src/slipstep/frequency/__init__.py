@@ -6,14 +6,17 @@ The layout of every FRF Dataset (marched, shot, harmonic balance) is declared on
 
 from slipstep.frequency.harmonics import harmonics
 from slipstep.frequency.linear import linear_limits, linear_response
-from slipstep.frequency.response import STEADY_SOLVERS, frf
+from slipstep.frequency.choice import choose_solver
+from slipstep.frequency.response import SOLVERS, STEADY_SOLVERS, frf
 from slipstep.frequency.retune import retune
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.frequency.slow_sweep import sine_sweep
 
 __all__ = [
     "FRF_SCHEMA",
+    "SOLVERS",
     "STEADY_SOLVERS",
+    "choose_solver",
     "frf",
     "harmonics",
     "linear_limits",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.frequency.schema import FRF_SCHEMA, TEXT_VARIABLES
 
 
 def empty_frf(
@@ -24,7 +24,7 @@ def empty_frf(
     variables = {}
     for name, (dims, units, long_name) in FRF_SCHEMA.items():
         shape = tuple(sizes[d] for d in dims)
-        values = np.full(shape, "", dtype=object) if name == "status" else np.full(shape, np.nan)
+        values = np.full(shape, "", dtype=object) if name in TEXT_VARIABLES else np.full(shape, np.nan)
         variables[name] = xr.Variable(dims, values, {"units": units, "long_name": long_name})
     coords = {
         "frequency": ("frequency", freqs, {"units": "Hz", "long_name": "excitation (fundamental) frequency"}),
@@ -37,9 +37,10 @@ def empty_frf(
 
 
 def finalise(ds: xr.Dataset) -> xr.Dataset:
-    """Make the status text a fixed-width string variable (netCDF-friendly)."""
-    ds["status"] = ds["status"].astype(str)
-    ds["status"].attrs.update(units=FRF_SCHEMA["status"][1], long_name=FRF_SCHEMA["status"][2])
+    """Make the text variables (schema.TEXT_VARIABLES) fixed-width string variables (netCDF-friendly)."""
+    for name in TEXT_VARIABLES & set(ds.data_vars):
+        ds[name] = ds[name].astype(str)
+        ds[name].attrs.update(units=FRF_SCHEMA[name][1], long_name=FRF_SCHEMA[name][2])
     return ds
 
 

@@ -1,9 +1,13 @@
 """Frequency response by steady states: step through the frequencies, each point's steady
-state starting from the previous point's, upward, downward or both (to show jumps).
+state starting from the previous point's, upward, downward or both (to show jumps). :func:`frf`
+is the one entry point of every solver (march, shoot, harmonic balance, and "auto":
+slipstep.frequency.choice); the CLI calls it.
 
 Per point (excitation retuned to the frequency, slipstep.frequency.retune): the steady state
-(``solver`` "march": slipstep.steady.march_to_steady, "shoot": slipstep.steady.shoot), its
-harmonics 0..H per response DOF (slipstep.frequency.harmonics), the friction energy per
+(``solver`` "march": slipstep.steady.march_to_steady, "shoot": slipstep.steady.shoot), re-solved
+from the converged orbit with half the step for its error estimate (and refined while the
+estimate exceeds ``rtol``: slipstep.frequency.error_estimate; the point is the finer solution),
+its harmonics 0..H per response DOF (slipstep.frequency.harmonics), the friction energy per
 cycle per contact and the energy balance over the period (slipstep.post.energy):
 
     W_exc = int f_e . dx - int f . B dp,   D_visc = int (C v) . dx,   D_fric = sum_d int T_d dw_d
@@ -17,16 +21,26 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable
 
 import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
+from slipstep.frequency.choice import DEFAULT_METHOD, choose
 from slipstep.frequency.dataset import concat_sweeps, empty_frf, finalise
+from slipstep.frequency.error_estimate import (
+    METHOD_TEXT,
+    FrfAccuracyWarning,
+    check_accuracy_options,
+    refine,
+    steps_of,
+)
 from slipstep.frequency.harmonics import amplitudes_phases, fourier_coefficients
 from slipstep.frequency.linear import linear_limits
 from slipstep.frequency.retune import retune
+from slipstep.frequency.schema import TEXT_VARIABLES
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.state import SteadyState
@@ -37,6 +51,11 @@ STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
     "shoot": lambda system, **kw: shoot(system, **kw),
 }
 """Steady-state solvers of :func:`frf`: name -> f(system, initial=..., tolerance=..., ...)."""
+
+SOLVERS = ("auto", "march", "shoot", "hbm")
+"""The ``solver`` values of :func:`frf` (auto: slipstep.frequency.choice)."""
+DEFAULT_RTOL = 1e-2  # relative error of the energy per cycle allowed per point
+DEFAULT_MAX_REFINEMENTS = 3  # step halvings beyond the first step doubling
 
 
 def parse_frequencies(text: str, field: str = "--frequencies") -> list[float]:
@@ -143,11 +162,14 @@ def sweep(
     n_harmonics: int = 5,
     initial=None,
     progress=None,
+    rtol: float = DEFAULT_RTOL,
+    max_refinements: int = DEFAULT_MAX_REFINEMENTS,
     **options,
 ) -> tuple[xr.Dataset, SteadyState | None]:
-    """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state)."""
+    """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state).
+    Each converged point is refined by step doubling (slipstep.frequency.error_estimate)."""
     if solver not in STEADY_SOLVERS:
-        raise InputError("solver", f"is {solver!r}", f"use one of {sorted(STEADY_SOLVERS)}")
+        raise InputError("solver", f"is {solver!r}", f"use one of {sorted(SOLVERS)}")
     names = list(system.structure.dof_names)
     responses = names if responses is None else list(responses)
     unknown = [r for r in responses if r not in names]
@@ -164,15 +186,12 @@ def sweep(
         system_f = retune(system, float(f))
         try:
             steady = steady_solver(system_f, initial=prev, **options)
+            values = _point(steady_solver, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
         except KeyboardInterrupt:  # keep the points done; the rest are marked
             columns["status"][i:] = "INTERRUPTED"
             ds.attrs["interrupted"] = 1
             break
-        values = (
-            point_values(steady, system_f, responses, n_harmonics)
-            if steady.status in ("OK", "NOT_STEADY")
-            else {"status": steady.status, "periods_to_steady": steady.periods}
-        )
+        steady = values.pop("steady")
         values["point_time"] = time.perf_counter() - start
         for name, value in values.items():
             columns[name][i] = value
@@ -186,34 +205,159 @@ def sweep(
     return ds, last
 
 
+def _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements) -> dict:
+    """The FRF values of one point from its first steady state: refined by step doubling when it
+    converged (slipstep.frequency.error_estimate), else as it ended, with the solver's message."""
+    if steady.status != "OK" or rtol is None:  # no estimate; the step of a period that was marched is recorded
+        if steady.status == "OK":  # rtol None: the point as solved, without the step doubling
+            values = point_values(steady, system_f, responses, n_harmonics)
+            values.update(
+                steady=steady, steps_per_period=steps_of(steady), time_step=system_f.period / steps_of(steady)
+            )
+            return values
+        if steady.status == "NOT_STEADY":
+            values = point_values(steady, system_f, responses, n_harmonics)
+            values.update(steps_per_period=steps_of(steady), time_step=system_f.period / steps_of(steady))
+        else:
+            values = {"status": steady.status, "periods_to_steady": steady.periods}
+        values.update(steady=steady, status_message=steady.message)
+        return values
+    result = refine(
+        solve,
+        system_f,
+        steady,
+        lambda s: point_values(s, system_f, responses, n_harmonics),
+        options,
+        rtol,
+        max_refinements,
+    )
+    steps = steps_of(result.steady)
+    return {
+        **result.values,
+        "steady": result.steady,
+        "periods_to_steady": result.periods,
+        "error_estimate": result.error_estimate,
+        "steps_per_period": steps,
+        "time_step": system_f.period / steps,
+        "step_refinements": result.refinements,
+        "status_message": result.message,
+    }
+
+
+HBM_ONLY_OPTIONS = (
+    "samples",
+    "check",
+    "check_frequencies",
+    "check_options",
+    "continuation",
+    "adequacy",
+    "auto_harmonics",
+    "max_harmonics",
+    "tol",
+    "max_df",
+    "level",
+)
+"""Options of :func:`frf` that only harmonic balance takes (slipstep.hbm.frf)."""
+
+
 def frf(
     system: System,
     frequencies,
     *,
-    solver: str = "march",
+    solver: str = "auto",
     direction: str = "up",
     responses=None,
-    harmonics: int = 5,
-    method="piecewise-linear",
+    harmonics=5,
+    method=None,
     tolerance: float = 1e-6,
+    rtol: float = DEFAULT_RTOL,
+    max_refinements: int = DEFAULT_MAX_REFINEMENTS,
     linear: bool = True,
     progress=None,
     **options,
 ) -> xr.Dataset:
-    """Frequency response of ``system`` at ``frequencies`` [Hz] (see the module docstring).
+    """Frequency response of ``system`` at ``frequencies`` [Hz] (see the module docstring): the
+    one entry point of every solver.
 
-    solver: "march" or "shoot" (STEADY_SOLVERS); direction: "up", "down" or "both" (two
-    sweeps concatenated along ``sweep``, the down sweep starting from the up sweep's last
-    state); responses: DOF names (default all); harmonics: H of the harmonic decomposition;
-    method, tolerance and the other options go to the steady-state solver (max_periods,
-    min_steps_per_period, initial, RunOptions ...); progress(done, total, frequency, steady)
-    is called after every point. Returns a Dataset in the layout of FRF_SCHEMA. Ctrl-C during a
-    point keeps the points done (the others get status INTERRUPTED, attribute interrupted = 1)."""
+    solver: "auto" (slipstep.frequency.choice: shooting, the method chosen when none is given),
+    "march" or "shoot" (STEADY_SOLVERS) or "hbm" (harmonic balance, slipstep.hbm.frf: harmonics
+    is then the retained set, an int H or a set such as (1, 3, 5); its options samples, check,
+    check_frequencies, continuation, auto_harmonics, ... pass through). direction: "up", "down"
+    or "both" (two sweeps concatenated along ``sweep``, the down sweep starting from the up
+    sweep's last state; harmonic balance follows the branch once, "both" gives "up"); responses:
+    DOF names (default all); harmonics: H of the reported harmonics (march, shoot); method
+    (default piecewise-linear; auto: chosen), tolerance and the other options go to the
+    steady-state solver (max_periods, min_steps_per_period, initial, RunOptions ...).
+    rtol: the relative error of the energy per cycle allowed per point (error_estimate: step
+    doubling for march and shoot, refined up to ``max_refinements`` times; the truncation
+    estimate for hbm; None: march and shoot points as solved, no step doubling, no estimate); a point above it keeps its status, gets a status_message, and one
+    FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
+    frequency, steady) is called after every point (hbm: every continuation step, steady None).
+    Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep
+    and descending per down sweep. Ctrl-C during a point keeps the points done (the others get
+    status INTERRUPTED, attribute interrupted = 1)."""
+    if solver not in SOLVERS:
+        raise InputError("solver", f"is {solver!r}", f"use one of {', '.join(SOLVERS)}")
     if direction not in ("up", "down", "both"):
         raise InputError("direction", f"is {direction!r}", "use 'up', 'down' or 'both'")
-    if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)) or harmonics < 0:
-        raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
+    check_accuracy_options(DEFAULT_RTOL if rtol is None and solver != "hbm" else rtol, max_refinements)
     f = np.sort(check_frequencies(frequencies))
+    reason = ""
+    if solver == "auto":
+        choice = choose(system, method)
+        solver, method, reason = choice.solver, choice.method, choice.reason
+    if solver == "hbm":
+        out = _hbm(system, f, direction, responses, harmonics, method, tolerance, rtol, progress, options)
+    else:
+        hbm_only = sorted(set(options) & set(HBM_ONLY_OPTIONS))
+        if hbm_only:
+            raise InputError(
+                hbm_only[0], f"is an option of solver 'hbm', not of {solver!r}", "drop it or use solver='hbm'"
+            )
+        if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)) or harmonics < 0:
+            raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
+        method = DEFAULT_METHOD if method is None else method
+        out = _steady_frf(
+            system,
+            f,
+            solver,
+            direction,
+            responses,
+            harmonics,
+            method,
+            tolerance,
+            rtol,
+            max_refinements,
+            linear,
+            progress,
+            options,
+        )
+        _accuracy_warning(out, rtol)
+    out.attrs.update(
+        solver_reason=reason,
+        error_estimate_method=HBM_ERROR_METHOD if solver == "hbm" else (METHOD_TEXT if rtol is not None else "none"),
+    )
+    if rtol is not None:
+        out.attrs["rtol"] = rtol
+    return finalise(out)
+
+
+def _steady_frf(
+    system,
+    f,
+    solver,
+    direction,
+    responses,
+    harmonics,
+    method,
+    tolerance,
+    rtol,
+    max_refinements,
+    linear,
+    progress,
+    options,
+) -> xr.Dataset:
+    """The FRF by steady states per point (march, shoot), both linear limits added."""
     initial = options.pop("initial", None)
     common = dict(
         solver=solver,
@@ -222,6 +366,8 @@ def frf(
         method=method,
         tolerance=tolerance,
         progress=progress,
+        rtol=rtol,
+        max_refinements=max_refinements,
         **options,
     )
     sweeps = []
@@ -237,7 +383,7 @@ def frf(
                 down["status"].values[:] = "INTERRUPTED"
                 for var in down.data_vars:
                     if var != "status":
-                        down[var].values[:] = np.nan
+                        down[var].values[:] = "" if var in TEXT_VARIABLES else np.nan
                 down.attrs["sweep"] = "down"
                 sweeps.append(down)
             break
@@ -257,4 +403,75 @@ def frf(
         method=out.attrs.get("method", ""),
         solver=solver,
     )
-    return finalise(out)
+    return out
+
+
+HBM_ERROR_METHOD = "harmonic truncation estimate (slipstep.hbm.adequacy): the change with more harmonics"
+
+
+def _hbm(system, f, direction, responses, harmonics, method, tolerance, rtol, progress, options) -> xr.Dataset:
+    """Harmonic balance over the grid (slipstep.hbm.frf), its truncation estimate as each point's
+    error_estimate and its AFT samples as steps_per_period; progress per continuation step."""
+    from slipstep.hbm import frf as hbm_frf
+
+    if direction == "both":
+        warnings.warn(
+            "harmonic balance follows the whole branch by continuation (turning points included): "
+            "direction 'both' gives the same curve as 'up'",
+            stacklevel=3,
+        )
+    grid = f[::-1] if direction == "down" else f
+    check = {
+        "method": DEFAULT_METHOD if method is None else method,
+        "tolerance": tolerance,
+        "max_periods": options.pop("max_periods", 200),
+    }
+    if options.get("min_steps_per_period"):
+        check["steps_per_period"] = options.pop("min_steps_per_period")
+    options.pop("min_steps_per_period", None)
+    check.update(options.pop("check_options", None) or {})
+    unknown = sorted(set(options) - set(HBM_ONLY_OPTIONS))
+    if unknown:
+        raise InputError(unknown[0], "is not an option of solver 'hbm'", f"use {', '.join(HBM_ONLY_OPTIONS)}")
+    span = grid[-1] - grid[0]
+
+    def step(point):
+        at = point.omega / (2 * np.pi)
+        done = grid.size if span == 0 else round(grid.size * min(max((at - grid[0]) / span, 0.0), 1.0))
+        progress(done, grid.size, at, None)
+
+    ds = hbm_frf(
+        system,
+        grid,
+        harmonics=harmonics,
+        responses=responses,
+        progress=step if progress is not None else None,
+        check_options=check,
+        adequacy_tolerance=rtol,
+        **options,
+    )
+    est = ds["harmonic_truncation_estimate"].values
+    ds["error_estimate"].values[:] = est
+    ds["steps_per_period"].values[:] = ds.attrs["samples"]
+    message = ds["status_message"].values.astype(object)
+    for i in np.flatnonzero(est > rtol):
+        message[i] = f"harmonic truncation estimate {est[i]:.2g} above rtol {rtol:g}: raise the harmonics"
+    ds["status_message"] = (ds["status_message"].dims, message, ds["status_message"].attrs)
+    return ds
+
+
+def _accuracy_warning(ds: xr.Dataset, rtol: float) -> None:
+    """One FrfAccuracyWarning for the points whose error estimate stays above rtol."""
+    if rtol is None:
+        return
+    est = np.asarray(ds["error_estimate"].values, float).ravel()
+    above = np.flatnonzero(est > rtol)
+    if above.size:
+        freqs = np.broadcast_to(ds["frequency"].values, ds["error_estimate"].shape).ravel()
+        warnings.warn(
+            f"{above.size} FRF point(s) have an error estimate above rtol {rtol:g} after the step refinements "
+            f"(largest {est[above].max():.2g} at {freqs[above[np.argmax(est[above])]]:.6g} Hz; see status_message): "
+            "give a larger min_steps_per_period or max_refinements, or raise rtol",
+            FrfAccuracyWarning,
+            stacklevel=3,
+        )

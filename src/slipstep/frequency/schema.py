@@ -91,7 +91,41 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
         "asked (a requested frequency), continuation (a point the continuation took between "
         "them) or turning (a continuation point where the branch turns back)",
     ),
+    # ---- the error of each point (issue 24: slipstep.frequency.error_estimate) ----
+    "error_estimate": (
+        ("frequency",),
+        "1",
+        "estimated relative error of the energy per cycle of the point (march, shoot: step doubling "
+        "on the converged orbit; harmonic balance: the harmonic truncation estimate)",
+    ),
+    "steps_per_period": (
+        ("frequency",),
+        "1",
+        "time steps of the returned steady-state period (march, shoot) or AFT samples per period (harmonic balance)",
+    ),
+    "time_step": (
+        ("frequency",),
+        "s",
+        "mean time step of the returned period, period / steps_per_period (march, shoot; NaN for harmonic balance)",
+    ),
+    "step_refinements": (
+        ("frequency",),
+        "1",
+        "times the step was halved beyond the first step doubling because the estimate exceeded rtol (march, shoot)",
+    ),
+    "status_message": (
+        ("frequency",),
+        "1",
+        "text: why the point is not OK, or that its error estimate exceeds rtol (empty when nothing to say)",
+    ),
+    # ---- end of the error block ----
 }
+
+TEXT_VARIABLES = frozenset({"status", "status_message", "point_kind"})
+"""Variables of FRF_SCHEMA holding text (one string per point; "" when not set)."""
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),
 ``sweep`` ("up" or "down"), ``method`` (time-marching method, where one is used),
-``harmonics`` (the retained harmonic numbers, HBM), ``steady_tolerance``, ``slipstep_version``."""
+``harmonics`` (the retained harmonic numbers, HBM), ``steady_tolerance``, ``slipstep_version``,
+``rtol`` (the accuracy asked of each point's error estimate), ``error_estimate_method`` (how
+``error_estimate`` was obtained, per solver), ``solver_reason`` (why ``solver="auto"`` chose
+the solver; "" when it was given)."""

@@ -423,6 +423,7 @@ def _create_frf(g, plan, labels: dict) -> None:
     """The FRF variables of every case: ``frf_<name>`` over (case, <its FRF_SCHEMA dims>), with
     the frequency [Hz], harmonic and response coordinates (slipstep.frequency.schema)."""
     from slipstep.frequency import FRF_SCHEMA
+    from slipstep.frequency.schema import TEXT_VARIABLES
 
     cfg = plan.outputs["frf"]
     coords = {
@@ -449,7 +450,7 @@ def _create_frf(g, plan, labels: dict) -> None:
         if any(d not in sizes for d in dims):
             continue
         shape = (n,) + tuple(sizes[d] for d in dims)
-        text = name == "status"
+        text = name in TEXT_VARIABLES
         g.create_array(
             f"frf_{name}",
             shape=shape,
