@@ -127,8 +127,6 @@ def test_linear_limits_are_the_answer(kind, solver):
     (2/h) tan(w h / 2) for the time-domain solvers (h: the step the Dataset records); no higher
     harmonics, no friction work; the time-domain error of the excitation work (exact: pi c w |X|^2
     per cycle) below rtol, and its estimate within 3x of it away from the resonance."""
-    if solver == "hbm" and kind == "none":
-        pytest.xfail("harmonic balance's continuation on a system without contacts (issue 24, helper B's hbm work)")
     system, kt = _jenkins_variant(kind)
     options = {"tolerance": 1e-12, "max_periods": 5000} if solver == "march" else {}
     ds = frf(system, [300.0, 400.0, 450.0], solver=solver, **options)
@@ -172,13 +170,12 @@ def test_hbm_through_the_entry_point():
     assert (ds["status"].values == "OK").all() and np.isnan(ds["time_step"].values).all()
 
 
-@pytest.mark.xfail(reason="the asked grid from harmonic balance's continuation is helper B's hbm work (issue 24)")
 def test_hbm_returns_the_asked_grid():
     system = ss.load_system(JENKINS)
     for asked in ([340.0, 350.0, 360.0], list(np.linspace(300, 400, 9))):
         ds = frf(system, asked, solver="hbm", check="none")
-        kind = ds["point_kind"].values if "point_kind" in ds else np.full(ds.sizes["frequency"], "asked")
-        on_grid = ds["frequency"].values[kind != "continuation"]
+        kind = ds["point_kind"].values
+        on_grid = ds["frequency"].values[kind == "asked"]
         assert on_grid == pytest.approx(asked)
 
 
