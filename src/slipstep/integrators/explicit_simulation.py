@@ -16,6 +16,7 @@ import numpy as np
 from slipstep.errors import InputError, Status
 from slipstep.kernels import explicit as E
 from slipstep.kernels.settings import march_settings
+from slipstep.invariants import check_march
 from slipstep.methods.simulation import RunOptions, Runner, Simulation, _allocate_outputs, check_divergence
 from slipstep.methods import accuracy
 from slipstep.methods import step_control as SC
@@ -134,7 +135,8 @@ class ExplicitSimulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (self.preload_state[i] for i in (0, 1, 2, 5, 6))):
             dst[:] = src
         self._run_kernel(E.explicit_march)
-        return check_divergence(self)
+        check_divergence(self)
+        return check_march(self)
 
     def _visited_states(self) -> str:
         return ""

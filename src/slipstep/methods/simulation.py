@@ -29,6 +29,7 @@ from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import accuracy
 from slipstep.methods import save as SV
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported for the explicit runner)
+from slipstep.invariants import check_march
 from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
 from slipstep.methods import step_control as SC
@@ -131,6 +132,8 @@ class RunOptions:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise InputError(name, f"is {value!r}", "give a whole number >= 1")
+            if value > 10**9:  # an int64 in the kernel settings (issue 29: OverflowError before)
+                raise InputError(name, f"is {value!r}, beyond any useful count", "give a whole number of at most 1e9")
         for name in ("tolerance", "state_tolerance", "singular_tolerance"):
             value = positive(name, getattr(self, name))
             if value >= 1:
@@ -237,6 +240,8 @@ class Runner:
         visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
+        if getattr(self, "broken_invariant", None) is not None:  # Status.INVARIANT (slipstep.invariants)
+            report["broken_invariant"] = self.broken_invariant.text()
         return report
 
     def dataset(self):
@@ -263,6 +268,8 @@ class Runner:
             )
             if "states_visited" in failure:
                 message += f", states tried {failure['states_visited']}"
+            if "broken_invariant" in failure:
+                message += f"; {failure['broken_invariant']}"
             message += self.failure_hint if self.status == Status.NON_FINITE else ""
         solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
         method = self.method_attrs()
@@ -390,7 +397,9 @@ class Simulation(Runner):
             None if self.method.quasi_static else opt.rtol,
             self.t_min_stick,
         )
-        self.low_rank = use_low_rank(cs, opt.linear_solver)
+        # the event-driven kernel factorises J(S) (n x n) itself: its cache must be n x n (issue 29: a low-rank
+        # cache of nq x nq was written out of bounds)
+        self.low_rank = use_low_rank(cs, opt.linear_solver) and self.method.solver != K.EVENTS
         self.memory_estimate = check_memory(
             cs, capacity, opt, self.method.quasi_static, self.low_rank, self.save_plan, t_end
         )
@@ -619,7 +628,8 @@ class Simulation(Runner):
             dst[:] = src
         _reset_cache(ws)
         self._run_kernel(march_kernel(self.method) if kernel is None else kernel)
-        return self._check_divergence()
+        self._check_divergence()
+        return check_march(self)
 
     # -- results --------------------------------------------------------------------------
     def _visited_states(self) -> str:

@@ -1,0 +1,144 @@
+"""The contact invariants every status-OK march must satisfy, checked once on the rows it wrote.
+
+For every saved row j (step k_j, time t_j) and saved contact c with friction coefficient mu:
+
+* finite:        every t, x, q, f, w written is a finite number;
+* rows written:  the rows hold steps 0 = k_0 < k_1 < ... (strictly increasing) at
+                 non-decreasing times (an unwritten or overwritten row breaks this);
+* N >= 0:        the normal force N_c = f[normal row of c] is never a tension;
+* friction:      |T_d| <= mu N_c (1 + 1e-12) for every direction d of an uncoupled contact
+                 (2D, quasi-3D, Jenkins), ||(T_1, T_2)|| <= mu N_c (1 + 1e-12) (the Euclidean
+                 norm) for a friction-circle contact;
+* slip along T:  between two rows of consecutive steps, a direction in a slip state moves its
+                 slider along its force: (w_d,k - w_d,k-1) T_d,k >= 0, to a rounding floor of
+                 1e-12 (|w| + L) |T| (L the system length scale, CompiledSystem.length_scale).
+
+Why once on the outputs in Python rather than in the kernels' accept step: one function for
+every kernel (implicit, quasi-static, event-driven, explicit), no recompile of the kernels,
+and its cost is a few vectorised passes over arrays the march has already written (measured in
+the report of issue 29: under 1 % of the paper case's kernel time). What it cannot see are
+the steps a save plan does not keep (``every`` > 1, given times): those rows are never
+written, so no result holds them.
+
+``check_outputs(cs, out, n_rows)`` returns None or a :class:`Violation` naming the invariant,
+the step, the time and the contact or direction (Simulation.march turns it into the status
+``INVARIANT``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from slipstep.kernels.codes import LAW_CIRCLE, SLIP_STATES
+
+FRICTION_RTOL = 1e-12  # |T| <= mu N (1 + FRICTION_RTOL)
+SLIP_FLOOR = 1e-12  # rounding floor of the slip-along-T test, relative to |w| + L
+
+
+class Violation(NamedTuple):
+    """The first broken invariant of a march: which, at which step and time, and where."""
+
+    invariant: str  # "finite", "rows written", "N >= 0", "|T| <= mu N", "slip along T"
+    step: int
+    time: float
+    where: str  # contact or direction index text
+    detail: str
+
+    def text(self) -> str:
+        return (
+            f"broken invariant {self.invariant} at step {self.step}, t = {self.time:.6g} s, {self.where}: {self.detail}"
+        )
+
+
+def check_outputs(cs, out, n_rows: int) -> Violation | None:
+    """The first invariant (module docstring) broken by the first ``n_rows`` rows of the kernel
+    outputs ``out`` (kernels.march.Outputs) of a march of the compiled system ``cs``, or None."""
+    t, step = np.asarray(out.t[:n_rows]), np.asarray(out.step[:n_rows])
+    q, f, w = np.asarray(out.q[:n_rows]), np.asarray(out.f[:n_rows]), np.asarray(out.w[:n_rows])
+    state = np.asarray(out.state[:n_rows])
+    for name, values in (("t", t), ("x", out.x[:n_rows]), ("q", q), ("f", f), ("w", w)):
+        bad = ~np.isfinite(np.asarray(values))
+        if bad.any():
+            j = int(np.argmax(bad.reshape(n_rows, -1).any(axis=1)))
+            return _at(step, t, j, "finite", "all values", f"{name} holds a non-finite number")
+    if n_rows > 1:
+        bad = (np.diff(step) <= 0) | (np.diff(t) < 0)
+        if bad.any():
+            j = int(np.argmax(bad)) + 1
+            return _at(step, t, j, "rows written", "output row", f"step {step[j]} after step {step[j - 1]}")
+    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
+    dirs = np.asarray(out.dirs)
+    owner = np.asarray(cs.direction_contact)
+    for c in sorted({int(owner[d]) for d in dirs}):
+        found = _contact_violation(cs, c, column, dirs, owner, step, t, q, f, w, state)
+        if found is not None:
+            return found
+    return None
+
+
+def _at(step, t, j, invariant, where, detail) -> Violation:
+    return Violation(invariant, int(step[j]), float(t[j]), where, detail)
+
+
+def _contact_violation(cs, c, column, dirs, owner, step, t, q, f, w, state) -> Violation | None:
+    """The invariants of contact c (module docstring) on the saved rows, or None."""
+    N = f[:, column[int(cs.normal_row[c])]]
+    mu = float(cs.law_par[c, 1])
+    where = f"contact {c}"
+    if (N < 0).any():
+        j = int(np.argmax(N < 0))
+        return _at(step, t, j, "N >= 0", where, f"N = {N[j]:.6g} N")
+    cols = [ii for ii, d in enumerate(dirs) if owner[d] == c]
+    T = f[:, [column[int(cs.tangential_row[dirs[ii]])] for ii in cols]]
+    limit = mu * N * (1 + FRICTION_RTOL)
+    size = np.sqrt((T**2).sum(axis=1)) if int(cs.law[c]) == LAW_CIRCLE else np.abs(T).max(axis=1)
+    if (size > limit).any():
+        j = int(np.argmax(size > limit))
+        return _at(step, t, j, "|T| <= mu N", where, f"|T| = {size[j]:.6g} N, mu N = {mu * N[j]:.6g} N")
+    if len(step) < 2:
+        return None
+    consecutive = np.diff(step) == 1
+    L = float(cs.length_scale)
+    for k, ii in enumerate(cols):
+        wd, Td = w[:, ii], T[:, k]
+        dw = np.diff(wd)
+        slip = np.isin(state[1:, ii], SLIP_STATES) & consecutive
+        floor = SLIP_FLOOR * (np.abs(wd[1:]) + np.abs(wd[:-1]) + L) * np.abs(Td[1:])
+        bad = slip & (dw * Td[1:] < -floor)
+        if bad.any():
+            j = int(np.argmax(bad)) + 1
+            return _at(
+                step,
+                t,
+                j,
+                "slip along T",
+                f"direction {int(dirs[ii])} (contact {c})",
+                f"slider moved {dw[j - 1]:.3g} m against T = {Td[j]:.6g} N",
+            )
+    return None
+
+
+def check_march(runner):
+    """Set ``runner.status`` (a Simulation or an explicit runner after its march) to
+    ``Status.INVARIANT`` when it is OK and its rows break an invariant: the failing step and time
+    go where every failure's are (counters[C_FAIL_STEP], times[S_FAIL]; the result's
+    ``failed_at_step``, ``failed_at_time_s``) and the violation to ``runner.broken_invariant``
+    (the result's ``broken_invariant`` attr, named in ``status_message``). Returns the status."""
+    from slipstep.errors import Status
+    from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
+    from slipstep.kernels.march import S_FAIL
+    from slipstep.methods.simulation import saved_rows
+
+    runner.broken_invariant = None
+    if runner.status != Status.OK:
+        return runner.status
+    out = runner.out
+    found = check_outputs(runner.compiled, out, saved_rows(out, int(out.counters[C_STEPS])))
+    if found is not None:
+        runner.status = Status.INVARIANT
+        runner.broken_invariant = found
+        out.counters[C_FAIL_STEP] = found.step
+        out.times[S_FAIL] = found.time
+    return runner.status
