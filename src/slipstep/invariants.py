@@ -14,11 +14,12 @@ For every saved row j (step k_j, time t_j) and saved contact c with friction coe
                  1e-12 (|w| + L) |T| (L the system length scale, CompiledSystem.length_scale).
 
 Why once on the outputs in Python rather than in the kernels' accept step: one function for
-every kernel (implicit, quasi-static, event-driven, explicit), no recompile of the kernels,
-and its cost is a few vectorised passes over arrays the march has already written (measured in
-the report of issue 29: under 1 % of the paper case's kernel time). What it cannot see are
-the steps a save plan does not keep (``every`` > 1, given times): those rows are never
-written, so no result holds them.
+every kernel (implicit, quasi-static, event-driven, explicit), no kernel edited or recompiled,
+and it is cheap: a dozen vectorised passes over the rows the march has already written,
+about 0.13 ms plus 0.03 us per row on the paper case, 1-3 % of a whole ``slipstep.run``
+(benchmarks/bench_invariants.py; a kernel-side test would save that fraction at the price of
+the same test written into four kernels). What it cannot see are the steps a save plan does
+not keep (``every`` > 1, given times): those rows are never written, so no result holds them.
 
 ``check_outputs(cs, out, n_rows)`` returns None or a :class:`Violation` naming the invariant,
 the step, the time and the contact or direction (Simulation.march turns it into the status
@@ -68,55 +69,67 @@ def check_outputs(cs, out, n_rows: int) -> Violation | None:
         if bad.any():
             j = int(np.argmax(bad)) + 1
             return _at(step, t, j, "rows written", "output row", f"step {step[j]} after step {step[j - 1]}")
-    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
-    dirs = np.asarray(out.dirs)
-    owner = np.asarray(cs.direction_contact)
-    for c in sorted({int(owner[d]) for d in dirs}):
-        found = _contact_violation(cs, c, column, dirs, owner, step, t, q, f, w, state)
-        if found is not None:
-            return found
-    return None
+    return _contact_violation(cs, out, step, t, f, w, state)
 
 
 def _at(step, t, j, invariant, where, detail) -> Violation:
     return Violation(invariant, int(step[j]), float(t[j]), where, detail)
 
 
-def _contact_violation(cs, c, column, dirs, owner, step, t, q, f, w, state) -> Violation | None:
-    """The invariants of contact c (module docstring) on the saved rows, or None."""
-    N = f[:, column[int(cs.normal_row[c])]]
-    mu = float(cs.law_par[c, 1])
-    where = f"contact {c}"
+def _first(bad) -> tuple[int, int]:
+    """(row, column) of the first True of a (rows, columns) mask, row-major."""
+    j, k = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    return int(j), int(k)
+
+
+def _contact_violation(cs, out, step, t, f, w, state) -> Violation | None:
+    """N >= 0, the friction bound and slip along T (module docstring) of every saved contact
+    and direction, vectorised over them, or None."""
+    dirs = np.asarray(out.dirs)
+    if dirs.size == 0:
+        return None
+    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
+    owner = np.asarray(cs.direction_contact)[dirs]
+    contacts = np.unique(owner)
+    N = f[:, [column[int(r)] for r in np.asarray(cs.normal_row)[contacts]]]
     if (N < 0).any():
-        j = int(np.argmax(N < 0))
-        return _at(step, t, j, "N >= 0", where, f"N = {N[j]:.6g} N")
-    cols = [ii for ii, d in enumerate(dirs) if owner[d] == c]
-    T = f[:, [column[int(cs.tangential_row[dirs[ii]])] for ii in cols]]
-    limit = mu * N * (1 + FRICTION_RTOL)
-    size = np.sqrt((T**2).sum(axis=1)) if int(cs.law[c]) == LAW_CIRCLE else np.abs(T).max(axis=1)
-    if (size > limit).any():
-        j = int(np.argmax(size > limit))
-        return _at(step, t, j, "|T| <= mu N", where, f"|T| = {size[j]:.6g} N, mu N = {mu * N[j]:.6g} N")
+        j, k = _first(N < 0)
+        return _at(step, t, j, "N >= 0", f"contact {int(contacts[k])}", f"N = {N[j, k]:.6g} N")
+    T = f[:, [column[int(r)] for r in np.asarray(cs.tangential_row)[dirs]]]
+    at = np.searchsorted(contacts, owner)  # the column of each direction's contact in N
+    mu = np.asarray(cs.law_par)[contacts, 1]
+    size = np.abs(T)  # per direction (uncoupled laws); the circle's norm over its directions
+    for k in np.flatnonzero(np.asarray(cs.law)[contacts] == LAW_CIRCLE):
+        mine = at == k
+        size[:, mine] = np.sqrt((T[:, mine] ** 2).sum(axis=1))[:, None]
+    limit = (mu * N)[:, at]
+    bad = size > limit * (1 + FRICTION_RTOL)
+    if bad.any():
+        j, k = _first(bad)
+        return _at(
+            step,
+            t,
+            j,
+            "|T| <= mu N",
+            f"contact {int(owner[k])}",
+            f"|T| = {size[j, k]:.6g} N, mu N = {limit[j, k]:.6g} N",
+        )
     if len(step) < 2:
         return None
-    consecutive = np.diff(step) == 1
-    L = float(cs.length_scale)
-    for k, ii in enumerate(cols):
-        wd, Td = w[:, ii], T[:, k]
-        dw = np.diff(wd)
-        slip = np.isin(state[1:, ii], SLIP_STATES) & consecutive
-        floor = SLIP_FLOOR * (np.abs(wd[1:]) + np.abs(wd[:-1]) + L) * np.abs(Td[1:])
-        bad = slip & (dw * Td[1:] < -floor)
-        if bad.any():
-            j = int(np.argmax(bad)) + 1
-            return _at(
-                step,
-                t,
-                j,
-                "slip along T",
-                f"direction {int(dirs[ii])} (contact {c})",
-                f"slider moved {dw[j - 1]:.3g} m against T = {Td[j]:.6g} N",
-            )
+    dw = np.diff(w, axis=0)
+    slip = np.isin(state[1:], SLIP_STATES) & (np.diff(step) == 1)[:, None]
+    floor = SLIP_FLOOR * (np.abs(w[1:]) + np.abs(w[:-1]) + float(cs.length_scale)) * np.abs(T[1:])
+    bad = slip & (dw * T[1:] < -floor)
+    if bad.any():
+        j, k = _first(bad)
+        return _at(
+            step,
+            t,
+            j + 1,
+            "slip along T",
+            f"direction {int(dirs[k])} (contact {int(owner[k])})",
+            f"slider moved {dw[j, k]:.3g} m against T = {T[j + 1, k]:.6g} N",
+        )
     return None
 
 

@@ -124,7 +124,7 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
     )
 
 
-FAMILIES = ("single-stick", "two-on-one", "mixed", "general")
+FAMILIES = ("single-stick", "two-on-one", "mixed", "general", "slow-load")
 
 
 def family_system(rng: np.random.Generator, family: str = "general") -> System:
@@ -135,7 +135,9 @@ def family_system(rng: np.random.Generator, family: str = "general") -> System:
     * ``two-on-one``: two contacts gathering the same DOF (1-3 DOFs);
     * ``mixed``: 2-5 DOFs, every gather row mixing DOFs (dense random rows);
     * ``general``: 1-5 DOFs, 1-3 contacts, dense or unit gather rows, K SPD or zero, gaps and
-      interferences, motions on some.
+      interferences, motions on some;
+    * ``slow-load``: ``general`` with a load period of 1e3-3e4 T_min (long quasi-static stretches
+      marched by a dynamic method; where Method 3 broke |T| <= mu N before issue 29).
     """
     if family not in FAMILIES:
         raise InputError("family", f"is {family!r}", f"use one of {FAMILIES}")
@@ -177,7 +179,7 @@ def family_system(rng: np.random.Generator, family: str = "general") -> System:
     Keff = cs.K + sum(cs.kn[c] * np.outer(cs.A[cs.normal_row[c]], cs.A[cs.normal_row[c]]) for c in range(nc))
     Keff = Keff + sum(cs.kt[d] * np.outer(cs.A[cs.tangential_row[d]], cs.A[cs.tangential_row[d]]) for d in range(nc))
     t_min = 2 * math.pi / omega_max(M, Keff)
-    frequency = 1.0 / (t_min * 10 ** rng.uniform(0.0, 2.0))
+    frequency = 1.0 / (t_min * 10 ** (rng.uniform(3.0, 4.5) if family == "slow-load" else rng.uniform(0.0, 2.0)))
     force = Signal(
         tuple(f"x{i}" for i in range(n)),
         (Harmonic(frequency, rng.standard_normal(n) * amplitude, rng.uniform(0, 6.3, n)),),
