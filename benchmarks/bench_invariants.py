@@ -45,11 +45,11 @@ def main() -> None:
         sim.march()  # compile / warm up
         kernel = _median_time(sim.march, args.repeats)  # march() includes one check: subtract it below
         rows = saved_rows(sim.out, int(sim.out.counters[C_STEPS]))
-        check = _median_time(lambda: check_outputs(sim.compiled, sim.out, rows), args.repeats)
+        check = _median_time(lambda sim=sim, rows=rows: check_outputs(sim.compiled, sim.out, rows), args.repeats)
         kernel -= check
         steps = int(sim.out.counters[C_STEPS])
         wall = _median_time(
-            lambda: slipstep.run(system, method, periods=args.periods, error_estimate=False), args.repeats
+            lambda method=method: slipstep.run(system, method, periods=args.periods, error_estimate=False), args.repeats
         )
         print(
             f"  {method:18s} {steps:8d} {kernel * 1e3:8.2f} ms {wall * 1e3:8.2f} ms {check * 1e3:8.3f} ms "
