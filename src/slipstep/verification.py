@@ -215,6 +215,49 @@ def invariant_check(system: System, method: str, periods: float = 2.0, **options
     return ds.attrs["status"], ds.attrs.get("broken_invariant", "")
 
 
+INVARIANT_METHODS = (
+    "newmark",
+    "full-newton",
+    "piecewise-linear",
+    "newmark-adaptive",
+    "quasi-static",
+    "quasi-static-events",
+)
+DECIDABLE_RTOL = 1e-8
+
+
+def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0, rtol: float = 1e-6) -> dict:
+    """Issue 29's check of one system: every method's status and broken invariant (``invariant_check``),
+    and for the fixed-step dynamic methods (CHECK_METHODS) the agreement error with full Newton
+    at tolerance 1e-13 where the system is *decidable*: full Newton and the piecewise-linear
+    solve, both at 1e-13, agree to DECIDABLE_RTOL of the range (else NaN). Returns
+    {method: {'status', 'invariant', 'error'}, 'decidable': bool}."""
+    from slipstep.methods.simulation import run
+
+    rows: dict = {"decidable": False}
+    ref = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False)
+            pl = run(system, "piecewise-linear", periods=periods, state_tolerance=1e-13, error_estimate=False)
+            rows["decidable"] = (
+                ref.attrs["status"] == pl.attrs["status"] == "OK" and agreement_error(pl, ref) <= DECIDABLE_RTOL
+            )
+        except (InputError, SolverError):
+            pass
+        for m in methods:
+            try:
+                ds = run(system, m, periods=periods, error_estimate=False)
+            except (InputError, SolverError) as exc:
+                rows[m] = {"status": "SETUP", "invariant": str(exc), "error": math.nan}
+                continue
+            ok = ds.attrs["status"] == "OK"
+            error = agreement_error(ds, ref) if ok and rows["decidable"] and m in CHECK_METHODS else math.nan
+            rows[m] = {"status": ds.attrs["status"], "invariant": ds.attrs.get("broken_invariant", ""), "error": error}
+    return rows
+
+
 def agreement_error(ds, ref) -> float:
     """max_t,j |x_j - x_ref,j| / (largest DOF range of the reference); inf if the grids differ."""
     x = ds["displacement"].values
