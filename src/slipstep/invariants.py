@@ -145,13 +145,94 @@ def check_march(runner):
     from slipstep.methods.simulation import saved_rows
 
     runner.broken_invariant = None
+    runner.step_audit = {}
     if runner.status != Status.OK:
         return runner.status
     out = runner.out
     found = check_outputs(runner.compiled, out, saved_rows(out, int(out.counters[C_STEPS])))
+    if found is None and hasattr(runner, "method"):
+        runner.step_audit = audit_steps(runner)
     if found is not None:
         runner.status = Status.INVARIANT
         runner.broken_invariant = found
         out.counters[C_FAIL_STEP] = found.step
         out.times[S_FAIL] = found.time
     return runner.status
+
+
+#: a step of an iterative solver whose balance residual exceeds this many tolerances of the
+#: physical force scale is flagged (issue 29 item 3: Method 1's accepted state off the discrete solution)
+RESIDUAL_FLAG_FACTOR = 1e4
+
+
+def step_residuals(runner) -> np.ndarray | None:
+    """The relative balance residual of every step k >= 1 of a Newmark march (alpha_m = alpha_f = 0),
+    recomputed from the rows it wrote:
+
+        rho_k = max_i |M a_k + C v_k + K x_k + A^T f_k - f_e(t_k)|_i / F_k,
+        F_k   = the largest |term|_i of the five (the physical force scale of the step)
+
+    (the Newton tests measure the residual against the step's whole right-hand side, predictor
+    terms included, and never below the floor tol L max diag J(stick): on a response far below L
+    or with large predictor terms they pass at a rho far above the tolerance). None when the
+    rows do not hold every DOF and contact at every step, or the structure is banded or has
+    massless DOFs (the balance needs them all)."""
+    from slipstep.kernels.codes import C_STEPS
+    from slipstep.methods.simulation import _force_signal, saved_rows
+    from slipstep.model.excitation import evaluate_compiled
+
+    plan = getattr(runner, "save_plan", None)
+    cs, out = runner.compiled, runner.out
+    scheme = runner.options.scheme
+    if plan is not None and not (plan.all_dofs and plan.all_contacts and plan.every_step):
+        return None
+    if cs.banded or scheme.alpha_m != 0.0 or scheme.alpha_f != 0.0 or getattr(runner, "massless", None) is not None:
+        return None
+    k = saved_rows(out, int(out.counters[C_STEPS]))
+    if k < 2:
+        return None
+    F = np.zeros((k, cs.A.shape[0]))
+    F[:, np.asarray(out.rows)] = out.f[:k]
+    terms = (
+        out.a[:k] @ cs.M.T,
+        out.v[:k] @ cs.C.T,
+        out.x[:k] @ cs.K.T,
+        F @ cs.A,
+        -(evaluate_compiled(_force_signal(cs), out.t[:k]) + cs.constant_force),
+    )
+    scale = np.max([np.abs(term).max(axis=1) for term in terms], axis=0)
+    return (np.abs(sum(terms)).max(axis=1) / np.maximum(scale, 1e-300))[1:]
+
+
+def audit_steps(runner) -> dict:
+    """The per-step residual flag of an OK modified-Newton march (Methods 1 and 2): the steps whose
+    :func:`step_residuals` exceed RESIDUAL_FLAG_FACTOR x tolerance, counted in the result attrs
+    (``steps_above_tolerance``, ``max_step_residual``, ``first_step_above_tolerance``) with a
+    warning; {} when not audited (another solver, a partial save, a failed march)."""
+    import warnings
+
+    from slipstep.errors import Status
+    from slipstep.kernels.codes import MODIFIED_NEWTON, MODIFIED_NEWTON_STATE
+
+    if runner.status != Status.OK or runner.method.quasi_static:
+        return {}
+    if getattr(runner.method, "solver", None) not in (MODIFIED_NEWTON, MODIFIED_NEWTON_STATE):
+        return {}
+    rho = step_residuals(runner)
+    if rho is None:
+        return {}
+    tol = float(runner.options.tolerance)
+    flagged = np.flatnonzero(rho > RESIDUAL_FLAG_FACTOR * tol)
+    attrs = {"steps_above_tolerance": int(flagged.size), "max_step_residual": float(rho.max())}
+    if flagged.size:
+        first = int(flagged[0]) + 1
+        attrs["first_step_above_tolerance"] = int(runner.out.step[first])
+        warnings.warn(
+            f"{flagged.size} of {rho.size} steps were accepted with a balance residual above "
+            f"{RESIDUAL_FLAG_FACTOR:g} x tolerance of their forces (largest {rho.max():.2g}, first at "
+            f"t = {float(runner.out.t[first]):.6g} s): the result may be off the discrete solution "
+            "(issue 29). Check with method='full-newton' or a smaller tolerance",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return attrs

@@ -298,6 +298,7 @@ class Runner:
             }
         )
         attrs.update(failure)
+        attrs.update(getattr(self, "step_audit", {}))  # slipstep.invariants.audit_steps (issue 29)
         attrs.update(self.accuracy_attrs())
         if plan is not None:
             attrs.update(plan.attrs())
