@@ -230,8 +230,9 @@ def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0
     """Issue 29's check of one system: every method's status and broken invariant (``invariant_check``),
     and for the fixed-step dynamic methods (CHECK_METHODS) the agreement error with full Newton
     at tolerance 1e-13 where the system is *decidable*: full Newton and the piecewise-linear
-    solve, both at 1e-13, agree to DECIDABLE_RTOL of the range (else NaN). Returns
-    {method: {'status', 'invariant', 'error'}, 'decidable': bool}."""
+    solve, both at 1e-13, agree to DECIDABLE_RTOL of the range (else NaN), and whether the
+    result was flagged by the step audit (invariants.audit_steps). Returns
+    {method: {'status', 'invariant', 'error', 'flagged'}, 'decidable': bool}."""
     from slipstep.methods.simulation import run
 
     rows: dict = {"decidable": False}
@@ -250,11 +251,16 @@ def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0
             try:
                 ds = run(system, m, periods=periods, error_estimate=False)
             except (InputError, SolverError) as exc:
-                rows[m] = {"status": "SETUP", "invariant": str(exc), "error": math.nan}
+                rows[m] = {"status": "SETUP", "invariant": str(exc), "error": math.nan, "flagged": False}
                 continue
             ok = ds.attrs["status"] == "OK"
             error = agreement_error(ds, ref) if ok and rows["decidable"] and m in CHECK_METHODS else math.nan
-            rows[m] = {"status": ds.attrs["status"], "invariant": ds.attrs.get("broken_invariant", ""), "error": error}
+            rows[m] = {
+                "status": ds.attrs["status"],
+                "invariant": ds.attrs.get("broken_invariant", ""),
+                "error": error,
+                "flagged": ds.attrs.get("steps_above_tolerance", 0) > 0,  # invariants.audit_steps
+            }
     return rows
 
 
