@@ -1,6 +1,8 @@
 """The contact invariants every status-OK march must satisfy, checked once on the rows it wrote.
 
-For every saved row j (step k_j, time t_j) and saved contact c with friction coefficient mu:
+For every saved row j (step k_j, time t_j) and saved contact c with friction coefficient mu
+(the contact invariants from step 1 on: row 0 holds the state the march was given, which a
+shooting iteration sets freely):
 
 * finite:        every t, x, q, f, w written is a finite number;
 * rows written:  the rows hold steps 0 = k_0 < k_1 < ... (strictly increasing) at
@@ -92,8 +94,9 @@ def _contact_violation(cs, out, step, t, f, w, state) -> Violation | None:
     owner = np.asarray(cs.direction_contact)[dirs]
     contacts = np.unique(owner)
     N = f[:, [column[int(r)] for r in np.asarray(cs.normal_row)[contacts]]]
-    if (N < 0).any():
-        j, k = _first(N < 0)
+    solved = (step > 0)[:, None]  # row 0 is the given start (a shooting iterate), not a solved step
+    if (solved & (N < 0)).any():
+        j, k = _first(solved & (N < 0))
         return _at(step, t, j, "N >= 0", f"contact {int(contacts[k])}", f"N = {N[j, k]:.6g} N")
     T = f[:, [column[int(r)] for r in np.asarray(cs.tangential_row)[dirs]]]
     at = np.searchsorted(contacts, owner)  # the column of each direction's contact in N
@@ -103,7 +106,7 @@ def _contact_violation(cs, out, step, t, f, w, state) -> Violation | None:
         mine = at == k
         size[:, mine] = np.sqrt((T[:, mine] ** 2).sum(axis=1))[:, None]
     limit = (mu * N)[:, at]
-    bad = size > limit * (1 + FRICTION_RTOL)
+    bad = solved & (size > limit * (1 + FRICTION_RTOL))
     if bad.any():
         j, k = _first(bad)
         return _at(
