@@ -9,6 +9,15 @@ Prints the failure rate per method (and overall), on the well-conditioned system
 all of them (a sensitive system's response moves by more than rtol when its loads are scaled
 by 1 + 1e-10: see slipstep.verification), and the worst cases.
 A failure is a status-OK result that is wrong: it must never happen.
+
+    python benchmarks/random_systems.py --families --n 200     # issue 29: n systems per family
+
+The issue-29 mode: the generators of slipstep.verification.family_system (single-stick,
+two-on-one, mixed, general, slow-load: 2D laws, harmonic loads and motions, load period tied
+to T_min) and, per method and family, the rate of results ending INVARIANT (an OK march that
+broke a contact invariant: slipstep.invariants) and, for Method 1, full Newton and Method 3 on
+the decidable systems (full Newton and the piecewise-linear solve at 1e-13 agree to 1e-8), the
+rate of OK results more than rtol of the range from them.
 """
 
 from __future__ import annotations
@@ -18,7 +27,47 @@ import time
 
 import numpy as np
 
-from slipstep.verification import CHECK_METHODS, check_system, failures, random_system
+from slipstep.verification import (
+    CHECK_METHODS,
+    FAMILIES,
+    INVARIANT_METHODS,
+    check_system,
+    failures,
+    family_check,
+    family_system,
+    random_system,
+)
+
+
+def families(n: int, seed: int, periods: float, rtol: float) -> None:
+    """The issue-29 table (module docstring): per family and method, INVARIANT and disagreement rates."""
+    start = time.perf_counter()
+    print(f"{n} systems per family, seed {seed}, {periods:g} periods, agreement rtol {rtol:g}")
+    print("  off: OK and more than rtol of the range from the references; unflagged: off without the step")
+    print("  audit's warning (invariants.audit_steps): the failures that must not happen")
+    head = f"  {'family':13s} {'method':20s} {'ran':>5s} {'INVARIANT':>11s} {'decidable':>9s} {'off':>5s}"
+    print(head + f" {'unflagged':>16s} {'flagged':>8s}  worst")
+    for family in FAMILIES:
+        # ran, INVARIANT, decidable OK, off, worst, off and unflagged, flagged
+        counts = {m: [0, 0, 0, 0, 0.0, 0, 0] for m in INVARIANT_METHODS}
+        for i in range(n):
+            rows = family_check(family_system(np.random.default_rng([seed, i]), family), periods=periods, rtol=rtol)
+            for m in INVARIANT_METHODS:
+                c, r = counts[m], rows[m]
+                c[0] += r["status"] != "SETUP"
+                c[1] += r["status"] == "INVARIANT"
+                c[6] += r["flagged"]
+                if np.isfinite(r["error"]):
+                    c[2] += 1
+                    c[3] += not r["error"] <= rtol
+                    c[4] = max(c[4], r["error"])
+                    c[5] += not r["error"] <= rtol and not r["flagged"]
+        for m, (ran, inv, dec, off, worst, silent, flagged) in counts.items():
+            agree = ""
+            if m in CHECK_METHODS:
+                agree = f"{dec:9d} {off:5d} {silent:7d} ({100 * silent / max(dec, 1):4.1f} %) {flagged:8d}  {worst:.2g}"
+            print(f"  {family:13s} {m:20s} {ran:5d} {inv:4d} ({100 * inv / max(ran, 1):4.1f} %) {agree}")
+    print(f"  {time.perf_counter() - start:.0f} s")
 
 
 def main() -> None:
@@ -30,7 +79,11 @@ def main() -> None:
     parser.add_argument(
         "--adaptive", action="store_true", help="also Method 2 against a tight Method 2+3 on their adaptive grid"
     )
+    parser.add_argument("--families", action="store_true", help="issue 29: invariants and agreement per family")
     args = parser.parse_args()
+    if args.families:
+        families(args.n, args.seed, args.periods, args.rtol)
+        return
     start = time.perf_counter()
     checked = sensitive = skipped = 0
     methods = CHECK_METHODS + (("newmark-adaptive",) if args.adaptive else ())

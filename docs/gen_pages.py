@@ -541,7 +541,8 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "status": (
         "-",
         "OK, or why the march stopped early (NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, "
-        "NON_FINITE, INTERRUPTED, DIVERGED); the result then holds the steps before it",
+        "NON_FINITE, INTERRUPTED, DIVERGED; INVARIANT: completed but a contact invariant broken, see "
+        "broken_invariant); the result then holds the steps before it",
     ),
     "status_message": ("-", "the status in words, with the fix"),
     "steps": ("1", "accepted time steps"),
@@ -593,8 +594,26 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     "failed_at_step": ("1", "on failure: the step that failed"),
     "failed_at_time_s": ("s", "on failure: the time it failed at"),
     "states_visited": ("-", "on failure: the contact states tried in the failing step"),
+    "broken_invariant": (
+        "-",
+        "status INVARIANT: the contact invariant the march broke (finite, rows written, N >= 0, |T| <= mu N, "
+        "slip along T), its step, time and contact",
+    ),
+    "steps_above_tolerance": (
+        "1",
+        "Methods 1 and 2 (Newmark, full save): steps accepted with a balance residual above 1e4 x tolerance of "
+        "their forces (a warning names them; the result may be off the discrete solution)",
+    ),
+    "max_step_residual": ("1", "Methods 1 and 2: the largest balance residual of a step, relative to its forces"),
+    "first_step_above_tolerance": ("1", "the first step counted in steps_above_tolerance"),
 }
-FAILURE_ATTRS = ("failed_at_step", "failed_at_time_s", "states_visited")
+FAILURE_ATTRS = (
+    "failed_at_step",
+    "failed_at_time_s",
+    "states_visited",
+    "broken_invariant",
+    "first_step_above_tolerance",
+)
 
 
 def sample_results():

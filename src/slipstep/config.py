@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import re
+import zipfile
 from collections import defaultdict
 from pathlib import Path
 from typing import Optional
@@ -29,6 +30,7 @@ from slipstep.model.contact import ContactElement
 from slipstep.model.damper import DamperContact, Platform, rigid_damper
 from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
 from slipstep.model.structure import Structure
+from slipstep.model.substructure import read_mtx
 from slipstep.system import System
 
 UM = 1e-6
@@ -371,7 +373,6 @@ def _structure_matrix(s: StructureSpec, inline: str, file_key: str, base: Path, 
 def read_matrix_file(key: str, path: Path):
     """A matrix file: .npz of scipy.sparse.save_npz (kept sparse), .mtx Matrix Market (sparse
     when stored as coordinates), .npy a dense array. Errors name ``key`` and the fix."""
-    import scipy.io
     import scipy.sparse as sp
 
     suffix = path.suffix.lower()
@@ -383,23 +384,30 @@ def read_matrix_file(key: str, path: Path):
         )
     if not path.is_file():
         raise InputError(key, f"file {str(path)!r} not found", "give a path relative to the case file")
+    if suffix == ".mtx":  # pattern and complex files refused there
+        return read_mtx(path, key)
     try:
         if suffix == ".npz":
-            return sp.load_npz(path).tocsr()
-        if suffix == ".mtx":
-            A = scipy.io.mmread(str(path))
-            return sp.csr_matrix(A) if sp.issparse(A) else np.asarray(A, dtype=np.float64)
-        A = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, KeyError) as exc:
-        writer = {".npz": "scipy.sparse.save_npz", ".mtx": "scipy.io.mmwrite", ".npy": "numpy.save"}[suffix]
+            A = sp.load_npz(path)
+        else:
+            A = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile) as exc:
         raise InputError(
             key,
             f"{str(path)!r} cannot be read as {suffix} ({' '.join(str(exc).split())[:100]})",
-            f"write it with {writer}",
+            f"write it with {_WRITERS[suffix]}",
         ) from None
+    if not isinstance(A, np.ndarray) and not sp.issparse(A):
+        raise InputError(key, f"{str(path)!r} holds no matrix", f"write one matrix with {_WRITERS[suffix]}")
+    if A.dtype.kind not in "fiub":
+        kind = {"c": "complex", "U": "text", "S": "text", "O": "object"}.get(A.dtype.kind, str(A.dtype))
+        raise InputError(key, f"{str(path)!r} holds {kind} values", "save a real matrix (float64)")
     if A.ndim != 2:
         raise InputError(key, f"{str(path)!r} holds a {A.ndim}-d array", "save a square 2-d matrix")
-    return A
+    return A.tocsr() if sp.issparse(A) else A
+
+
+_WRITERS = {".npz": "scipy.sparse.save_npz", ".mtx": "scipy.io.mmwrite", ".npy": "numpy.save"}
 
 
 def _contact_gather(c: "ContactSpec", i: int, n: int):
@@ -419,6 +427,12 @@ def _contact_gather(c: "ContactSpec", i: int, n: int):
     key = f"{where}: dof_gather_entries"
     rows = c.dof_gather_rows
     entries = c.dof_gather_entries
+    if isinstance(rows, bool) or not isinstance(rows, int) or rows not in (2, 3):
+        raise InputError(
+            f"{where}: dof_gather_rows",
+            f"is {rows!r}",
+            "give 2 (a 2D contact: tangential, normal) or 3 (quasi-3D / 3D: two tangential, normal)",
+        )
     if any(len(e) != 3 for e in entries):
         raise InputError(
             key, "has an entry that is not [row, DOF index, value]", "give triples [row, DOF index, value]"
@@ -433,6 +447,14 @@ def _contact_gather(c: "ContactSpec", i: int, n: int):
                 f"has {name} {idx[bad][0]:g}, not a whole number in 0..{bound - 1}",
                 f"give {name}s from 0 to {bound - 1}" + (" (or set dof_gather_rows)" if name == "row" else ""),
             )
+    pairs = list(zip(r.astype(int).tolist(), j.astype(int).tolist()))
+    if len(set(pairs)) != len(pairs):
+        twice = next(p for p in pairs if pairs.count(p) > 1)
+        raise InputError(
+            key,
+            f"gives row {twice[0]}, DOF index {twice[1]} more than once (the values would be summed)",
+            "give each [row, DOF index] once, with the total value",
+        )
     vals = np.array([e[2] for e in entries], dtype=float)
     return sp.csr_matrix((vals, (r.astype(int), j.astype(int))), shape=(rows, n))
 

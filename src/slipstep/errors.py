@@ -23,6 +23,7 @@ class Status(IntEnum):
     NON_FINITE = 5
     INTERRUPTED = 6
     DIVERGED = 7
+    INVARIANT = 8
 
     @property
     def message(self) -> str:
@@ -49,6 +50,12 @@ _MESSAGES = {
     Status.DIVERGED: (
         "the response grew without an energy source (numerical instability): the step exceeds "
         "the scheme's stability limit; reduce the step ratio or use an unconditionally stable scheme"
+    ),
+    Status.INVARIANT: (
+        "the march completed but its outputs break a contact invariant (named below: finite values, every row "
+        "written, N >= 0, |T| <= mu N, slip along T): a solver defect, not a property of the case; the rows "
+        "from the step named on cannot be trusted. Tighten state_tolerance or use method full-newton, and "
+        "report the case"
     ),
 }
 

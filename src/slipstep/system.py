@@ -35,6 +35,7 @@ from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, compile_signal
 from slipstep.model.structure import Structure
 from slipstep.model.validate import check_name, float_array
+from slipstep.model.validate import names as name_sequence
 
 #: sparse structures of at least this many DOFs compile to the banded backend ("auto")
 BANDED_MIN_N = 300
@@ -98,8 +99,22 @@ class System:
     name: str = "system"
 
     def __post_init__(self):
+        if not isinstance(self.structure, Structure):
+            raise InputError(
+                "structure",
+                f"is {type(self.structure).__name__} {_shown(self.structure)}, not a Structure",
+                "give slipstep.Structure(mass, damping, stiffness); to load a case by name use "
+                "slipstep.load_system(name)",
+            )
         n = self.structure.n_dofs
-        contacts = tuple(self.contacts)
+        contacts = _contacts(self.contacts)
+        if not isinstance(self.excitation, Excitation):
+            raise InputError(
+                "excitation",
+                f"is {type(self.excitation).__name__}, not an Excitation",
+                "give slipstep.Excitation(constant_force=..., force=..., motion=...)",
+            )
+        name_sequence("motion_names", self.motion_names, "motion component", unique=False)
         names = [c.name for c in contacts]
         if len(set(names)) != len(names):
             raise InputError("contacts", f"names are not unique: {names}", "give every contact its own name")
@@ -288,6 +303,32 @@ class System:
             as_f(AT.data),
             as_i(order),
         )
+
+
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _contacts(value) -> tuple:
+    """The contact elements: a list or tuple of ContactElement (one element alone is refused)."""
+    if isinstance(value, ContactElement):
+        raise InputError(
+            "contacts", "is one ContactElement, not a sequence of them", "give a tuple or list: (contact,)"
+        )
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise InputError(
+            "contacts",
+            f"is {type(value).__name__} {_shown(value)}, not a sequence",
+            "give a tuple or list of ContactElement",
+        )
+    contacts = tuple(value)
+    for i, c in enumerate(contacts):
+        if not isinstance(c, ContactElement):
+            raise InputError(
+                f"contacts[{i}]", f"is {type(c).__name__} {_shown(c)}, not a ContactElement", "give ContactElement(...)"
+            )
+    return contacts
 
 
 def structure_matrix(cs: CompiledSystem, which: str):

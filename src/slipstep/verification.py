@@ -124,6 +124,146 @@ def random_system(rng: np.random.Generator, max_dofs: int = 5, max_contacts: int
     )
 
 
+FAMILIES = ("single-stick", "two-on-one", "mixed", "general", "slow-load")
+
+
+def family_system(rng: np.random.Generator, family: str = "general") -> System:
+    """A random system of one of the FAMILIES of issue 29 (2D laws, harmonic loads and motions,
+    the load period 1-100 T_min of full stick):
+
+    * ``single-stick``: one DOF, one contact, loads mostly below the friction limit (long sticks);
+    * ``two-on-one``: two contacts gathering the same DOF (1-3 DOFs);
+    * ``mixed``: 2-5 DOFs, every gather row mixing DOFs (dense random rows);
+    * ``general``: 1-5 DOFs, 1-3 contacts, dense or unit gather rows, K SPD or zero, gaps and
+      interferences, motions on some;
+    * ``slow-load``: ``general`` with a load period of 1e3-3e4 T_min (long quasi-static stretches
+      marched by a dynamic method; where Method 3 broke |T| <= mu N before issue 29).
+    """
+    if family not in FAMILIES:
+        raise InputError("family", f"is {family!r}", f"use one of {FAMILIES}")
+    n = {"single-stick": 1, "two-on-one": int(rng.integers(1, 4)), "mixed": int(rng.integers(2, 6))}.get(
+        family, int(rng.integers(1, 6))
+    )
+    nc = {"single-stick": 1, "two-on-one": 2}.get(family, int(rng.integers(1, 4)))
+    M = _spd(rng, n, 0.1, 100.0)
+    K = _spd(rng, n, 1e4, 1e3) if family == "single-stick" or rng.random() < 0.7 else np.zeros((n, n))
+    n_motion = int(rng.integers(0, 2))
+    motion_names = tuple(f"p{i}" for i in range(n_motion))
+    shared = int(rng.integers(0, n))
+    contacts = []
+    for c in range(nc):
+        if family == "mixed" or (family == "general" and rng.random() < 0.7):
+            A = rng.standard_normal((2, n))
+        else:
+            j = shared if family in ("two-on-one", "single-stick") else int(rng.integers(0, n))
+            A = np.zeros((2, n))
+            A[0, j] = rng.choice([-1.0, 1.0])
+            A[1, j if rng.random() < 0.5 else int(rng.integers(0, n))] = rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 1)
+        contacts.append(
+            ContactElement(
+                name=f"C{c}",
+                dof_gather=A,
+                motion_gather=rng.standard_normal((2, n_motion)) if n_motion else None,
+                normal_stiffness=10 ** rng.uniform(4, 8),
+                tangential_stiffness=(10 ** rng.uniform(4, 8),),
+                friction_coefficient=float(rng.uniform(0.05, 1.0)),
+                normal_offset=float(rng.uniform(-1e-5, 3e-5)) if rng.random() < 0.5 else 0.0,
+            )
+        )
+    normals = np.array([c.dof_gather[-1] for c in contacts])
+    push = rng.uniform(0, 200, nc)
+    f0 = normals.T @ push + rng.standard_normal(n) * rng.uniform(0, 50)
+    amplitude = (0.3 * push.max() + 1.0) if family == "single-stick" else 10 ** rng.uniform(0, 2.5)
+    system0 = System(Structure(M, None, K), tuple(contacts), Excitation(constant_force=f0), motion_names=motion_names)
+    cs = system0.compile_dense("the verification")
+    Keff = cs.K + sum(cs.kn[c] * np.outer(cs.A[cs.normal_row[c]], cs.A[cs.normal_row[c]]) for c in range(nc))
+    Keff = Keff + sum(cs.kt[d] * np.outer(cs.A[cs.tangential_row[d]], cs.A[cs.tangential_row[d]]) for d in range(nc))
+    t_min = 2 * math.pi / omega_max(M, Keff)
+    frequency = 1.0 / (t_min * 10 ** (rng.uniform(3.0, 4.5) if family == "slow-load" else rng.uniform(0.0, 2.0)))
+    force = Signal(
+        tuple(f"x{i}" for i in range(n)),
+        (Harmonic(frequency, rng.standard_normal(n) * amplitude, rng.uniform(0, 6.3, n)),),
+    )
+    motion = None
+    if n_motion:
+        motion = Signal(
+            motion_names,
+            (Harmonic(frequency, rng.standard_normal(n_motion) * 10 ** rng.uniform(-6, -4), np.zeros(n_motion)),),
+        )
+    return System(
+        Structure(M, None, K),
+        tuple(contacts),
+        Excitation(constant_force=f0, force=force, motion=motion),
+        motion_names=motion_names,
+        name=f"random-{family}",
+    )
+
+
+def invariant_check(system: System, method: str, periods: float = 2.0, **options) -> tuple[str, str]:
+    """(status, broken invariant text or "") of one run of ``method`` (slipstep.invariants: an
+    OK march that breaks one ends with status INVARIANT); ("SETUP", message) when the system
+    cannot even be set up (no static equilibrium: not counted)."""
+    from slipstep.methods.simulation import run
+
+    options.setdefault("error_estimate", False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            ds = run(system, method, periods=periods, **options)
+        except (InputError, SolverError) as exc:
+            return "SETUP", str(exc)
+    return ds.attrs["status"], ds.attrs.get("broken_invariant", "")
+
+
+INVARIANT_METHODS = (
+    "newmark",
+    "full-newton",
+    "piecewise-linear",
+    "newmark-adaptive",
+    "quasi-static",
+    "quasi-static-events",
+)
+DECIDABLE_RTOL = 1e-8
+
+
+def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0, rtol: float = 1e-6) -> dict:
+    """Issue 29's check of one system: every method's status and broken invariant (``invariant_check``),
+    and for the fixed-step dynamic methods (CHECK_METHODS) the agreement error with full Newton
+    at tolerance 1e-13 where the system is *decidable*: full Newton and the piecewise-linear
+    solve, both at 1e-13, agree to DECIDABLE_RTOL of the range (else NaN), and whether the
+    result was flagged by the step audit (invariants.audit_steps). Returns
+    {method: {'status', 'invariant', 'error', 'flagged'}, 'decidable': bool}."""
+    from slipstep.methods.simulation import run
+
+    rows: dict = {"decidable": False}
+    ref = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False)
+            pl = run(system, "piecewise-linear", periods=periods, state_tolerance=1e-13, error_estimate=False)
+            rows["decidable"] = (
+                ref.attrs["status"] == pl.attrs["status"] == "OK" and agreement_error(pl, ref) <= DECIDABLE_RTOL
+            )
+        except (InputError, SolverError):
+            pass
+        for m in methods:
+            try:
+                ds = run(system, m, periods=periods, error_estimate=False)
+            except (InputError, SolverError) as exc:
+                rows[m] = {"status": "SETUP", "invariant": str(exc), "error": math.nan, "flagged": False}
+                continue
+            ok = ds.attrs["status"] == "OK"
+            error = agreement_error(ds, ref) if ok and rows["decidable"] and m in CHECK_METHODS else math.nan
+            rows[m] = {
+                "status": ds.attrs["status"],
+                "invariant": ds.attrs.get("broken_invariant", ""),
+                "error": error,
+                "flagged": ds.attrs.get("steps_above_tolerance", 0) > 0,  # invariants.audit_steps
+            }
+    return rows
+
+
 def agreement_error(ds, ref) -> float:
     """max_t,j |x_j - x_ref,j| / (largest DOF range of the reference); inf if the grids differ."""
     x = ds["displacement"].values

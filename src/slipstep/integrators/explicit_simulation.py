@@ -20,6 +20,7 @@ from slipstep.kernels import explicit as E
 from slipstep.kernels.settings import march_settings
 from slipstep.methods import accuracy
 from slipstep.methods.buffers import allocate_outputs
+from slipstep.invariants import check_march
 from slipstep.methods.divergence import check_divergence
 from slipstep.methods.marcher import KernelEntry
 from slipstep.methods.options import RunOptions
@@ -161,7 +162,7 @@ class ExplicitSimulation(Runner):
         )
         self._check_interrupted()
         self.status = check_divergence(self.status, self.compiled, self.out)
-        return self.status
+        return check_march(self)  # the contact invariants of an OK march (slipstep.invariants)
 
     def _visited_states(self) -> str:
         return ""

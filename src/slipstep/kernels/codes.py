@@ -11,6 +11,8 @@ C_STEPS, C_SOLVES, C_FACTORISATIONS, C_LAW_CALLS, C_REDOS, C_FALLBACKS, C_STATE_
 N_COUNTERS = 11
 # status
 OK, NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, NON_FINITE, INTERRUPTED, DIVERGED = 0, 1, 2, 3, 4, 5, 6, 7
+# set by the Python layer, never by a kernel: an OK march whose outputs break a contact invariant (slipstep.invariants)
+INVARIANT = 8
 
 # contact states, one per tangential direction (a contact's directions share LIFT, STICK
 # of a coupled law and SLIP_COUPLED)

@@ -21,7 +21,8 @@ stays >= 0 while S holds:
 first root of any margin: in closed form for one harmonic (c0 + R sin(w t + phi)), else
 by scanning (64 points per period of the highest frequency) and refining the bracket by
 the Illinois method to 1e-13 of the period (a margin counts as crossed below
--state_tolerance times the sum of its coefficients' magnitudes); there
+-state_tolerance times the sum of its coefficients' magnitudes; a margin already past that
+at the phase start, such as a slip whose rate has reversed, ends the phase at once); there
 the states whose margin reaches zero with a negative slope change (stick -> slip+/-,
 slip -> stick with the slider frozen where it is, contact <-> lift-off, re-contact in stick
 with w = u) and a new phase starts. Outputs are sampled on the uniform grid of
@@ -544,7 +545,13 @@ def event_march(sys, st, ws, out, q0, f0):
         t_ev = t_end
         hit = -1
         ta = t
-        if nh == 1:  # sa, ca = sin(om t), cos(om t): from the last transition
+        _basis(t, om, bb)  # a margin already below its band at the phase start ends the phase at once
+        for i in range(nm):  # (a slip whose rate has reversed by the start: the root search looks ahead only)
+            if _value(MC[i], bb) < -rtol * scale[i]:
+                t_ev, hit = t, i
+                ta = t_end
+                break
+        if nh == 1 and hit < 0:  # sa, ca = sin(om t), cos(om t): from the last transition
             for i in range(nm):
                 tr_ = _first_root_1h(MC[i], om, t, sa, ca, t_end, rtol * scale[i])
                 if tr_ <= t_end and tr_ < t_ev:

@@ -25,8 +25,9 @@ Step solvers (kernels/step_solvers.py):
       (step_solvers.residual_converged) hold; each iteration = one contact-law call + one solve.
     1 full Newton: J(S) of the current iterate's state.
     2 piecewise linear (Method 3/4): postulate S = S_n, one solve with J(S), accept if S is
-      compatible at the computed q, else postulate the law's states there and re-solve.
-      If the states cycle, fall back to modified Newton for that step (counted).
+      compatible at the computed q (keeping the law's f, w and S at that q: a postulate within
+      the tolerance of a boundary takes the law's side, |T| <= mu N and N >= 0 exactly), else
+      postulate the law's states there and re-solve. If the states cycle, fall back to modified Newton for that step (counted).
       A postulated state without a piecewise-linear form (a coupled slip of the friction-
       circle law) is solved by Newton on the consistent tangent (solver 1) instead.
     3 modified Newton with J(S) of the state whose T_min set the step (Method 2: the state

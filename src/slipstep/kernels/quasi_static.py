@@ -29,7 +29,8 @@ The static preload and the static start of a run stay on the implicit march (ker
 kernel is checked against.
 
 One step, in order: loads and motions (march._loads_and_motions), q_base and r0 (the form
-above), the piecewise-linear step, x_{n+1}, the contact states and sliders, the output row
+above), the piecewise-linear step (the law's f, w and S at the accepted q), x_{n+1}, the contact
+states and sliders, the output row
 (march._store_positions, save plan included: v = a = 0 are never written, the outputs keep the
 zeros they were allocated with). Inputs as kernels.march.march; the MarchSettings it reads: dt,
 tol, state_rtol, singular_rtol, t_start, t_end, max_iter, max_state_iter, fallback, signals,

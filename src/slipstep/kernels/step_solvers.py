@@ -408,7 +408,11 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
     """Solver 2 (Methods 3, 4): postulate S = S_n (a redone step keeps the state it found),
     solve the linear step J(S) dx = r0 - kfac A^T s(S, w_n) - kfac A^T K(S) q_base (the law
     f = K(S) q + s(S, w_n) of the postulate), accept if S is compatible at q = q_base + A dx,
-    else postulate the law's states there and re-solve. A postulated coupled slip (no linear
+    else postulate the law's states there and re-solve. The accepted step keeps the law at q
+    (f, w and S of kernels.contact.law, not of the postulate): a postulate accepted within the
+    tolerance across a stick/slip or contact boundary takes the law's side of it, so that
+    |T| <= mu N, N >= 0 and slip along T hold exactly (issue 29), the residual then off by at
+    most the tolerance. A postulated coupled slip (no linear
     form) is solved by :func:`full_newton` instead. If the states cycle (max_state_iter
     postulates), modified Newton with J(all stick) for that step (fallback, counted).
     last_slot: the cache slot of the last factorisation, reused without a look-up while the
@@ -467,8 +471,9 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
             break
         local_coordinates(backend, so.csr_of(sys), A, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
+            law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)  # the law's f, w, S at q1 (exact_law)
             if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
-                so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law of the postulate at q1
+                so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -487,7 +492,11 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
     """Solver 2 (Methods 3, 4): postulate S = S_n (a redone step keeps the state it found),
     solve the linear step J(S) dx = r0 - kfac A^T s(S, w_n) - kfac A^T K(S) q_base (the law
     f = K(S) q + s(S, w_n) of the postulate), accept if S is compatible at q = q_base + A dx,
-    else postulate the law's states there and re-solve. A postulated coupled slip (no linear
+    else postulate the law's states there and re-solve. The accepted step keeps the law at q
+    (f, w and S of kernels.contact.law, not of the postulate): a postulate accepted within the
+    tolerance across a stick/slip or contact boundary takes the law's side of it, so that
+    |T| <= mu N, N >= 0 and slip along T hold exactly (issue 29), the residual then off by at
+    most the tolerance. A postulated coupled slip (no linear
     form) is solved by :func:`full_newton` instead. If the states cycle (max_state_iter
     postulates), modified Newton with J(all stick) for that step (fallback, counted).
     last_slot: the cache slot of the last factorisation, reused without a look-up while the
@@ -546,8 +555,9 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
             break
         _local_coordinates_dense(A, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
+            law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)  # the law's f, w, S at q1 (exact_law)
             if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
-                scatter(AT, f1, gf1)  # f1, w1: the law of the postulate at q1
+                scatter(AT, f1, gf1)  # f1, w1: the law at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)

@@ -95,6 +95,8 @@ class RunOptions:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise InputError(name, f"is {value!r}", "give a whole number >= 1")
+            if value > 10**9:  # an int64 in the kernel settings (issue 29: OverflowError before)
+                raise InputError(name, f"is {value!r}, beyond any useful count", "give a whole number of at most 1e9")
         for name in ("tolerance", "state_tolerance", "singular_tolerance"):
             value = positive(name, getattr(self, name))
             if value >= 1:

@@ -137,7 +137,9 @@ class RunPlan:
         capacity = SC.capacity(
             t_end, dt, self.dt_limit, max_step, self.method.adaptive, None if quasi else opt.rtol, self.t_min_stick
         )
-        low_rank = use_low_rank(cs, opt.linear_solver)
+        # the event-driven kernel factorises J(S) (n x n) itself: its cache must be n x n (issue 29: a
+        # low-rank cache of nq x nq was written out of bounds)
+        low_rank = use_low_rank(cs, opt.linear_solver) and self.method.solver != K.EVENTS
         estimate = check_memory(cs, capacity, opt, quasi, low_rank, self.save_plan, t_end)
         return replace(
             self,

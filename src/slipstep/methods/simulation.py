@@ -18,6 +18,7 @@ import numpy as np
 from slipstep.errors import Interrupted, SolverError, Status
 from slipstep.kernels import march as K
 from slipstep.methods import accuracy
+from slipstep.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
 from slipstep.methods.buffers import (  # noqa: F401  (re-exported: the former homes of these names)
     allocate_outputs as _allocate_outputs,
@@ -117,6 +118,8 @@ class Runner:
         visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
+        if getattr(self, "broken_invariant", None) is not None:  # Status.INVARIANT (slipstep.invariants)
+            report["broken_invariant"] = self.broken_invariant.text()
         return report
 
     def dataset(self):
@@ -143,6 +146,8 @@ class Runner:
             )
             if "states_visited" in failure:
                 message += f", states tried {failure['states_visited']}"
+            if "broken_invariant" in failure:
+                message += f"; {failure['broken_invariant']}"
             message += self.failure_hint if self.status == Status.NON_FINITE else ""
         solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
         method = self.method_attrs()
@@ -171,6 +176,7 @@ class Runner:
             }
         )
         attrs.update(failure)
+        attrs.update(getattr(self, "step_audit", {}))  # slipstep.invariants.audit_steps (issue 29)
         attrs.update(self.accuracy_attrs())
         if plan is not None:
             attrs.update(plan.attrs())
@@ -314,7 +320,7 @@ class Simulation(Runner):
         self.segment = self.marcher.advance(self.start, kernel=kernel)
         self.status, self.kernel_time = self.segment.status, self.segment.kernel_time_s
         self._check_interrupted()
-        return self.status
+        return check_march(self)  # the contact invariants of an OK march (slipstep.invariants)
 
     def accuracy_attrs(self) -> dict:
         """energy_error_estimate, peak_force_error_estimate, error_estimate_method: see

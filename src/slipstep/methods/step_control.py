@@ -56,6 +56,28 @@ def effective_stiffness(cs, state) -> "np.ndarray":
     return K
 
 
+def contact_state_vector(cs, state, field: str = "state") -> "np.ndarray":
+    """``state`` as the int8 contact-state vector of ``cs``: one code of kernels/codes.py
+    (0 lift-off .. 4 slip-circle) per tangential direction, or an InputError naming ``field``."""
+    import numpy as np
+
+    from slipstep.errors import InputError
+    from slipstep.kernels.codes import STATE_NAMES
+
+    nd = cs.kt.shape[0]
+    codes = ", ".join(f"{i} {name}" for i, name in enumerate(STATE_NAMES))
+    raw = np.asarray(state)
+    if raw.ndim != 1 or raw.shape[0] != nd:
+        raise InputError(
+            field,
+            f"has shape {raw.shape}, the system has {nd} tangential directions",
+            f"give one contact-state code per direction ({nd} values; codes {codes})",
+        )
+    if raw.dtype.kind not in "iu" or (raw.size and (raw.min() < 0 or raw.max() >= len(STATE_NAMES))):
+        raise InputError(field, f"holds {raw.tolist()}, not contact-state codes", f"give integer codes: {codes}")
+    return raw.astype(np.int8)
+
+
 def t_min_of(omega2: float) -> float:
     """T_min = 2 pi / sqrt(omega_max^2) [s] (inf when omega_max = 0)."""
     return 2 * math.pi / math.sqrt(omega2) if omega2 > 0 else math.inf
@@ -70,6 +92,7 @@ def state_omega2(cs, state) -> float:
     from slipstep.methods import eigen
     from slipstep.methods import massless as ML
 
+    state = contact_state_vector(cs, state)
     if cs.banded:  # banded backend (issue 10): Arnoldi on the band, as the march per state
         return eigen.banded_lambda_max(cs, state)
     K = effective_stiffness(cs, state)

@@ -18,7 +18,17 @@ from typing import NamedTuple
 import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.model.validate import float_array, positive
+from slipstep.model.validate import float_array, names, positive
+
+
+def _components_vector(field: str, value) -> np.ndarray:
+    """One value per signal component: a scalar or a vector, never a matrix."""
+    arr = np.atleast_1d(float_array(field, value))
+    if arr.ndim != 1:
+        raise InputError(
+            field, f"has shape {arr.shape}, not one value per component", "give a vector (one value per component)"
+        )
+    return arr
 
 
 @dataclass(frozen=True)
@@ -31,8 +41,8 @@ class Harmonic:
 
     def __post_init__(self):
         f = positive("harmonic.frequency", self.frequency)
-        a = np.atleast_1d(float_array("harmonic.amplitude", self.amplitude))
-        ph = np.zeros_like(a) if self.phase is None else np.atleast_1d(float_array("harmonic.phase", self.phase))
+        a = _components_vector("harmonic.amplitude", self.amplitude)
+        ph = np.zeros_like(a) if self.phase is None else _components_vector("harmonic.phase", self.phase)
         if ph.shape != a.shape:
             raise InputError(
                 "harmonic.phase", f"has {ph.size} values for {a.size} amplitudes", "give one phase per component"
@@ -78,7 +88,7 @@ class Signal:
     ramp_time: float = 0.0
 
     def __post_init__(self):
-        comps = tuple(self.components)
+        comps = names("signal.components", self.components, "component")
         nc = len(comps)
         for h in self.harmonics:
             if h.amplitude.size != nc:

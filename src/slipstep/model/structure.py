@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.model.validate import square_matrix_or_sparse
+from slipstep.model.validate import names, square_matrix_or_sparse
 
 
 @dataclass(frozen=True)
@@ -59,18 +59,19 @@ class Structure:
                     f"has a negative eigenvalue ({_smallest_eigenvalue(A)})",
                     "give a positive semi-definite matrix (no negative stiffness/damping)",
                 )
-        names = tuple(self.dof_names) or tuple(f"x{i}" for i in range(n))
-        if len(names) != n:
-            raise InputError("structure.dof_names", f"has {len(names)} names for {n} DOFs", f"give {n} names")
-        if len(set(names)) != n:
+        dof_names = names("structure.dof_names", self.dof_names, "DOF", unique=False)
+        dof_names = dof_names or tuple(f"x{i}" for i in range(n))
+        if len(dof_names) != n:
+            raise InputError("structure.dof_names", f"has {len(dof_names)} names for {n} DOFs", f"give {n} names")
+        if len(set(dof_names)) != n:
             raise InputError("structure.dof_names", "contains duplicates", "give unique names")
-        units = tuple(self.dof_units) or ("m",) * n
+        units = _units(self.dof_units) or ("m",) * n
         if len(units) != n:
             raise InputError("structure.dof_units", f"has {len(units)} units for {n} DOFs", f"give {n} units")
         object.__setattr__(self, "mass", M)
         object.__setattr__(self, "damping", C)
         object.__setattr__(self, "stiffness", K)
-        object.__setattr__(self, "dof_names", names)
+        object.__setattr__(self, "dof_names", dof_names)
         object.__setattr__(self, "dof_units", units)
 
     @property
@@ -93,6 +94,24 @@ class Structure:
         """diag of 'mass', 'damping' or 'stiffness' (sparse or dense)."""
         A = getattr(self, which)
         return A.diagonal() if _issparse(A) else np.diag(A).copy()
+
+
+#: the unit of a DOF: a translation in metres or a rotation in radians (slipstep works in SI)
+DOF_UNITS = ("m", "rad")
+
+
+def _units(values) -> tuple:
+    """The DOF units, each one of :data:`DOF_UNITS`."""
+    values = names("structure.dof_units", values, "DOF", unique=False)
+    for value in values:
+        if value not in DOF_UNITS:
+            raise InputError(
+                "structure.dof_units",
+                f"{value!r} is not a unit slipstep knows",
+                f"give {' or '.join(repr(u) for u in DOF_UNITS)} per DOF (SI: metres for a translation, "
+                "radians for a rotation; convert the matrices if the model is in other units)",
+            )
+    return values
 
 
 #: a sparse structure up to this many DOFs may be densified by the features that need dense matrices

@@ -30,6 +30,7 @@ with mass-normalised ``Phi`` (Phi^T M Phi = I).
 from __future__ import annotations
 
 import math
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -442,6 +443,9 @@ def save_npz(sub: Substructure, path: str | Path) -> None:
         np.savez(fh, **arrays)
 
 
+_KINDS = {"c": "complex", "U": "text", "S": "text", "O": "object"}
+
+
 def load_npz(path: str | Path, name: str, field_name: str = "file", **kwargs) -> Substructure:
     """A substructure from an .npz holding 'M' (or 'mass'), 'K' ('stiffness'), optional 'C'
     ('damping'), 'dof_names', 'dof_units'; dense arrays or the CSR parts of :func:`save_npz`.
@@ -451,10 +455,17 @@ def load_npz(path: str | Path, name: str, field_name: str = "file", **kwargs) ->
             content = {k: data[k] for k in data.files}
     except FileNotFoundError:
         raise InputError(field_name, f"file {str(path)!r} not found", "give the path of an .npz file") from None
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, TypeError, AttributeError, zipfile.BadZipFile) as exc:  # not a zip: an array, text
         raise InputError(
             field_name, f"{str(path)!r} is not a readable .npz file ({exc})", "write it with numpy.savez"
         ) from None
+    for key, value in content.items():
+        if key not in ("dof_names", "dof_units") and value.dtype.kind not in "fiub":
+            raise InputError(
+                field_name,
+                f"{str(path)!r} holds {key!r} as {_KINDS.get(value.dtype.kind, str(value.dtype))} values",
+                "store real numbers (float64)",
+            )
     mats = {}
     for attr, keys in _KEYS.items():
         for key in keys:
@@ -510,11 +521,22 @@ def save_mtx(sub: Substructure, directory: str | Path) -> dict:
 
 
 def read_mtx(path: str | Path, field_name: str = "file"):
-    """One Matrix Market matrix: CSR when stored as coordinates, else a dense array."""
+    """One Matrix Market matrix: CSR when stored as coordinates, else a dense array. A
+    "pattern" file (positions without values) and a complex one are refused."""
     import scipy.io
 
     try:
+        field = scipy.io.mminfo(str(path))[4]
+        if field in ("pattern", "complex"):
+            raise InputError(
+                field_name,
+                f"{str(path)!r} is a Matrix Market {field!r} file"
+                + (" (positions without values)" if field == "pattern" else " (complex values)"),
+                "write the real matrix with its values (scipy.io.mmwrite of a real array or sparse matrix)",
+            )
         A = scipy.io.mmread(str(path))
+    except InputError:
+        raise
     except FileNotFoundError:
         raise InputError(field_name, f"file {str(path)!r} not found", "give the path of a .mtx file") from None
     except (OSError, ValueError) as exc:

@@ -16,7 +16,10 @@ MAX_MAGNITUDE = 1e100
 
 
 def float_array(field: str, value, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
-    """Convert to a finite float64 array of the given rank/shape or raise naming ``field``."""
+    """Convert to a finite float64 array of the given rank/shape or raise naming ``field``
+    (complex numbers and numbers written as text are refused, not converted: a cast would drop
+    the imaginary part or read a string silently)."""
+    _real_numbers(field, value)
     try:
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -46,6 +49,25 @@ def float_array(field: str, value, ndim: int | None = None, shape: tuple | None 
             "check the values and their units",
         )
     return arr
+
+
+def _real_numbers(field: str, value) -> None:
+    """Refuse complex values and text inside an array-like (np.array(..., float) would cast them)."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError):  # ragged: float_array's conversion names it
+        return
+    kind = raw.dtype.kind
+    if kind == "c":
+        raise InputError(
+            field, "holds complex numbers", "give real numbers (a cast to real would drop the imaginary part)"
+        )
+    if kind in "US" or (kind == "O" and any(isinstance(v, (str, bytes)) for v in raw.ravel())):
+        raise InputError(field, "holds text (numbers written as strings)", "give numbers, not strings: 1.0, not '1.0'")
+    if kind == "O" and any(isinstance(v, complex) for v in raw.ravel()):
+        raise InputError(
+            field, "holds complex numbers", "give real numbers (a cast to real would drop the imaginary part)"
+        )
 
 
 def positive(field: str, value, allow_zero: bool = False) -> float:
@@ -147,6 +169,10 @@ def _sparse_matrix(field: str, value):
     indices sorted) with finite values of physical magnitude."""
     import scipy.sparse as sp
 
+    if np.dtype(value.dtype).kind == "c":
+        raise InputError(
+            field, "holds complex numbers", "give real numbers (a cast to real would drop the imaginary part)"
+        )
     try:
         A = sp.csr_matrix(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -163,3 +189,17 @@ def _sparse_matrix(field: str, value):
             "check the values and their units",
         )
     return A
+
+
+def names(field: str, values, what: str, unique: bool = True) -> tuple[str, ...]:
+    """A sequence of names (each :func:`check_name`), unique unless ``unique`` is False; a bare
+    string is not a sequence of names."""
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+        raise InputError(field, f"is {values!r}, not a sequence of {what} names", 'give a tuple of names: ("a", "b")')
+    out = tuple(values)
+    for value in out:
+        check_name(field, value)
+    if unique and len(set(out)) != len(out):
+        twice = sorted({v for v in out if out.count(v) > 1})
+        raise InputError(field, f"names {twice} more than once", f"give every {what} its own name")
+    return out
