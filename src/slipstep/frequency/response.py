@@ -43,6 +43,7 @@ from slipstep.frequency.retune import retune
 from slipstep.frequency.schema import TEXT_VARIABLES
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
+from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD, STEP_OPTIONS
 from slipstep.steady.state import SteadyState
 from slipstep.system import System
 
@@ -317,6 +318,10 @@ def frf(
         if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)) or harmonics < 0:
             raise InputError("harmonics", f"is {harmonics!r}", "give the highest harmonic number H >= 0 (e.g. 5)")
         method = DEFAULT_METHOD if method is None else method
+        if rtol is not None and not any(options.get(k) is not None for k in (*STEP_OPTIONS, "steps_per_period")):
+            # the point is solved at T / (N/2) and returned at T / N after the step doubling: the
+            # steady step N of slipstep.steady for the price of about one solve at N
+            options = {**options, "steps_per_period": STEADY_STEPS_PER_PERIOD // 2}
         out = _steady_frf(
             system,
             f,
