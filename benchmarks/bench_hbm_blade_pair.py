@@ -19,7 +19,7 @@ Measured in one run:
   marched periodic steady state of the same System from the HBM state): amplitude and
   friction-energy differences against the point's truncation estimate.
 
-Usage:  python benchmarks/bench_hbm_blade_pair.py [--count 61] [--harmonics 7] [--check]
+Usage:  python benchmarks/bench_hbm_blade_pair.py [--quick] [--count 61] [--harmonics 7] [--check]
             [--baseline-point] [--elements 166] [--points 100] [--modes 10] [--json FILE]
 """
 
@@ -62,8 +62,11 @@ def main(argv=None):
     ap.add_argument("--harmonics", type=int, default=7)
     ap.add_argument("--check", action="store_true", help="cross-check the peak by time marching")
     ap.add_argument("--baseline-point", action="store_true", help="also solve one whole point by each path")
+    ap.add_argument("--quick", action="store_true", help="21 grid points (the same model)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
+    if args.quick:
+        args.count = 21
 
     cb = reduced(blade(args.elements), args.modes)
     f1 = float(stuck_frequencies(pair(cb, args.points, None), 1)[0])

@@ -178,3 +178,21 @@ def test_gathered_aft_jacobian_is_the_full_one_seen_through_the_gather(make, f):
         ym[i] -= eps
         cols.append((gathered(yp) - gathered(ym)) / (2 * eps))
     assert np.abs(Jg - np.array(cols).T).max() <= 1e-6 * np.abs(Jg).max()
+
+
+def test_gathered_tangent_reports_a_full_workspace_and_leaves_it_clean():
+    from slipstep.kernels.aft import gathered_tangent
+
+    hb = HarmonicBalance(jenkins_2dof(), 5, 64, condense="dofs")
+    pt = hb.solve(2 * np.pi * 300.0)
+    Ac, Mc, src = hb.aft._sample_tangents()
+    _, contact_of_row, row_start = hb.aft.rows
+    n, r = Ac.shape[0], hb.r
+    pair_of = np.full((n, n), -1, np.int64)
+    small = (np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, r, r)))
+    assert gathered_tangent(Ac, Mc, src, contact_of_row, row_start, hb.L, pair_of, *small) == -1
+    assert np.all(pair_of == -1)
+    room = (np.zeros(n * n, np.int64), np.zeros(n * n, np.int64), np.zeros((n * n, r, r)))
+    count = gathered_tangent(Ac, Mc, src, contact_of_row, row_start, hb.L, pair_of, *room)
+    assert count > n and np.all(pair_of == -1)  # the diagonal and the slider-memory pairs
+    assert pt.converged

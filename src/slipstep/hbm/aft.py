@@ -241,18 +241,21 @@ class AFT:
         b = self.basis
         Ac, Mc, src = self._sample_tangents()
         n, r = Ac.shape[0], L.shape[1]
-        if self._pairs is None or self._pairs[3].shape[1] != r:
-            self._pairs = (
-                np.full((n, n), -1, np.int64),
-                np.zeros(n * n, np.int64),
-                np.zeros(n * n, np.int64),
-                np.zeros((n * n, r, r)),
-            )
-        pair_of, pk, ps, blocks = self._pairs
+        L = np.ascontiguousarray(L, dtype=np.float64)
         _, contact_of_row, row_start = self.rows
-        count = gathered_tangent(
-            Ac, Mc, src, contact_of_row, row_start, np.ascontiguousarray(L, dtype=np.float64), pair_of, pk, ps, blocks
-        )
+        count, room = -1, 4 * n  # pairs: the diagonal and a few memory sources per sample, grown on demand
+        while count < 0:
+            if self._pairs is None or self._pairs[3].shape[1] != r or self._pairs[3].shape[0] < room:
+                room = max(room, 0 if self._pairs is None else self._pairs[3].shape[0])
+                self._pairs = (
+                    np.full((n, n), -1, np.int64),
+                    np.zeros(room, np.int64),
+                    np.zeros(room, np.int64),
+                    np.zeros((room, r, r)),
+                )
+            pair_of, pk, ps, blocks = self._pairs
+            count = gathered_tangent(Ac, Mc, src, contact_of_row, row_start, L, pair_of, pk, ps, blocks)
+            room = 2 * blocks.shape[0]
         pk, ps = pk[:count], ps[:count]
         weights = b.forward[:, None, pk] * b.inverse.T[None, :, ps]  # (n_coef, n_coef, pairs): P[j, k] E[s, i]
         nc = b.n_coef

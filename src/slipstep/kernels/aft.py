@@ -112,7 +112,8 @@ def gathered_tangent(Ac, Mc, src, contact_of_row, row_start, L, pair_of, pair_k,
 
     summed over rows r and their contact's columns l. Only the sample pairs (k, s) that occur
     are stored: pair p is (pair_k[p], pair_s[p]) with the r x r block blocks[p]. pair_of (N, N)
-    must be -1 on entry and is left so (workspace). Returns the number of pairs."""
+    must be -1 on entry and is left so (workspace). Returns the number of pairs (-1: more
+    pairs than blocks has room for)."""
     n, nq, width = Ac.shape
     nr = L.shape[1]
     count = 0
@@ -133,6 +134,10 @@ def gathered_tangent(Ac, Mc, src, contact_of_row, row_start, L, pair_of, pair_k,
                         continue
                     p = pair_of[k, t]
                     if p < 0:
+                        if count == blocks.shape[0]:  # out of room: reset and report
+                            for q in range(count):
+                                pair_of[pair_k[q], pair_s[q]] = -1
+                            return -1
                         p = count
                         pair_of[k, t] = p
                         pair_k[p] = k
