@@ -166,6 +166,8 @@ def check_march(runner):
 #: a step of an iterative solver whose balance residual exceeds this many tolerances of the
 #: physical force scale is flagged (issue 29 item 3: Method 1's accepted state off the discrete solution)
 RESIDUAL_FLAG_FACTOR = 1e4
+#: the audit is skipped above this many rows x DOFs^2 (it would cost more than a few tens of ms)
+AUDIT_MAX_FLOPS = 2e7
 
 
 def step_residuals(runner) -> np.ndarray | None:
@@ -179,7 +181,7 @@ def step_residuals(runner) -> np.ndarray | None:
     terms included, and never below the floor tol L max diag J(stick): on a response far below L
     or with large predictor terms they pass at a rho far above the tolerance). None when the
     rows do not hold every DOF and contact at every step, or the structure is banded or has
-    massless DOFs (the balance needs them all)."""
+    massless DOFs (the balance needs them all), or rows x DOFs^2 exceeds AUDIT_MAX_FLOPS."""
     from slipstep.kernels.codes import C_STEPS
     from slipstep.methods.buffers import saved_rows
     from slipstep.model.excitation import force_signal
@@ -193,7 +195,8 @@ def step_residuals(runner) -> np.ndarray | None:
     if cs.banded or scheme.alpha_m != 0.0 or scheme.alpha_f != 0.0 or getattr(runner, "massless", None) is not None:
         return None
     k = saved_rows(out, int(out.counters[C_STEPS]))
-    if k < 2:
+    n = cs.M.shape[0]
+    if k < 2 or k * n * n > AUDIT_MAX_FLOPS:  # three dense products of (k, n) by (n, n)
         return None
     F = np.zeros((k, cs.A.shape[0]))
     F[:, np.asarray(out.rows)] = out.f[:k]
