@@ -315,3 +315,10 @@ def test_rtol_none_gives_the_points_as_solved():
     assert "rtol" not in ds.attrs and ds.attrs["error_estimate_method"] == "none"
     with pytest.raises(InputError, match="rtol"):
         frf(system, [350.0], solver="hbm", rtol=None)
+
+
+@pytest.mark.parametrize("solver", ["march", "shoot"])
+def test_stepped_points_are_the_asked_ones(solver):
+    """A stepped FRF (march, shoot) solves exactly the asked frequencies: point_kind "asked"."""
+    ds = frf(ss.load_system(JENKINS), [340.0, 360.0], solver=solver, linear=False, rtol=None)
+    assert list(ds["point_kind"].values) == ["asked", "asked"]

@@ -25,6 +25,8 @@ def empty_frf(
     for name, (dims, units, long_name) in FRF_SCHEMA.items():
         shape = tuple(sizes[d] for d in dims)
         values = np.full(shape, "", dtype=object) if name in TEXT_VARIABLES else np.full(shape, np.nan)
+        if name == "point_kind":  # the grid of a stepped FRF is the asked one (HBM sets its own kinds)
+            values[:] = "asked"
         variables[name] = xr.Variable(dims, values, {"units": units, "long_name": long_name})
     coords = {
         "frequency": ("frequency", freqs, {"units": "Hz", "long_name": "excitation (fundamental) frequency"}),
