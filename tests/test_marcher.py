@@ -160,3 +160,8 @@ def test_an_frf_point_on_the_reused_marcher_equals_one_on_a_new_marcher(paper, s
     for name in ("displacement", "velocity", "slider", "contact_state", "time"):
         np.testing.assert_array_equal(reused.period[name].values, fresh.period[name].values, err_msg=name)
     np.testing.assert_array_equal(reused.final_state.x, fresh.final_state.x)
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(reused))  # the marcher (buffers, a compiled entry) is not pickled
+    assert copy._marcher is None and copy.status == reused.status
+    np.testing.assert_array_equal(copy.final_state.x, reused.final_state.x)

@@ -21,7 +21,8 @@ from slipstep.system import CompiledSystem
 
 def reset_cache(ws: K.Workspace) -> None:
     """Forget the factorisations (every march pays for its own). T_min per state is a property
-    of the system and is kept for the life of the Simulation (cleared at allocation)."""
+    of the matrices and is kept for the life of the marcher (cleared at allocation and when a
+    marcher is retargeted to other matrices)."""
     ws.cache_used[:] = False
     ws.lr.base_used[:] = False
     ws.lin_dt[0] = np.nan
