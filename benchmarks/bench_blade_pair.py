@@ -26,7 +26,9 @@ Printed:
 With ``--frf`` (issue 24: the designer's job at the designer's size): the forced response
 between 0.7 and 1.1 times the first stuck frequency on ``--frf-points`` frequencies, side by
 side for the solvers a user would pick, each timed on the same model in the same run:
-* shoot (slipstep.frequency.frf, solver "shoot"): every point, its status and Floquet stability;
+* shoot (slipstep.frequency.frf, solver "shoot", at its defaults: each point with its step-doubling
+  error estimate) and shoot-plain (rtol=None: the points as solved): every point, its status
+  and Floquet stability;
   the one-period Jacobian's cost split (free unknowns only, as shooting builds it, against all
   sliders as unknowns: the pre-issue-24 column count) and the arithmetic floor of its two
   matrix products at the dgemm rate measured in this run;
@@ -39,7 +41,7 @@ the issue (this machine kind, before): shoot 487 s for 61 points, HBM unfinished
 Usage:  python benchmarks/bench_blade_pair.py [--quick] [--elements 60] [--points 50]
             [--modes 10] [--periods 3] [--repeats 5] [--full] [--json FILE]
         python benchmarks/bench_blade_pair.py --frf [--elements 166 --points 100 --modes 10]
-            [--frf-points 61] [--harmonics 7] [--march-points 3] [--solvers shoot,hbm,march]
+            [--frf-points 61] [--harmonics 7] [--march-points 3] [--solvers shoot,shoot-plain,hbm,march]
 """
 
 from __future__ import annotations
@@ -163,7 +165,9 @@ def main():
     ap.add_argument("--frf-points", type=int, default=61)
     ap.add_argument("--harmonics", type=int, default=7)
     ap.add_argument("--march-points", type=int, default=3)
-    ap.add_argument("--solvers", default="shoot,hbm,march")
+    ap.add_argument(
+        "--solvers", default="shoot,shoot-plain,hbm,march", help="shoot-plain: shooting without the error estimate"
+    )
     args = ap.parse_args()
     if args.frf:
         return frf_benchmark(args)
@@ -334,7 +338,9 @@ def frf_benchmark(args) -> None:
         )
         t0 = time.perf_counter()
         if name == "hbm":
-            ds = hbm_frf(system, grid, harmonics=args.harmonics, responses=[tip], check="none")
+            ds = hbm_frf(system, grid, harmonics=args.harmonics, responses=[tip], check="none", asked_only=True)
+        elif name == "shoot-plain":  # the points as solved, without the step doubling's error estimate
+            ds = frf(system, grid, solver="shoot", responses=[tip], linear=False, rtol=None)
         else:
             ds = frf(system, grid, solver=name, responses=[tip], linear=False)
         wall = time.perf_counter() - t0
@@ -344,9 +350,12 @@ def frf_benchmark(args) -> None:
         amp = ds["amplitude"].sel(response=tip).values.ravel()
         amps[name] = dict(zip(np.round(f_out, 9), amp))
         extra = ""
-        if "floquet_multiplier_max" in ds and name == "shoot":
+        if "error_estimate" in ds and name != "shoot-plain":
+            est = ds["error_estimate"].values.ravel()
+            extra += f", error estimate median {np.nanmedian(est):.1e} max {np.nanmax(est):.1e}"
+        if "floquet_multiplier_max" in ds and name.startswith("shoot"):
             fm = ds["floquet_multiplier_max"].values.ravel()
-            extra = f", stable {int(np.sum(fm < 1))} of {fm.size} (|Floquet| max {np.nanmax(fm):.4f})"
+            extra += f", stable {int(np.sum(fm < 1))} of {fm.size} (|Floquet| max {np.nanmax(fm):.4f})"
         print(
             f"{name:>6}: {len(f_out):3d} points in {wall:7.1f} s ({wall / max(len(f_out), 1):6.3f} s per point), "
             f"{ok} OK{extra}"

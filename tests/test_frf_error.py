@@ -295,8 +295,9 @@ def test_error_variables_are_in_the_schema_with_units():
 def test_a_point_not_steady_keeps_its_status_and_step_without_an_estimate(tmp_path):
     ds = frf(ss.load_system(JENKINS), [350.0], solver="march", max_periods=2, linear=False)
     assert ds["status"].values[0] == "NOT_STEADY" and "not steady after 2" in ds["status_message"].values[0]
-    # solved at T / (N/2) (the step doubling would have returned T / N): the step it used is recorded
-    assert np.isnan(ds["error_estimate"].values[0]) and ds["steps_per_period"].values[0] == DEFAULT_STEPS // 2
+    # solved at T / (N/2), and again at T / N when that did not converge: the step it ended at is recorded
+    assert np.isnan(ds["error_estimate"].values[0]) and ds["steps_per_period"].values[0] == DEFAULT_STEPS
+    assert ds["periods_to_steady"].values[0] == 4  # both solves counted
     r = _cli(
         "frf", str(JENKINS), "-f", "340,350", "--solver", "march", "--max-periods", "2", "-o", str(tmp_path), "--json"
     )

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 ORDER = 2  # the trapezoidal rule (Newmark average acceleration, the quasi-static path)
 DISSIPATION_FLOOR = 1e-4  # friction energy compared with at least this share of the excitation work
 REFINE_SHARE = 0.5  # the step is refined while the estimate exceeds this share of rtol
+MIN_REDUCTION = 0.5  # ... and while each halving divides it by 2 at least (h^2: by 4)
 METHOD_TEXT = (
     "step doubling on the converged orbit: |E_h - E_h/2| / |E_h/2| / 3 (trapezoidal rule, order 2), "
     "E the friction energy and the excitation work per cycle (the larger); the point is the h/2 solution"
@@ -139,8 +140,17 @@ def refine(
         fine = _with_history(fine, steady)
         fv = values_of(fine)
         estimate = relative_error(cv, fv, steps_of(fine) / steps_of(coarse))
+        previous = best.error_estimate
         best = PointResult(fine, fv, estimate, level, periods, "")
         if not estimate > REFINE_SHARE * rtol:
+            return best
+        if level > 0 and not estimate < MIN_REDUCTION * previous:  # not falling as h^2: stop refining
+            best.message = (
+                f"error estimate {estimate:.2g} at {steps_of(fine)} steps per period did not fall with the step "
+                f"({previous:.2g} before): not the trapezoidal rule's h^2 error (an orbit of a family that "
+                "sliders stuck over the whole period leave free, or a response not smooth in the step)"
+                + (f"; above rtol {rtol:g}" if estimate > rtol else "")
+            )
             return best
         coarse, cv = fine, fv
     if not best.error_estimate > rtol:

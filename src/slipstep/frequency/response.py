@@ -19,6 +19,7 @@ over the period), and the two linear limits in the frequency domain (slipstep.fr
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -165,10 +166,13 @@ def sweep(
     progress=None,
     rtol: float = DEFAULT_RTOL,
     max_refinements: int = DEFAULT_MAX_REFINEMENTS,
+    retry_steps: int | None = None,
     **options,
 ) -> tuple[xr.Dataset, SteadyState | None]:
     """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state).
-    Each converged point is refined by step doubling (slipstep.frequency.error_estimate)."""
+    Each converged point is refined by step doubling (slipstep.frequency.error_estimate); with
+    ``retry_steps``, a point whose steady state did not converge is solved once more from the
+    same start with that many steps per period (its periods counted in both)."""
     if solver not in STEADY_SOLVERS:
         raise InputError("solver", f"is {solver!r}", f"use one of {sorted(SOLVERS)}")
     names = list(system.structure.dof_names)
@@ -187,6 +191,9 @@ def sweep(
         system_f = retune(system, float(f))
         try:
             steady = steady_solver(system_f, initial=prev, **options)
+            if steady.status != "OK" and retry_steps is not None:
+                retry = steady_solver(system_f, initial=prev, **{**options, "steps_per_period": retry_steps})
+                steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
             values = _point(steady_solver, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
         except KeyboardInterrupt:  # keep the points done; the rest are marked
             columns["status"][i:] = "INTERRUPTED"
@@ -320,8 +327,13 @@ def frf(
         method = DEFAULT_METHOD if method is None else method
         if rtol is not None and not any(options.get(k) is not None for k in (*STEP_OPTIONS, "steps_per_period")):
             # the point is solved at T / (N/2) and returned at T / N after the step doubling: the
-            # steady step N of slipstep.steady for the price of about one solve at N
-            options = {**options, "steps_per_period": STEADY_STEPS_PER_PERIOD // 2}
+            # steady step N of slipstep.steady for the price of about one solve at N; a point that
+            # does not converge at N/2 is solved again at N
+            options = {
+                **options,
+                "steps_per_period": STEADY_STEPS_PER_PERIOD // 2,
+                "retry_steps": STEADY_STEPS_PER_PERIOD,
+            }
         out = _steady_frf(
             system,
             f,
