@@ -102,7 +102,7 @@ def sine_sweep(
     variables are NaN; the linear limits are computed unless linear=False). ``duration`` [s] defaults to ``cycles_per_point`` cycles of the mean
     frequency per grid point."""
     from slipstep import __version__
-    from slipstep.frequency.response import check_frequencies
+    from slipstep.frequency.grid import check_frequencies
     from slipstep.methods.simulation import Simulation
 
     f = np.sort(check_frequencies(frequencies))

@@ -42,7 +42,7 @@ from slipstep.hbm.energy import (
     half_peak_to_peak,
     viscous_dissipation,
 )
-from slipstep.frequency.response import check_frequencies as valid_frequencies
+from slipstep.frequency.grid import check_frequencies as valid_frequencies
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.system import System
@@ -372,7 +372,7 @@ def _positive_level(level) -> float:
 def _linear_limits(system, freq, level, names) -> tuple[np.ndarray, np.ndarray]:
     """Both linear limits at the points' frequencies (slipstep.frequency.linear_limits), scaled by
     the points' excitation levels; NaN where a limit is singular."""
-    from slipstep.frequency import linear_limits
+    from slipstep.frequency.linear import linear_limits
 
     try:
         lim = linear_limits(system, freq, names)
