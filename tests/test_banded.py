@@ -314,3 +314,21 @@ def test_banded_result_keeps_the_energy_balance_and_the_user_dof_order():
     assert set(names) == seen | {system.structure.dof_names[-1]}
     assert names == sorted(names, key=system.structure.dof_names.index)
     np.testing.assert_array_equal(auto["displacement"].values, ds["displacement"].sel(dof=names).values)
+
+
+def test_steady_state_by_marching_on_the_banded_backend_equals_the_dense_one():
+    """Issue 24 item 7 (in part): march_to_steady runs on the banded backend (the marcher keeps
+    states in the user's DOF order) and gives the dense backend's periodic orbit to round-off;
+    shooting, whose period Jacobian is dense in 2 n + nd unknowns, refuses it with the fix."""
+    from slipstep.steady import march_to_steady, shoot
+
+    system = chain_system(120, 4)
+    orbits = {}
+    for backend in ("banded", "direct"):
+        st = march_to_steady(system, linear_solver=backend, max_periods=400, tolerance=1e-8)
+        assert st.ok and st.period.attrs["linear_solver"] == backend
+        orbits[backend] = st.period["displacement"].values
+    span = np.ptp(orbits["direct"])
+    assert span > 0 and np.abs(orbits["banded"] - orbits["direct"]).max() <= 1e-9 * span
+    with pytest.raises(InputError, match="shooting's period Jacobian needs the dense one"):
+        shoot(system, linear_solver="banded")

@@ -92,12 +92,6 @@ def period_simulation(
     sim = reused_simulation(initial, system, method, opts)
     if sim is None:
         sim = Simulation(system, method, periods=1.0, **opts)
-    if sim.compiled.banded:  # issue 10: the steady-state search carries states in the user's DOF order
-        raise InputError(
-            "structure",
-            "is a sparse structure on the banded backend: the steady-state search needs the dense one",
-            "march enough periods with slipstep.run instead, or give linear_solver='direct' for a small model",
-        )
     SV.needs(
         sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option"
     )
