@@ -350,8 +350,9 @@ def frf_benchmark(args) -> None:
         amp = ds["amplitude"].sel(response=tip).values.ravel()
         amps[name] = dict(zip(np.round(f_out, 9), amp))
         extra = ""
-        if "error_estimate" in ds and name != "shoot-plain":
-            est = ds["error_estimate"].values.ravel()
+        estimate = "harmonic_truncation_estimate" if name == "hbm" else "error_estimate"
+        if estimate in ds and name not in ("shoot-plain", "march") and np.isfinite(ds[estimate].values).any():
+            est = ds[estimate].values.ravel()
             extra += f", error estimate median {np.nanmedian(est):.1e} max {np.nanmax(est):.1e}"
         if "floquet_multiplier_max" in ds and name.startswith("shoot"):
             fm = ds["floquet_multiplier_max"].values.ravel()
