@@ -606,6 +606,11 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
     ),
     "max_step_residual": ("1", "Methods 1 and 2: the largest balance residual of a step, relative to its forces"),
     "first_step_above_tolerance": ("1", "the first step counted in steps_above_tolerance"),
+    "steps_over_planned": (
+        "1",
+        "steps taken over the steps of the planned step dt_s for the duration (slipstep.run; above 50 the step "
+        "collapsed and the run warns)",
+    ),
 }
 FAILURE_ATTRS = (
     "failed_at_step",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -103,6 +104,7 @@ class Runner:
         self.march()
         ds = self.dataset()
         ds.attrs["wall_time_s"] = time.perf_counter() - start
+        collapsed_step_warning(ds)
         if raise_on_failure and self.status != Status.OK:
             raise SolverError(ds.attrs["status_message"], ds)
         return ds
@@ -368,3 +370,27 @@ def run(system: System, method: str = "newmark", *, raise_on_failure: bool = Fal
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
     result Dataset (schema in slipstep.results). Options: see :class:`RunOptions`."""
     return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
+
+
+#: a run taking more than this many times the steps of its planned step warns (issue 29)
+COLLAPSE_FACTOR = 50
+
+
+def collapsed_step_warning(ds) -> None:
+    """Warn when a run took more than COLLAPSE_FACTOR times the steps its planned step dt_s
+    gives over its duration (the step collapsed: a state cycle, an accuracy control chasing a
+    non-smooth response); the ratio is recorded as the attr ``steps_over_planned``."""
+    dt, duration, steps = ds.attrs.get("dt_s"), ds.attrs.get("t_end_s"), ds.attrs.get("steps")
+    if not dt or not duration or not steps or not math.isfinite(dt) or not math.isfinite(duration):
+        return
+    planned = max(math.ceil(duration / dt - 1e-9), 1)
+    ratio = steps / planned
+    ds.attrs["steps_over_planned"] = ratio
+    if ratio > COLLAPSE_FACTOR:
+        warnings.warn(
+            f"the run took {steps} steps, {ratio:.0f} times the {planned} of its planned step "
+            f"{dt:.3g} s: the step collapsed (see redone_steps, fallback_steps, state_changes); "
+            "check the units and the contact stiffnesses, or use the piecewise-linear method",
+            RuntimeWarning,
+            stacklevel=3,
+        )
