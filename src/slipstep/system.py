@@ -197,6 +197,11 @@ class System:
         f = self.excitation.fundamental_frequency
         return None if f is None else 1.0 / f
 
+    def compile_for_frequency_domain(self) -> CompiledSystem:
+        """The dense backend, or for a sparse structure the 'contacts' backend (its matrices
+        stay sparse and are factorised per frequency by the caller)."""
+        return self.compile("contacts" if self.structure.sparse else "dense")
+
     def compile_dense(self, feature: str) -> CompiledSystem:
         """The dense backend for a feature that needs dense n x n matrices (``feature`` names it
         in the refusal: a sparse structure above model.structure.DENSE_MAX_N DOFs)."""
@@ -206,7 +211,9 @@ class System:
 
     def compile(self, backend: str = "auto") -> CompiledSystem:
         """The kernel arrays; ``backend`` 'auto' (banded for a sparse structure of at least
-        BANDED_MIN_N DOFs whose band is narrow, else dense), 'dense' or 'banded'."""
+        BANDED_MIN_N DOFs whose band is narrow, else dense), 'dense', 'banded' or 'contacts'
+        (the contact arrays in the user's DOF order, M, C and K left empty (n, 0): for the
+        frequency-domain solvers that factorise the structure's sparse matrices themselves)."""
         s = self.structure
         n, m = s.n_dofs, len(self.motion_names)
         A_rows, B_rows, g = [], [], []
@@ -251,6 +258,11 @@ class System:
             dense = (np.zeros((n, 0)),) * 3
             Ad, ATd = np.zeros((row, 0)), np.zeros((n, 0))
             bands = tuple(_band_storage(X, order, bw) for X in (s.mass, s.damping, s.stiffness))
+        elif backend == "contacts":  # the contact arrays only: the caller keeps the structure's own matrices
+            dense = (np.zeros((n, 0)),) * 3
+            Ad = A.toarray() if sp.issparse(A) else A
+            ATd = Ad.T
+            bands = (np.zeros((0, 1)),) * 3
         else:
             dense = tuple(X.toarray() if sp.issparse(X) else X for X in (s.mass, s.damping, s.stiffness))
             Ad = A.toarray() if sp.issparse(A) else A
@@ -415,9 +427,9 @@ def _choose_backend(structure: Structure, contacts, A, backend: str) -> tuple[bo
     """(banded, dof_order, bandwidth) for the backend option (see System.compile)."""
     n = structure.n_dofs
     identity = np.arange(n, dtype=np.int64)
-    if backend not in ("auto", "dense", "banded"):
+    if backend not in ("auto", "dense", "banded", "contacts"):
         raise InputError("linear_solver", f"backend {backend!r}", "use 'auto', 'dense' or 'banded'")
-    if backend == "dense" or (backend == "auto" and (not structure.sparse or n < BANDED_MIN_N)):
+    if backend in ("dense", "contacts") or (backend == "auto" and (not structure.sparse or n < BANDED_MIN_N)):
         return False, identity, 0
     key = tuple(id(c.dof_gather) for c in contacts)  # the order of these matrices, computed once
     cached = _ORDER_CACHE.get(id(structure))

@@ -14,10 +14,12 @@ sampled at 4096 points per period otherwise.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 import xarray as xr
 
 from slipstep.frequency.retune import retune
-from slipstep.kernels.contact import LIFT, STICK, add_contact_stiffness
+from slipstep.kernels.contact import LIFT, STICK
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
 from slipstep.system import System
@@ -41,33 +43,45 @@ def stuck_state(system: System) -> np.ndarray:
     return np.where(closed[cs.direction_contact], STICK, LIFT).astype(np.int8)
 
 
+def _stuck_stiffness(cs, state: np.ndarray) -> np.ndarray:
+    """diag K(stick) over the local rows (nq,): k_t on the tangential and k_n on the normal
+    row of every contact not lifted off in ``state``, 0 for a contact open at the preload."""
+    ks = np.zeros(cs.A.shape[0])
+    for c in range(cs.kn.shape[0]):
+        if state[cs.first_direction[c]] == LIFT:
+            continue
+        ks[cs.normal_row[c]] = cs.kn[c]
+        for d in range(cs.first_direction[c], cs.first_direction[c] + cs.n_directions[c]):
+            ks[cs.tangential_row[d]] = cs.kt[d]
+    return ks
+
+
 def linear_response(system: System, stuck: bool, state: np.ndarray | None = None) -> tuple[dict, np.ndarray]:
     """Phasors X(w) per excitation frequency and the half peak-to-peak amplitude per DOF of
     the linear limit (``stuck``: every contact stuck in ``state``, default :func:`stuck_state`;
-    else the contacts removed)."""
-    cs = system.compile_dense("the linear frequency response")
+    else the contacts removed). A sparse structure is solved by a sparse LU per frequency."""
+    cs = system.compile_for_frequency_domain()
+    s = system.structure
+    sparse_structure = cs.M.shape[1] == 0
+    M, C, K = (sp.csc_matrix(X) for X in (s.mass, s.damping, s.stiffness)) if sparse_structure else (cs.M, cs.C, cs.K)
     n = cs.M.shape[0]
-    K = cs.K.copy()
     forces = _phasors(system.excitation.force, n)
     motions = _phasors(system.excitation.motion, cs.B.shape[1]) if stuck else {}
     if stuck:
         state = stuck_state(system) if state is None else state
-        add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, K)
-        Ks = np.zeros((cs.A.shape[0], cs.A.shape[0]))
-        for c in range(cs.kn.shape[0]):
-            if state[cs.first_direction[c]] == LIFT:
-                continue
-            Ks[cs.normal_row[c], cs.normal_row[c]] = cs.kn[c]
-            for d in range(cs.first_direction[c], cs.first_direction[c] + cs.n_directions[c]):
-                Ks[cs.tangential_row[d], cs.tangential_row[d]] = cs.kt[d]
-        motion_force = cs.A.T @ Ks @ cs.B
+        ks = _stuck_stiffness(cs, np.asarray(state, np.int8))
+        A = sp.csr_matrix(cs.A)
+        KD = A.T @ sp.diags(ks) @ A  # K_D = A^T K(stick) A (paper Eq. 7)
+        K = (K + KD).tocsc() if sparse_structure else K + KD.toarray()
+        motion_force = cs.A.T @ (ks[:, None] * cs.B)
+    solve = spla.spsolve if sparse_structure else np.linalg.solve
     X = {}
     for f in sorted(set(forces) | set(motions)):
         w = 2 * np.pi * f
         rhs = forces.get(f, np.zeros(n, complex)).astype(complex)
         if f in motions:
             rhs = rhs + motion_force @ motions[f]
-        X[f] = np.linalg.solve(K - w * w * cs.M + 1j * w * cs.C, rhs)
+        X[f] = solve(K - w * w * M + 1j * w * C, rhs)
     if len(X) == 0:
         return X, np.zeros(n)
     if len(X) == 1:

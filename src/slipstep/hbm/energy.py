@@ -81,6 +81,6 @@ def excitation_work(hb, point) -> float:
 
 def viscous_dissipation(hb, point) -> float:
     """Energy dissipated by C per cycle [J]."""
-    C = hb.cs.C
     h = hb.basis.h
-    return float(np.pi * point.omega * (h**2 * np.real(np.einsum("hn,nm,hm->h", np.conj(point.X), C, point.X))).sum())
+    CX = hb.linear.damping_times(point.X)
+    return float(np.pi * point.omega * (h**2 * np.real(np.einsum("hn,hn->h", np.conj(point.X), CX))).sum())

@@ -31,6 +31,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from slipstep.errors import InputError
 
@@ -112,10 +114,16 @@ def excitation_multiples(system, fundamental_hz: float | None = None):
 
 
 class LinearPart:
-    """D_h, G_h and the linear local response per retained harmonic at a frequency Omega.
+    """D_h, S_h and the linear local response per retained harmonic at a frequency Omega.
 
     ``h``: retained harmonics (with 0); ``cs``: CompiledSystem. ``at(omega)`` factorises
-    the D_h (batched); the excitation is scaled by ``level`` (constant loads and offsets are not)."""
+    the D_h; the excitation is scaled by ``level`` (constant loads and offsets are not).
+
+    Two forms of D_h^-1, one interface (:meth:`solve`, :meth:`solve_gathered`):
+    - dense (a CompiledSystem with n x n matrices): the batched inverses, n small or reduced;
+    - sparse (a CompiledSystem compiled with backend "contacts", whose M, C, K are empty: the
+      structure's scipy.sparse matrices are used): one sparse LU of D_h per harmonic, so
+      S_h = W D_h^-1 W^T costs r solves and no n x n matrix is formed (issue 24, item 7)."""
 
     def __init__(self, system, cs, h: np.ndarray, gather: Gather | None = None):
         self.cs, self.h = cs, np.asarray(h)
@@ -123,6 +131,12 @@ class LinearPart:
         self.f0, force, motion, self.f_const = excitation_multiples(system)
         n, nq = cs.M.shape[0], cs.A.shape[0]
         nm = cs.B.shape[1]
+        self.sparse = cs.M.shape[1] == 0 and n > 0
+        if self.sparse:
+            s = system.structure
+            self.M, self.C, self.K = (sp.csc_matrix(X, dtype=float) for X in (s.mass, s.damping, s.stiffness))
+        else:
+            self.M, self.C, self.K = cs.M, cs.C, cs.K
         missing = sorted((set(force) | set(motion)) - {int(x) for x in self.h})
         self.missing = missing
         self.Fe = np.zeros((self.h.size, n), complex)  # varying forces (scaled by level)
@@ -139,21 +153,71 @@ class LinearPart:
         kc[cs.normal_row] = cs.kn
         self.Kc = np.zeros((self.h.size, nq))
         self.Kc[0] = kc
-        self.KcD = np.einsum("rn,hr,rm->hnm", cs.A, self.Kc, cs.A, optimize=True)  # A^T Kc_h A, constant
+        A = sp.csr_matrix(cs.A)
+        KcD0 = (A.T @ sp.diags(kc) @ A).tocsc()  # A^T Kc_0 A, constant (Kc_h = 0 for h > 0)
+        self.KcD0 = KcD0 if self.sparse else KcD0.toarray()
         self.g0 = np.zeros((self.h.size, nq))
         self.g0[0] = cs.g
 
     def at(self, omega: float, level: float = 1.0):
-        """Invert D_h(omega) and form S_h = W D_h^-1 W^T (the compliance on the gathered coordinates)."""
-        cs, h = self.cs, self.h
-        w = h * omega
-        D = cs.K[None] - (w**2)[:, None, None] * cs.M[None] + 1j * w[:, None, None] * cs.C[None] + self.KcD
+        """Factorise D_h(omega) and form S_h = W D_h^-1 W^T (the compliance on the gathered coordinates)."""
         self.omega, self.level = omega, level
-        self.D = D
-        self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
-        self.DinvWT = self.gather.columns(self.Dinv, cs.AT)  # (nh, n, r)
-        self.S = np.ascontiguousarray(np.swapaxes(self.gather.of_dofs(np.swapaxes(self.DinvWT, 1, 2), cs.A), 1, 2))
+        if self.sparse:
+            self._factorise_sparse(omega)
+        else:
+            self._invert_dense(omega)
         return self
+
+    def _dynamic_stiffness(self, i: int, omega: float):
+        """D_h = K - (h Omega)^2 M + i h Omega C (+ A^T Kc_0 A for h = 0), harmonic index i."""
+        w = self.h[i] * omega
+        D = self.K - (w * w) * self.M + (1j * w) * self.C
+        return D + self.KcD0 if i == 0 else D
+
+    def _invert_dense(self, omega: float):
+        D = np.stack([self._dynamic_stiffness(i, omega) for i in range(self.h.size)])
+        self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
+        self.DinvWT = self.gather.columns(self.Dinv, self.cs.AT)  # (nh, n, r)
+        cs = self.cs
+        self.S = np.ascontiguousarray(np.swapaxes(self.gather.of_dofs(np.swapaxes(self.DinvWT, 1, 2), cs.A), 1, 2))
+
+    def _factorise_sparse(self, omega: float):
+        cs, g = self.cs, self.gather
+        WT = self._scatter(np.eye(g.size, dtype=complex)[None])[0]  # (n, r) as columns
+        self.lu = []
+        self.S = np.zeros((self.h.size, g.size, g.size), complex)
+        for i in range(self.h.size):
+            lu = spla.splu(sp.csc_matrix(self._dynamic_stiffness(i, omega), dtype=complex))
+            self.lu.append(lu)
+            self.S[i] = g.of_dofs(lu.solve(WT).T, cs.A).T
+
+    def _scatter(self, U: np.ndarray) -> np.ndarray:
+        """W^T U for gathered values U (nh, r) -> (nh, n); U (1, r, k) -> (1, n, k) columns."""
+        g, n = self.gather, self.cs.M.shape[0]
+        if U.ndim == 3:  # columns: (1, r, k)
+            out = np.zeros((1, n, U.shape[2]), U.dtype)
+            if g.dofs is not None:
+                out[0, g.dofs] = U[0]
+            else:
+                out[0] = self.cs.AT @ U[0]
+            return out
+        if g.dofs is not None:
+            out = np.zeros((U.shape[0], n), U.dtype)
+            out[:, g.dofs] = U
+            return out
+        return U @ self.cs.A
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """D_h^-1 rhs_h for DOF right-hand sides rhs (nh, n)."""
+        if not self.sparse:
+            return np.einsum("hnm,hm->hn", self.Dinv, rhs)
+        return np.stack([lu.solve(np.ascontiguousarray(r, dtype=complex)) for lu, r in zip(self.lu, rhs)])
+
+    def solve_gathered(self, U: np.ndarray) -> np.ndarray:
+        """D_h^-1 W^T U_h for gathered values U (nh, r): (nh, n)."""
+        if not self.sparse:
+            return np.einsum("hnm,hm->hn", self.DinvWT, U)
+        return self.solve(self._scatter(U))
 
     def external(self, level: float | None = None) -> np.ndarray:
         """Fe_h (nh, n): constant + level x varying forces."""
@@ -164,9 +228,15 @@ class LinearPart:
         """DOF phasors X_h (nh, n) from local displacement and force phasors (nh, nq)."""
         cs = self.cs
         rhs = self.external() - (F - self.Kc * (Q + self.level * (self.P @ cs.B.T) - self.g0)) @ cs.A
-        return np.einsum("hnm,hm->hn", self.Dinv, rhs)
+        return self.solve(rhs)
 
-    def dD_domega(self) -> np.ndarray:
-        """dD_h/dOmega = -2 h^2 Omega M + i h C."""
-        cs, h = self.cs, self.h
-        return -2.0 * (h**2 * self.omega)[:, None, None] * cs.M[None] + 1j * h[:, None, None] * cs.C[None]
+    def dD_times(self, X: np.ndarray) -> np.ndarray:
+        """(dD_h/dOmega) X_h for DOF phasors X (nh, n): dD_h/dOmega = -2 h^2 Omega M + i h C."""
+        h = self.h
+        MX = (self.M @ X.T).T
+        CX = (self.C @ X.T).T
+        return -2.0 * (h**2 * self.omega)[:, None] * MX + 1j * h[:, None] * CX
+
+    def damping_times(self, X: np.ndarray) -> np.ndarray:
+        """C X_h for DOF phasors X (nh, n)."""
+        return (self.C @ X.T).T

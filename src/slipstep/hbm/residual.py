@@ -119,7 +119,7 @@ class HarmonicBalance:
             )
         h = harmonic_set(harmonics)
         self.system = system
-        self.cs = cs = system.compile_dense("harmonic balance")
+        self.cs = cs = system.compile_for_frequency_domain()
         self.gather = choose_gather(cs, condense)
         self.L = self.gather.L
         lin0 = LinearPart(system, cs, h, self.gather)
@@ -191,7 +191,7 @@ class HarmonicBalance:
         LY = b.phasors(Y) @ L.T
         U = b.phasors(F) - lin.Kc * LY
         LtU = U @ L
-        Xe = np.einsum("hnm,hm->hn", lin.Dinv, lin.external(level))
+        Xe = lin.solve(lin.external(level))
         R = b.phasors(Y) - self.gather.of_dofs(Xe, cs.A) + np.einsum("hrs,hs->hr", lin.S, LtU)
         Rr = b.coefficients(R).ravel()
         if not jacobian:
@@ -202,10 +202,9 @@ class HarmonicBalance:
         T[:r, :r] -= (L.T * lin.Kc[0]) @ L
         J = Sr @ T
         J[np.diag_indices_from(J)] += 1.0
-        X = Xe - np.einsum("hnm,hm->hn", lin.DinvWT, LtU)
-        dD = lin.dD_domega()
-        dR_dw = self.gather.of_dofs(np.einsum("hnm,hm->hn", lin.Dinv, np.einsum("hmk,hk->hm", dD, X)), cs.A)
-        dR_dl = -self.gather.of_dofs(np.einsum("hnm,hm->hn", lin.Dinv, lin.Fe), cs.A)
+        X = Xe - lin.solve_gathered(LtU)
+        dR_dw = self.gather.of_dofs(lin.solve(lin.dD_times(X)), cs.A)
+        dR_dl = -self.gather.of_dofs(lin.solve(lin.Fe), cs.A)
         if cs.B.shape[1] and np.any(lin.P != 0):
             V = b.coefficients(-(lin.P @ cs.B.T))
             dF = (self.aft.jacobian() @ V.ravel()).reshape(V.shape) if self.gather.mode == "contacts" else None
