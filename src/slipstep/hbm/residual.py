@@ -158,19 +158,22 @@ class HarmonicBalance:
         lin = self.linear
         return Y @ self.L.T + self.basis.coefficients(lin.g0 - level * (lin.P @ self.cs.B.T))
 
-    def _real_blocks(self, G: np.ndarray) -> np.ndarray:
-        """The real (n_coef r)^2 form of per-harmonic complex matrices G (nh, r, r) acting
-        on phasors Y = a - i b: [y_a; y_b] = [[Gr, Gi], [-Gi, Gr]] [u_a; u_b]."""
+    def _blocks_times(self, G: np.ndarray, T: np.ndarray) -> np.ndarray:
+        """G_r T for per-harmonic complex matrices G (nh, r, r) in their real block form on
+        phasors Y = a - i b, [y_a; y_b] = [[Gr, Gi], [-Gi, Gr]] [u_a; u_b], times T
+        (n_coef r, m): one product per block, never the (n_coef r)^2 block-diagonal matrix."""
         r, nc = G.shape[1], self.basis.n_coef
-        out = np.zeros((nc, r, nc, r))
-        out[0, :, 0, :] = G[0].real
+        if r == 0:  # no contact coordinates: nothing to couple
+            return np.zeros_like(T)
+        Tb = T.reshape(nc, r, -1)
+        out = np.empty_like(Tb)
+        out[0] = G[0].real @ Tb[0]
         for i in range(1, G.shape[0]):
             a, b = 2 * i - 1, 2 * i
-            out[a, :, a, :] = G[i].real
-            out[a, :, b, :] = G[i].imag
-            out[b, :, a, :] = -G[i].imag
-            out[b, :, b, :] = G[i].real
-        return out.reshape(nc * r, nc * r)
+            Gr, Gi = G[i].real, G[i].imag
+            out[a] = Gr @ Tb[a] + Gi @ Tb[b]
+            out[b] = Gr @ Tb[b] - Gi @ Tb[a]
+        return out.reshape(T.shape)
 
     def _gathered_tangent(self) -> np.ndarray:
         """L^T (dF/dZ) L of the last AFT cycle, (n_coef r)^2."""
@@ -196,11 +199,10 @@ class HarmonicBalance:
         Rr = b.coefficients(R).ravel()
         if not jacobian:
             return Rr
-        Sr = self._real_blocks(lin.S)
         T = self._gathered_tangent()
         r = self.r
         T[:r, :r] -= (L.T * lin.Kc[0]) @ L
-        J = Sr @ T
+        J = self._blocks_times(lin.S, T)
         J[np.diag_indices_from(J)] += 1.0
         X = Xe - lin.solve_gathered(LtU)
         dR_dw = self.gather.of_dofs(lin.solve(lin.dD_times(X)), cs.A)
