@@ -590,6 +590,11 @@ ATTR_DOCS: dict[str, tuple[str, str]] = {
         "relative error estimate of the peak contact force, by step doubling (NaN when not available)",
     ),
     "error_estimate_method": ("-", "how the error estimates were obtained"),
+    "step_rule": (
+        "-",
+        "what set the step: `t-min` (the paper's T_min rule) or `accuracy` (cap, error estimate and stability "
+        "only; `step_rule` option, `--step-rule`)",
+    ),
     "rtol": ("1", "the accuracy the user set (`rtol` option, `--rtol`); NaN: off, the default step rule applies"),
     "failed_at_step": ("1", "on failure: the step that failed"),
     "failed_at_time_s": ("s", "on failure: the time it failed at"),

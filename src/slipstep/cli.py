@@ -441,6 +441,11 @@ def run(
         help="Accuracy to reach (dynamic methods), e.g. 1e-3: the step follows "
         "the local error estimate, never beyond the method's step limit.",
     ),
+    step_rule: Optional[str] = typer.Option(
+        None,
+        help="What sets the step: accuracy (the cap and the error estimate; default of the "
+        "piecewise-linear methods) or t-min (the paper's T_min rule; default of the others).",
+    ),
     save_dofs: Optional[str] = typer.Option(
         None,
         help="DOFs to save: all, none, response (those the contacts see, the forced ones) or "
@@ -473,6 +478,8 @@ def run(
         opts, origin = _run_options(spec, periods, step_ratio, steps_per_period, max_memory, duration, flags)
         if rtol is not None:
             opts["rtol"], origin["rtol"] = rtol, "--rtol"
+        if step_rule is not None:
+            opts["step_rule"], origin["step_rule"] = step_rule, "--step-rule"
         directory = output_dir_option(output_dir)
         with option_names(origin):
             sim, label = _simulation(system, chosen, scheme, opts, origin)
@@ -498,6 +505,7 @@ def run(
         "mean_solves_per_step",
         "state_changes",
         "dt_s",
+        "step_rule",
         "t_min_s",
         "t_end_s",
         "kernel_time_s",

@@ -153,6 +153,7 @@ def compare(
     method. Each row's ``timed_in`` says where the kernels were timed.
     """
     names = _method_names(methods)
+    options = {**options, "step_rule": "t-min"}  # the paper's rule: Methods 1 and 3 march the same steps
     if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
         raise InputError("repeats", f"is {repeats!r}", "give a whole number >= 1")
     if cutoff_Hz is not None and not (

@@ -96,6 +96,7 @@ def twin(plan: RunPlan, method: str, **changes):
         "error_estimate": False,
         "max_state_iterations": opt.max_state_iterations,
         "step_ratio": opt.step_ratio,
+        "step_rule": plan.step_rule,
         "save": Save(dofs="none"),  # the loop energy needs the contacts at every step only
     }
     base.update(changes)

@@ -18,6 +18,8 @@ from slipstep.model.validate import positive
 
 #: the values of RunOptions.linear_solver
 LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded")
+#: the values of RunOptions.step_rule (None: the method's default, methods/plan.py ``step_rule_of``)
+STEP_RULES = ("accuracy", "t-min")
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,13 @@ class RunOptions:
         of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is
         within about rtol; it never exceeds the contact-state / convergence rule of Newton
         methods, nor the stability limit; the piecewise-linear solve obeys only the latter.
+    step_rule: what sets the step of a dynamic run: 't-min' (the paper's rule: the convergence
+        limit r T_min(stick) / (2 pi sqrt(beta)), the cap max_step and the stability limit) or
+        'accuracy' (the solves that do not iterate, the piecewise-linear methods only: the cap
+        max_step refined by the step-doubling error estimate, and the stability limit; T_min
+        plays no part; with a period or max_step only). None: 't-min' for now
+        (methods/plan.py DEFAULT_STEP_RULE); ``slipstep compare`` passes 't-min' so that
+        Methods 1 and 3 march the same steps.
     error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
         peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
         step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).
@@ -75,6 +84,7 @@ class RunOptions:
     dt: float | None = None
     linear_solver: str = "auto"
     rtol: float | None = None
+    step_rule: str | None = None
     error_estimate: bool = True
     max_memory: float | None = None
     massless_dofs: object = "auto"
@@ -115,6 +125,8 @@ class RunOptions:
             raise InputError(
                 "linear_solver", f"is {self.linear_solver!r}", "use 'auto', 'direct', 'low-rank' or 'banded'"
             )
+        if self.step_rule is not None and self.step_rule not in STEP_RULES:
+            raise InputError("step_rule", f"is {self.step_rule!r}", "use 'accuracy' or 't-min' (or leave it out)")
         SV.as_save(self.save)
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")

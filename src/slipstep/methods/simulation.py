@@ -356,6 +356,7 @@ class Simulation(Runner):
             "tolerance": self.options.tolerance,
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
+            "step_rule": self.plan.step_rule,
             "linear_solver": "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "direct"),
             "bandwidth": int(self.compiled.kl) if self.compiled.banded else -1,
             **(
