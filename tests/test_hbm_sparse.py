@@ -61,3 +61,12 @@ def test_sparse_linear_limits_equal_dense():
     assert float(b["linear_stuck_amplitude"].sel(frequency=20.0)[-1]) < float(
         b["linear_free_amplitude"].sel(frequency=20.0)[-1]
     )
+
+
+def test_auto_chooses_harmonic_balance_above_the_dense_cap():
+    from slipstep.frequency.choice import choose
+    from slipstep.model.structure import DENSE_MAX_N
+
+    big = choose(_chain(DENSE_MAX_N + 500, 5, dense=False))
+    assert big.solver == "hbm" and "sparse" in big.reason
+    assert choose(_chain(40, 4, dense=False)).solver == "shoot"

@@ -15,8 +15,13 @@ The rule:
    damper leaves an orbit unconverged at 300 Hz); else ``quasi-static`` for a system without
    mass, else ``piecewise-linear`` (Method 3).
 
-Harmonic balance is not chosen: its contact forces are only as good as the retained harmonics
-(its truncation estimate says how good); ask for it with ``solver="hbm"``.
+3. **Harmonic balance** for a sparse structure above ``model.structure.DENSE_MAX_N`` DOFs:
+   shooting's Jacobian is dense over 2n unknowns there, while the harmonic balance factorises
+   the sparse dynamic stiffness once per harmonic and solves on the contact coordinates
+   (:mod:`slipstep.hbm.linear`); its truncation estimate is the point's error.
+
+Elsewhere harmonic balance is not chosen: its contact forces are only as good as the retained
+harmonics (its truncation estimate says how good); ask for it with ``solver="hbm"``.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from slipstep.model.structure import DENSE_MAX_N
 from slipstep.system import System
 
 DEFAULT_METHOD = "piecewise-linear"
@@ -62,6 +68,14 @@ def choose(system: System, method: str | None = None) -> SolverChoice:
 
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
+    if system.structure.sparse and system.n_dofs > DENSE_MAX_N:
+        return SolverChoice(
+            "hbm",
+            method,
+            f"harmonic balance: the structure is sparse with {system.n_dofs} DOFs (above {DENSE_MAX_N}), where "
+            "shooting's Jacobian would be dense over 2n unknowns; the balance factorises the sparse dynamic "
+            "stiffness once per harmonic and reports its harmonic-truncation estimate",
+        )
     if method is None:
         method, why = choose_method(system)
     else:
