@@ -258,3 +258,24 @@ def test_cli_exit_2_on_a_bad_fe_file(tmp_path):
     result = CliRunner().invoke(app, ["run", str(path), "--output-dir", str(tmp_path / "out")])
     assert result.exit_code == 2, result.output
     assert "Traceback" not in result.output and "absent.op4" in result.output
+
+
+def test_ansys_full_file_through_ansys_mapdl_reader():
+    """The example .full file that ansys-mapdl-reader ships, read by slipstep and by the
+    reader's dense load_km: the same matrices (one triangle mirrored), DOFs '<node>.<1..3>'."""
+    reader = pytest.importorskip("ansys.mapdl.reader", reason="ansys-mapdl-reader is not installed (optional)")
+    from ansys.mapdl.reader import examples
+
+    got = fe.read_fe_file(Path(examples.fullfile), "[structure] file")
+    dof_ref, k, m = reader.read_binary(examples.fullfile).load_km(as_sparse=False, sort=True)
+    full = np.triu(m) + np.triu(m, 1).T
+    np.testing.assert_array_equal(got.mass.toarray(), full)
+    assert got.dofs[:3] == tuple(f"{dof_ref[0][0]}.{d}" for d in (1, 2, 3))
+
+
+def test_ansys_full_without_the_reader_says_how_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ansys.mapdl.reader", None)
+    (tmp_path / "m.full").write_bytes(b"\x00" * 64)
+    with pytest.raises(InputError) as err:
+        fe.read_fe_file(tmp_path / "m.full", "[structure] file")
+    assert "ansys-mapdl-reader" in err.value.fix or "ansys-mapdl-reader" in err.value.problem
