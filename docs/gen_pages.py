@@ -110,6 +110,19 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     ),
     "StructureSpec.damping_file_N_s_per_m": ("N s/m", "C from a file instead of damping_N_s_per_m (as mass_file_kg)"),
     "StructureSpec.stiffness_file_N_per_m": ("N/m", "K from a file instead of stiffness_N_per_m (as mass_file_kg)"),
+    "StructureSpec.file": (
+        "-",
+        "an FE code's matrix file, relative to the case file: Nastran OP4 text (.op4), DMIG bulk data (.bdf, .dat, "
+        ".nas, .blk) or ANSYS .full, see [Matrices from FE codes](../guide/fe_files.md)",
+    ),
+    "StructureSpec.format": (
+        "-",
+        'the format of `file`: "op4", "dmig", "ansys" (default: from the suffix); "abaqus" reads mass_file_kg, '
+        "stiffness_file_N_per_m (and damping_file_N_s_per_m) as Abaqus matrix output",
+    ),
+    "StructureSpec.mass_matrix": ("-", "the name of M in `file` (default: the first of MAA, MGG, MHH, MAAX, ...)"),
+    "StructureSpec.stiffness_matrix": ("-", "the name of K in `file` (default: the first of KAA, KGG, KHH, KAAX, ...)"),
+    "StructureSpec.damping_matrix": ("-", "the name of C in `file` (default: BAA, BGG, ... if present, else none)"),
     "StructureSpec.constant_force_N": ("N (N m on rad DOFs)", "constant load per DOF, ramped in the static preload"),
     "ContactSpec.name": ("-", "contact name (a `contact` coordinate of the result)"),
     "ContactSpec.dof_gather": (
@@ -122,6 +135,15 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
         "the sparse form of dof_gather: [row, DOF index (from 0), value] triples; for models with many DOFs",
     ),
     "ContactSpec.dof_gather_rows": ("1", "rows of dof_gather_entries' matrix: 2 (2D, default) or 3 (quasi-3D)"),
+    "ContactSpec.nodes": (
+        "-",
+        'node ids of a contact face of an FE file: one contact per node, named "<name>.<node>", instead of dof_gather',
+    ),
+    "ContactSpec.normal": ("1", "the face's outward normal [nx, ny, nz] (with nodes)"),
+    "ContactSpec.tangent": (
+        "1",
+        "the first tangential direction (made normal to `normal`; default: the axis least aligned with it)",
+    ),
     "ContactSpec.motion_gather": ("1", "B: one column per `motion_names` entry, q = A x - B p + g"),
     "ContactSpec.normal_stiffness_N_per_m": ("", "normal contact stiffness k_n"),
     "ContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] of a quasi-3D contact"),

@@ -29,6 +29,7 @@ from slipstep.errors import InputError
 from slipstep.model.contact import ContactElement
 from slipstep.model.damper import DamperContact, Platform, rigid_damper
 from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
+from slipstep.model.fe_files import case_face_contacts, case_structure
 from slipstep.model.structure import Structure
 from slipstep.model.substructure import read_mtx
 from slipstep.system import System
@@ -78,6 +79,13 @@ class StructureSpec(_Strict):
     damping_file_N_s_per_m: Optional[str] = None
     stiffness_file_N_per_m: Optional[str] = None
     constant_force_N: Optional[list[float]] = None
+    # matrices from FE codes (issue 26, item 4; slipstep.model.fe_files): an OP4, DMIG or ANSYS
+    # .full file and the matrix names in it; format = "abaqus" reads the *_file_* keys as Abaqus
+    file: Optional[str] = None
+    format: Optional[str] = None
+    mass_matrix: Optional[str] = None
+    stiffness_matrix: Optional[str] = None
+    damping_matrix: Optional[str] = None
 
 
 class ContactSpec(_Strict):
@@ -92,6 +100,10 @@ class ContactSpec(_Strict):
     friction_coefficient: float
     normal_offset_m: float = 0.0
     law: Optional[str] = None
+    # a contact face of an FE file (issue 26, item 4): one contact per node, "<name>.<node>"
+    nodes: Optional[list[int]] = None
+    normal: Optional[list[float]] = None
+    tangent: Optional[list[float]] = None
 
 
 class HarmonicSpec(_Strict):
@@ -311,19 +323,29 @@ def _build_system(spec: CaseSpec) -> System:
         )
     s = spec.structure
     base = Path(getattr(spec, "_base", "."))
-    mass = _structure_matrix(s, "mass_kg", "mass_file_kg", base, required=True)
-    structure = Structure(
-        mass,
-        _structure_matrix(s, "damping_N_s_per_m", "damping_file_N_s_per_m", base),
-        _structure_matrix(s, "stiffness_N_per_m", "stiffness_file_N_per_m", base),
-        tuple(s.dof_names or ()),
-        tuple(s.dof_units or ()),
-    )
+    fe = case_structure(s, base)  # matrices from an FE code's file (slipstep.model.fe_files)
+    if fe is not None:
+        structure = Structure(
+            fe.mass, fe.damping, fe.stiffness, fe.dofs or tuple(s.dof_names or ()), s.dof_units or fe.dof_units
+        )
+    else:
+        mass = _structure_matrix(s, "mass_kg", "mass_file_kg", base, required=True)
+        structure = Structure(
+            mass,
+            _structure_matrix(s, "damping_N_s_per_m", "damping_file_N_s_per_m", base),
+            _structure_matrix(s, "stiffness_N_per_m", "stiffness_file_N_per_m", base),
+            tuple(s.dof_names or ()),
+            tuple(s.dof_units or ()),
+        )
     motion_names = tuple(spec.motion_names or ())
+    gathers = []  # (contact spec, name, gather map): a face of nodes gives one contact per node
+    for i, c in enumerate(spec.contacts or ()):
+        face = case_face_contacts(c, i, structure.dof_names)
+        gathers += [(c, c.name, _contact_gather(c, i, structure.n_dofs))] if face is None else [(c, *f) for f in face]
     contacts = tuple(
         ContactElement(
-            name=c.name,
-            dof_gather=_contact_gather(c, i, structure.n_dofs),
+            name=name,
+            dof_gather=gather,
             motion_gather=None if c.motion_gather is None else np.asarray(c.motion_gather),
             tangential_stiffness=c.tangential_stiffness_N_per_m,
             normal_stiffness=c.normal_stiffness_N_per_m,
@@ -331,7 +353,7 @@ def _build_system(spec: CaseSpec) -> System:
             normal_offset=c.normal_offset_m,
             law=c.law,
         )
-        for i, c in enumerate(spec.contacts or ())
+        for c, name, gather in gathers
     )
     motion = _signal(spec.motion, spec.motion_table, motion_names, 1.0, "motion", ramp)
     for table in ("force", "force_table"):  # components of a matrix file's DOFs (not known to config_check)

@@ -398,7 +398,7 @@ def _components(data: dict, kind: str, table: str) -> list[str] | None:
     if table.startswith("force"):
         s = data.get("structure", {})
         names = s.get("dof_names")
-        if not names and "mass_kg" not in s and "mass_file_kg" in s:
+        if not names and "mass_kg" not in s and ("mass_file_kg" in s or "file" in s):
             return None  # the DOFs of a matrix file: checked when it is read (slipstep.config)
         n = len(s.get("mass_kg") or [])
         return list(names) if names else [f"x{i}" for i in range(n)]
