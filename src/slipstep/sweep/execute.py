@@ -106,6 +106,8 @@ def _run_options(run, extra: dict) -> dict:
     for key in ("periods", "step_ratio", "steps_per_period"):
         if getattr(run, key) is not None:
             opts[key] = getattr(run, key)
+    if getattr(run, "save", None) is not None:  # [run.save]: what the march stores (as `slipstep run`)
+        opts["save"] = run.save.options()
     opts.update(extra)
     return opts
 
