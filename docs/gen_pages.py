@@ -245,6 +245,10 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "ChainSpec.damper": ("-", "the damper copied between each neighbouring pair of blades"),
     "ChainSpec.blades": ("1", "number of blades N"),
     "ChainSpec.closed": ("-", "true: also a damper between blade N and blade 1 (a ring)"),
+    "ChainSpec.mistuning": (
+        "1",
+        "blade-to-blade scatter: blade j's stiffness times 1 + delta_j, one delta > -1 per blade (default: tuned)",
+    ),
     "EngineOrderSpec.dof": ("-", "the DOF of each blade, without the blade's name (e.g. `8.x`)"),
     "EngineOrderSpec.amplitude_N": ("", "force amplitude on each blade"),
     "EngineOrderSpec.frequency_Hz": ("", "excitation frequency"),

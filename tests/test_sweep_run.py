@@ -197,10 +197,10 @@ def test_failed_cases_are_recorded_and_do_not_stop_the_sweep(tmp_path):
     assert np.isfinite(ds.energy_per_cycle_J.values[0]) and np.isnan(ds.energy_per_cycle_J.values[1:]).all()
 
 
-def _small_spec(**kw):
+def _small_spec(run=None, **kw):
     return SweepSpec(
         base="paper",
-        run={"method": "quasi-static", "periods": 2, "steps_per_period": 60},
+        run=run or {"method": "quasi-static", "periods": 2, "steps_per_period": 60},
         parameters=(
             Parameter("damper.centrifugal_force_N", values=(100.0, 200.0, 300.0)),
             Parameter("motion.1.amplitude", values=(5.0, 10.0, 20.0, 40.0)),
@@ -430,3 +430,26 @@ def test_a_frequency_response_per_case(tmp_path):
     assert len(lines) == 2 and np.allclose(lines[1].get_ydata(), ds.frf_amplitude.sel(response="y2").values[1] * 1e6)
     assert fig.axes[0].get_xlabel() == "excitation frequency [Hz]" and fig.axes[0].get_ylabel().endswith("[um]")
     assert [p.name for p in write_figures(ds, tmp_path)] == ["design_curves.png", "frf_curves.png"]
+
+
+def test_a_finished_store_opens_without_a_warning_and_run_save_is_honoured(tmp_path):
+    import warnings
+
+    import xarray as xr
+
+    spec = _small_spec(batch_size=5)
+    run_sweep(spec, tmp_path / "s.zarr", executor=SerialExecutor())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "consolidated metadata" warning, after several batches
+        with xr.open_zarr(tmp_path / "s.zarr") as ds:
+            assert (ds.status.values == "OK").all()
+            steady = ds.steady_error.values
+    assert np.isfinite(steady).all()
+    # [run.save] keeps only the last period: the two-period steady_error has no data any more
+    saved = _small_spec(
+        run={"method": "quasi-static", "periods": 2, "steps_per_period": 60, "save": {"last_periods": 1}}
+    )
+    run_sweep(saved, tmp_path / "saved.zarr", executor=SerialExecutor())
+    ds = open_sweep(tmp_path / "saved.zarr")
+    assert (ds.status.values == "OK").all()
+    assert np.isnan(ds.steady_error.values).all()

@@ -137,6 +137,9 @@ class ChainSpec(_Strict):
     damper: str
     blades: int
     closed: bool = False
+    # blade j's stiffness scaled by 1 + mistuning[j] (blade-to-blade scatter: every modal
+    # frequency of blade j times sqrt(1 + delta_j)); None: a tuned chain
+    mistuning: list[float] | None = None
 
 
 class AssemblyCaseSpec(_Strict):
@@ -263,8 +266,9 @@ def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
             )
         template = subs.pop(chain.blade)
         chain_blades = [f"{chain.blade}{j + 1}" for j in range(chain.blades)]
-        for nm in chain_blades:
-            subs[nm] = _renamed(template, nm)
+        deltas = _mistuning(chain)
+        for nm, delta in zip(chain_blades, deltas):
+            subs[nm] = _renamed(template, nm, 1.0 + delta)
         pairs = [(j, j + 1) for j in range(chain.blades - 1)] + ([(chain.blades - 1, 0)] if chain.closed else [])
         d = dampers.pop(chain.damper)
         for k, (jl, jr) in enumerate(pairs):
@@ -323,9 +327,29 @@ def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
     )
 
 
-def _renamed(s: Substructure, name: str) -> Substructure:
+def _mistuning(chain: ChainSpec) -> list[float]:
+    """The chain's blade deltas (zeros for a tuned chain), checked: one per blade, each > -1."""
+    if chain.mistuning is None:
+        return [0.0] * chain.blades
+    deltas = [float(d) for d in chain.mistuning]
+    if len(deltas) != chain.blades:
+        raise InputError(
+            "chain.mistuning", f"has {len(deltas)} values for {chain.blades} blades", "give one delta per blade"
+        )
+    for j, d in enumerate(deltas):
+        if not math.isfinite(d) or d <= -1.0:
+            raise InputError(
+                f"chain.mistuning.{j + 1}", f"is {d}", "give a finite delta > -1 (stiffness x (1 + delta))"
+            )
+    return deltas
+
+
+def _renamed(s: Substructure, name: str, stiffness_scale: float = 1.0) -> Substructure:
+    """A copy of ``s`` named ``name``, its stiffness times ``stiffness_scale`` (mistuning: the
+    scaled reduced stiffness is the reduction of the scaled full one, the basis being unchanged)."""
+    K = s.stiffness if stiffness_scale == 1.0 else s.stiffness * stiffness_scale
     return Substructure(
-        name, s.mass, s.stiffness, s.dof_names, s.dof_units, s.damping, s.rayleigh, s.modal_damping_ratio, s.points
+        name, s.mass, K, s.dof_names, s.dof_units, s.damping, s.rayleigh, s.modal_damping_ratio, s.points
     )
 
 

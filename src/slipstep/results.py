@@ -36,6 +36,27 @@ SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
 DYNAMIC_ONLY = ("velocity", "acceleration")
 
 
+def kernel_rows(system, out, n_stored: int, compiled, plan=None, grid=None, dynamic=True, gamma=None):
+    """The first ``n_stored`` + 1 rows of the kernel outputs (dict of t, x, v, a, q, f, w,
+    state, solves, dt, step; interpolated at the times ``grid`` if given), the saved contacts
+    and directions, and the columns of q and f that hold the directions' tangential and the
+    contacts' normal components: (rows, contacts, dirs, tan_cols, nrm_cols)."""
+    from slipstep.methods.save import interpolate
+
+    k = n_stored + 1
+    cs = compiled
+    nc = len(system.contact_names)
+    contacts = np.arange(nc) if plan is None else plan.contacts
+    dirs = np.asarray(out.dirs)
+    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
+    tan_cols = np.array([column[int(r)] for r in np.asarray(cs.tangential_row)[dirs]], np.int64)
+    nrm_cols = np.array([column[int(r)] for r in np.asarray(cs.normal_row)[contacts]], np.int64)
+    rows = {key: getattr(out, key)[:k] for key in ("t", "x", "v", "a", "q", "f", "w", "state", "solves", "dt", "step")}
+    if grid is not None:
+        rows = interpolate(rows, grid, dynamic, gamma)
+    return rows, contacts, dirs, tan_cols, nrm_cols
+
+
 def build_dataset(
     system,
     out,
@@ -52,20 +73,10 @@ def build_dataset(
     (coordinate ``dof``), contacts and directions of ``plan`` (slipstep.methods.save.Plan;
     None: all), at the saved steps (coordinate ``step``), or interpolated at the given times
     ``grid`` (slipstep.methods.save.interpolate; ``gamma``: the Newmark gamma of the march)."""
-    from slipstep.methods.save import interpolate
-
-    k = n_stored + 1
     cs = compiled
-    n, nc = len(system.structure.dof_names), len(system.contact_names)
+    n = len(system.structure.dof_names)
     dofs = np.arange(n) if plan is None else plan.dofs
-    contacts = np.arange(nc) if plan is None else plan.contacts
-    dirs = np.asarray(out.dirs)
-    column = {int(r): i for i, r in enumerate(np.asarray(out.rows))}
-    tan_cols = np.array([column[int(r)] for r in np.asarray(cs.tangential_row)[dirs]], np.int64)
-    nrm_cols = np.array([column[int(r)] for r in np.asarray(cs.normal_row)[contacts]], np.int64)
-    rows = {key: getattr(out, key)[:k] for key in ("t", "x", "v", "a", "q", "f", "w", "state", "solves", "dt", "step")}
-    if grid is not None:
-        rows = interpolate(rows, grid, dynamic, gamma)
+    rows, contacts, dirs, tan_cols, nrm_cols = kernel_rows(system, out, n_stored, compiled, plan, grid, dynamic, gamma)
     data = {
         "displacement": rows["x"],
         "velocity": rows["v"],

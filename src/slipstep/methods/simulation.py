@@ -137,21 +137,7 @@ class Runner:
         t = self.out.t[:rows] if grid is None else grid
         motion = evaluate_compiled(motion_signal(self.compiled), t)
         failure = self.failure_report()
-        message = self.status.message
-        if self.status == Status.CAPACITY:  # which buffer: the steps, or the saved rows (methods/save.py)
-            rows_full = n_steps < int(self.out.plan[K.S_CAPACITY])
-            message += " (out of output rows of the save plan)" if rows_full else " (out of step capacity)"
-        if failure:
-            message = (
-                f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
-                f"t = {failure['failed_at_time_s']:.6g} s"
-            )
-            if "states_visited" in failure:
-                message += f", states tried {failure['states_visited']}"
-            if "broken_invariant" in failure:
-                message += f"; {failure['broken_invariant']}"
-            message += self.failure_hint if self.status == Status.NON_FINITE else ""
-        solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
+        message = self.status_message(failure)
         method = self.method_attrs()
         attrs = {"title": f"slipstep result: {self.system.name}, {method['method']}", "case": self.system.name}
         attrs.update(method)
@@ -159,14 +145,7 @@ class Runner:
             {
                 "status": self.status.name,
                 "status_message": message,
-                "steps": n_steps,
-                "solves": solves,
-                "iterations": solves,
-                "mean_solves_per_step": solves / max(n_steps, 1),
-                "factorisations": int(c[K.C_FACTORISATIONS]),
-                "law_calls": int(c[K.C_LAW_CALLS]),
-                "redone_steps": int(c[K.C_REDOS]),
-                "state_changes": int(c[K.C_STATE_CHANGES]),
+                **self.run_counts(),
                 "dt_s": self.dt,
                 "t_min_s": self.t_min_stick,
                 "t_end_s": self.t_end,
@@ -194,6 +173,45 @@ class Runner:
             grid=grid,
             gamma=None if method["quasi_static"] else self.options.scheme.gamma,
         )
+
+    def run_counts(self) -> dict:
+        """The march's counts: steps, solves (= iterations), mean_solves_per_step,
+        factorisations, law_calls, redone_steps, state_changes."""
+        c = self.out.counters
+        n_steps = int(c[K.C_STEPS])
+        rows = saved_rows(self.out, n_steps)
+        solves = int(self.out.solves[1:rows].sum()) if rows == n_steps + 1 else int(c[K.C_SOLVES])
+        return {
+            "steps": n_steps,
+            "solves": solves,
+            "iterations": solves,
+            "mean_solves_per_step": solves / max(n_steps, 1),
+            "factorisations": int(c[K.C_FACTORISATIONS]),
+            "law_calls": int(c[K.C_LAW_CALLS]),
+            "redone_steps": int(c[K.C_REDOS]),
+            "state_changes": int(c[K.C_STATE_CHANGES]),
+        }
+
+    def status_message(self, failure: dict | None = None) -> str:
+        """The status text of the march (attr status_message): the status, and for a failure
+        where and in which states it stopped."""
+        failure = self.failure_report() if failure is None else failure
+        n_steps = int(self.out.counters[K.C_STEPS])
+        message = self.status.message
+        if self.status == Status.CAPACITY:  # which buffer: the steps, or the saved rows (methods/save.py)
+            rows_full = n_steps < int(self.out.plan[K.S_CAPACITY])
+            message += " (out of output rows of the save plan)" if rows_full else " (out of step capacity)"
+        if failure:
+            message = (
+                f"{self.status.name}: {message}; stopped at step {failure['failed_at_step']}, "
+                f"t = {failure['failed_at_time_s']:.6g} s"
+            )
+            if "states_visited" in failure:
+                message += f", states tried {failure['states_visited']}"
+            if "broken_invariant" in failure:
+                message += f"; {failure['broken_invariant']}"
+            message += self.failure_hint if self.status == Status.NON_FINITE else ""
+        return message
 
 
 class Simulation(Runner):

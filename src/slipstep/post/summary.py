@@ -26,6 +26,7 @@ named by their prefix (interface, contact, direction).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -33,7 +34,7 @@ import xarray as xr
 from slipstep.errors import InputError, Status
 from slipstep.post.loops import interfaces_from_system, loop_summary
 from slipstep.post.periodic import last_period, periodicity
-from slipstep.post.timeline import LIFT, SLIP_NEG, SLIP_POS, STICK, full_slip_share, state_shares
+from slipstep.post.timeline import LIFT, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK, full_slip_share, state_shares
 
 # base name -> (units, long_name); one place for what the summary keys mean (all over the last
 # period; the module docstring gives the definitions)
@@ -171,4 +172,188 @@ def _steady_error(ds, period) -> float:
         errors = periodicity(ds, period=period).errors
     except InputError:  # nothing saved to compare (the save option)
         return math.nan
+    return float(errors[-1]) if errors else math.nan
+
+
+# -- the same summary from the kernel's arrays (the sweep's fast path: no Dataset) --------------
+
+
+@dataclass(frozen=True)
+class Record:
+    """A march's record as plain arrays, what :func:`summarise_record` needs: time t [s] (n,),
+    displacement x [m] (n, dof), tangential displacement u [m] and force T [N] (n, direction),
+    normal force N [N] (n, contact), contact state S (n, direction), friction coefficient mu
+    (contact), the names of the contacts, the directions and each direction's contact, the
+    period [s], the length scale [m] and the run's attrs (status and counts)."""
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    T: np.ndarray
+    N: np.ndarray
+    S: np.ndarray
+    mu: np.ndarray
+    contacts: tuple
+    directions: tuple
+    direction_contact: tuple
+    period: float | None
+    length_scale: float
+    attrs: dict
+
+
+def record_of(sim) -> Record:
+    """The Record of a marched Simulation with the default save (every step, every DOF and
+    contact), from the kernel's output buffers (results.kernel_rows, as the Dataset is)."""
+    from slipstep.kernels import march as K
+    from slipstep.methods.buffers import saved_rows
+    from slipstep.results import kernel_rows
+
+    system, cs = sim.system, sim.compiled
+    rows = saved_rows(sim.out, int(sim.out.counters[K.C_STEPS]))
+    r, contacts, dirs, tan, nrm = kernel_rows(system, sim.out, rows - 1, cs, None, None, False)
+    cnames, dnames = system.contact_names, system.direction_names()
+    owner = np.asarray(cs.direction_contact)
+    attrs = {"status": sim.status.name, "status_message": sim.status_message(), **sim.run_counts()}
+    attrs.update(dt_s=sim.dt, t_end_s=sim.t_end, kernel_time_s=sim.kernel_time)
+    return Record(
+        t=r["t"],
+        x=r["x"],
+        u=r["q"][:, tan],
+        T=r["f"][:, tan],
+        N=r["f"][:, nrm],
+        S=r["state"],
+        mu=np.asarray(cs.mu)[contacts],
+        contacts=tuple(cnames[i] for i in contacts),
+        directions=tuple(dnames[d] for d in dirs),
+        direction_contact=tuple(cnames[owner[d]] for d in dirs),
+        period=sim.period,
+        length_scale=float(cs.length_scale),
+        attrs=attrs,
+    )
+
+
+def summarise_record(rec: Record, interfaces=None) -> dict:
+    """:func:`summarise` of a Record, with numpy only (the same definitions, the same
+    floating-point operations in the same order: equal to summarise of the run's Dataset)."""
+    a = rec.attrs
+    out: dict = {"status_code": int(Status[a["status"]]) if a.get("status") in Status.__members__ else -1}
+    for key in _RUN_COUNTS:
+        value = a.get(key, math.nan)
+        out[key] = float(value) if key == "mean_solves_per_step" or math.isnan(value) else int(value)
+    lp = _last_period_rows(rec)
+    groups = _groups(rec, interfaces)
+    out.update(_loops_record(rec, groups, lp))
+    out.update(_contacts_record(rec, lp))
+    out["full_slip_share"] = _full_slip(lp) if lp is not None else math.nan
+    out["steady_error"] = _steady_record(rec) if lp is not None else math.nan
+    return out
+
+
+def _last_period_rows(rec: Record):
+    """post.periodic.last_period on arrays: (t, u, T, N, S) of [t_end - T, t_end], None when
+    shorter than one period."""
+    from slipstep.post.periodic import _REL
+
+    T = rec.period
+    t = rec.t
+    if T is None or not np.isfinite(T) or T <= 0 or t[-1] - t[0] < T * (1 - _REL):
+        return None
+    t0 = t[-1] - T
+    j = int(np.argmin(np.abs(t - t0)))
+    arrays = (rec.u, rec.T, rec.N, rec.S)
+    if abs(t[j] - t0) <= _REL * T + 1e-12 * abs(t0):
+        return (t[j:],) + tuple(v[j:] for v in arrays)
+    k = int(np.searchsorted(t, t0, side="right"))
+    i = min(max(k, 1), t.size - 1)
+    s = (t0 - t[i - 1]) / (t[i] - t[i - 1])
+    first = [v[i - 1] + s * (v[i] - v[i - 1]) for v in arrays[:3]] + [arrays[3][i - 1]]
+    return (np.concatenate([[t0], t[k:]]),) + tuple(
+        np.concatenate([f[None], v[k:]]).astype(v.dtype) for f, v in zip(first, arrays)
+    )
+
+
+def _groups(rec: Record, interfaces) -> dict:
+    if interfaces is None:
+        return {c: [c] for c in rec.contacts}
+    return dict(interfaces if isinstance(interfaces, dict) else interfaces_from_system(interfaces))
+
+
+def _loops_record(rec: Record, groups: dict, lp) -> dict:
+    from slipstep.post.loops import loop_properties
+
+    out = {}
+    if lp is None:
+        for name in groups:
+            for key in ("energy_per_cycle_J", "k_eq_N_per_m", "zeta_eq", "u_amplitude_m", "T_amplitude_N"):
+                out[f"interface_{key}[{name}]"] = math.nan
+        out["energy_per_cycle_J"] = math.nan
+        return out
+    _, u, T, _, _ = lp
+    per_dir = [loop_properties(u[:, d], T[:, d]) for d in range(u.shape[1])]
+    owner = np.asarray(rec.direction_contact)
+    energies = []
+    for name, members in groups.items():
+        d = np.flatnonzero(np.isin(owner, members))
+        p = loop_properties(u[:, d].mean(axis=1), T[:, d].sum(axis=1))
+        e_sum = sum(per_dir[k]["energy_J"] for k in d)
+        zeta = e_sum / (4 * math.pi * p["elastic_energy_J"]) if p["elastic_energy_J"] > 0 else math.nan
+        energies.append(e_sum)
+        out[f"interface_energy_per_cycle_J[{name}]"] = float(e_sum)
+        out[f"interface_k_eq_N_per_m[{name}]"] = float(p["k_eq_N_per_m"])
+        out[f"interface_zeta_eq[{name}]"] = float(zeta)
+        out[f"interface_u_amplitude_m[{name}]"] = 0.5 * float(p["u_max_m"] - p["u_min_m"])
+        out[f"interface_T_amplitude_N[{name}]"] = 0.5 * float(p["T_max_N"] - p["T_min_N"])
+    out["energy_per_cycle_J"] = float(np.array(energies, float).sum())
+    return out
+
+
+def _contacts_record(rec: Record, lp) -> dict:
+    out = {}
+    if lp is None:
+        for d in rec.directions:
+            for key in ("peak_T_over_muN", "stick_share", "slip_share", "lift_off_share"):
+                out[f"direction_{key}[{d}]"] = math.nan
+        for c in rec.contacts:
+            out[f"contact_N_min_N[{c}]"] = out[f"contact_N_max_N[{c}]"] = math.nan
+        return out
+    t, _, T, N, S = lp
+    contacts = list(rec.contacts)
+    dt = np.diff(t)
+    total = dt.sum()
+    for j, d in enumerate(rec.directions):
+        c = contacts.index(rec.direction_contact[j])
+        limit = rec.mu[c] * N[:, c]
+        loaded = limit > 0
+        ratio = np.abs(T[loaded, j]) / limit[loaded]
+        share = [dt[S[1:, j] == s].sum() / total for s in range(len(STATE_NAMES))]
+        out[f"direction_peak_T_over_muN[{d}]"] = float(ratio.max()) if ratio.size else math.nan
+        out[f"direction_stick_share[{d}]"] = float(share[STICK])
+        out[f"direction_slip_share[{d}]"] = float(share[SLIP_POS] + share[SLIP_NEG])
+        out[f"direction_lift_off_share[{d}]"] = float(share[LIFT])
+    for k, c in enumerate(contacts):
+        out[f"contact_N_min_N[{c}]"] = float(N[:, k].min())
+        out[f"contact_N_max_N[{c}]"] = float(N[:, k].max())
+    return out
+
+
+def _full_slip(lp) -> float:
+    from slipstep.post.timeline import SLIP_STATES
+
+    t, S = lp[0], lp[4]
+    all_slip = np.all(np.isin(S[1:], SLIP_STATES), axis=1)
+    total = t[-1] - t[0]
+    return float(np.diff(t)[all_slip].sum() / total) if total > 0 else 0.0
+
+
+def _steady_record(rec: Record) -> float:
+    """post.periodic.periodicity(...).errors[-1] of the displacement, on arrays."""
+    from slipstep.post.periodic import _REL, _phase_compare
+
+    t, P = rec.t, rec.period
+    y = np.asarray(rec.x if rec.x.shape[1] > 0 or rec.T.shape[1] == 0 else rec.T, float).reshape(t.size, -1)
+    if y.size == 0:
+        return math.nan
+    n = int(np.floor((t[-1] - t[0]) / P * (1 + _REL)))
+    scale = max(float(np.ptp(y, axis=0).max(initial=0.0)), rec.length_scale * 1e-3, 1e-300)
+    errors = [_phase_compare(t, y, t[0] + (k - 1) * P, P) / scale for k in range(1, n)]
     return float(errors[-1]) if errors else math.nan

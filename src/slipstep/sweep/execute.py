@@ -76,7 +76,11 @@ def run_case(payload: Payload, values) -> dict:
             system, run = build_case(data, payload.base_dir)
             options = _run_options(run, payload.extra_run)
             method = run.method or "newmark"
-            ds = Simulation(system, method, **options).run()
+            sim = Simulation(system, method, **options)
+            if _fast(payload, options):
+                result.update(_run_fast(sim, system))
+                return _finish(result, caught, start, cpu)
+            ds = sim.run()
             result["status"] = ds.attrs["status"]
             result["message"] = ds.attrs["status_message"]
             result["summary"] = summarise(ds, system)
@@ -91,11 +95,43 @@ def run_case(payload: Payload, values) -> dict:
             result.update(status=STATUS_PRELOAD, message=str(exc))
         except Exception as exc:  # noqa: BLE001 - a case never aborts the sweep; the message names it
             result.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}")
+    return _finish(result, caught, start, cpu)
+
+
+def _finish(result: dict, caught: list, start: float, cpu: float) -> dict:
     if caught:
         result["warning"] = " | ".join(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
     result["timing"]["case_time_s"] = time.perf_counter() - start
     result["timing"]["case_cpu_s"] = time.thread_time() - cpu
     return result
+
+
+def _fast(payload: Payload, options: dict) -> bool:
+    """The fast path (summary from the kernel's arrays, no Dataset) serves the cases that store
+    only the summary of a full record: no histories, no FRF, no save option."""
+    outputs = payload.outputs
+    return not outputs.get("histories") and not outputs.get("frf") and "save" not in options
+
+
+def _run_fast(sim, system) -> dict:
+    """March ``sim`` and summarise it from the kernel's arrays (post.summary.record_of and
+    summarise_record: the numbers of summarise(Simulation.run()), without the Dataset and
+    without the step-doubling accuracy estimate, which the summary does not hold)."""
+    from types import SimpleNamespace
+
+    from slipstep.methods.simulation import collapsed_step_warning
+    from slipstep.post.summary import record_of, summarise_record
+
+    wall = time.perf_counter()
+    sim.march()
+    rec = record_of(sim)
+    collapsed_step_warning(SimpleNamespace(attrs=dict(rec.attrs)))
+    return {
+        "status": rec.attrs["status"],
+        "message": rec.attrs["status_message"],
+        "summary": summarise_record(rec, system),
+        "timing": {"kernel_time_s": float(sim.kernel_time), "wall_time_s": time.perf_counter() - wall},
+    }
 
 
 def _run_options(run, extra: dict) -> dict:
@@ -106,6 +142,8 @@ def _run_options(run, extra: dict) -> dict:
     for key in ("periods", "step_ratio", "steps_per_period"):
         if getattr(run, key) is not None:
             opts[key] = getattr(run, key)
+    if getattr(run, "save", None) is not None:  # [run.save]: what the march stores (as `slipstep run`)
+        opts["save"] = run.save.options()
     opts.update(extra)
     return opts
 

@@ -124,6 +124,7 @@ class SweepStore:
                         "give a new store path, or --overwrite to start again",
                     )
                 store.group.attrs["runs"] = store.run_index + 1
+                store.consolidate()
                 return store
         if not path.parent.exists():
             raise InputError("output", f"the folder of {str(path)!r} does not exist", "create it or give another path")
@@ -136,7 +137,18 @@ class SweepStore:
             raise
         store = cls(path, _zarr().open_group(str(path), mode="r+"))
         store.group.attrs["runs"] = 1
+        store.consolidate()
         return store
+
+    def consolidate(self) -> None:
+        """Write the consolidated metadata (every array's metadata in the group's zarr.json), so
+        that ``xr.open_zarr(store)`` opens the store in one read and without a warning. Called
+        on opening and after every write (an array created by a write is then listed too)."""
+        import warnings
+
+        with warnings.catch_warnings():  # zarr notes that format 3 has no consolidated metadata yet
+            warnings.simplefilter("ignore", UserWarning)
+            _zarr().consolidate_metadata(str(self.path))
 
     def _check_same(self, plan) -> None:
         stored = _text(self._arrays["case_hash"][:])
@@ -196,6 +208,7 @@ class SweepStore:
         self._arrays["status_message"].oindex[idx] = np.array([r["message"] for r in results], dtype=str)
         self._arrays["warning"].oindex[idx] = np.array([r["warning"] for r in results], dtype=str)
         self._arrays["status"].oindex[idx] = np.array([r["status"] for r in results], dtype=str)  # last: done
+        self.consolidate()
 
     def _summary_array(self, base: str, dim, labels, values):
         from slipstep.post.summary import FIELDS
@@ -475,7 +488,7 @@ def open_sweep(path: str | Path, grid: bool = False):
         raise InputError(
             "store", f"{str(path)!r} is not a slipstep sweep store", "give the .zarr folder written by `slipstep sweep`"
         )
-    with xr.open_zarr(str(path), consolidated=False, chunks=None) as ds:
+    with xr.open_zarr(str(path), chunks=None) as ds:
         ds = ds.load()
     for name, var in list(ds.variables.items()):
         if var.dtype.kind == "T" or var.dtype == object:
