@@ -114,7 +114,7 @@ def _count_done(path: Path) -> int:
     import zarr
 
     try:
-        status = zarr.open_group(str(path), mode="r")["status"][:]
+        status = zarr.open_group(str(path), mode="r", use_consolidated=False)["status"][:]  # live, not the snapshot
     except (FileNotFoundError, KeyError, ValueError):  # the store does not exist yet
         return 0
     return int((np.asarray(status).astype(object) != "").sum())
@@ -133,19 +133,14 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
     )
     store = tmp_path / "big.zarr"
     env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # the client flushes every 0.2 s (the default 5 s would let a fast machine finish the
+    # whole sweep before the first flush, and the kill would find nothing to keep)
+    client = (
+        "import sys; from slipstep.sweep.run import run_sweep; from slipstep.sweep.execute import DaskExecutor; "
+        "run_sweep(sys.argv[1], sys.argv[2], executor=DaskExecutor(scheduler=sys.argv[3]), flush_seconds=0.2)"
+    )
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            "from slipstep.cli import app; app()",
-            "sweep",
-            str(spec_file),
-            "-o",
-            str(store),
-            "--scheduler",
-            cluster.scheduler_address,
-            "--json",
-        ],
+        [sys.executable, "-c", client, str(spec_file), str(store), cluster.scheduler_address],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
