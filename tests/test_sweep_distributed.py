@@ -137,7 +137,7 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
         [
             sys.executable,
             "-c",
-            "from slipstep.cli import app; app()",
+            "from slipstep.cli.main import app; app()",
             "sweep",
             str(spec_file),
             "-o",

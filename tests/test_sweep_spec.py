@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slipstep.config import CASES_DIR, read_toml
+from slipstep.casefile.case import CASES_DIR, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep import Parameter, SweepSpec, load_spec, make_plan, resolve, spec_from_dict
 from slipstep.sweep.cases import unit_of
