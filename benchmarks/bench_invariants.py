@@ -1,4 +1,4 @@
-"""Cost of the contact-invariant check (slipstep.invariants, issue 29) against the march it checks.
+"""Cost of the contact-invariant check (slipstep.methods.invariants, issue 29) against the march it checks.
 
 The check runs once on the rows a march wrote, in NumPy; this prints its time as a ratio of
 the kernel time of the same march and of a whole ``slipstep.run`` call (medians of repeated
@@ -15,7 +15,7 @@ import statistics
 import time
 
 import slipstep
-from slipstep.invariants import check_outputs
+from slipstep.methods.invariants import check_outputs
 from slipstep.kernels.codes import C_STEPS
 from slipstep.methods.simulation import saved_rows
 

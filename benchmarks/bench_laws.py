@@ -4,7 +4,7 @@ The shroud pair (examples/shroud_pair.toml) with one isotropic tangential stiffn
 with the paper's uncoupled quasi-3D law and with the friction circle ('3d-circle'), whose
 slip state has no piecewise-linear form (Methods 3 and 4 solve it by Newton on the
 consistent tangent). Prints solves per step and kernel time relative to Method 1 of the same
-law (median of interleaved repeats after warming every kernel, slipstep.compare.time_kernels).
+law (median of interleaved repeats after warming every kernel, slipstep.study.compare.time_kernels).
 
 Usage:  python benchmarks/bench_laws.py [--quick] [--periods P]
 """
@@ -19,7 +19,7 @@ from statistics import median
 import numpy as np
 
 import slipstep as ss
-from slipstep.compare import time_kernels
+from slipstep.study.compare import time_kernels
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("newmark", "piecewise-linear", "full-newton", "quasi-static")

@@ -38,7 +38,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 import slipstep
-from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
+from slipstep.casefile.case import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.kernels import march as K
 from slipstep.kernels.contact import compatible, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve

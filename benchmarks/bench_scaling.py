@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 import slipstep
-from slipstep.system import BANDED_MIN_N
+from slipstep.model.system import BANDED_MIN_N
 
 METHODS = {"1": "newmark", "3": "piecewise-linear", "2+3": "piecewise-linear-adaptive", "4": "quasi-static"}
 FREQUENCY_HZ = 40.0
@@ -240,7 +240,7 @@ def main() -> None:
             f"(set-up exponent in N: {slope([r['n'] for r in rn], [r['setup_s'] for r in rn]):5.2f})"
         )
     if args.json:
-        from slipstep.io import atomic_path
+        from slipstep.output.io import atomic_path
 
         with atomic_path(args.json) as tmp:
             tmp.write_text(json.dumps({"by_n": by_n, "by_contacts": by_c}, indent=2))

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
-CLI = "import sys; from slipstep.cli import app; sys.argv[0] = 'slipstep'; app()"
+CLI = "import sys; from slipstep.cli.main import app; sys.argv[0] = 'slipstep'; app()"
 COMMANDS = {
     "python -c 'import numpy' (baseline)": [sys.executable, "-c", "import numpy"],
     "python -c 'pass' (interpreter)": [sys.executable, "-c", "pass"],

@@ -7,15 +7,15 @@ with a tight full-Newton reference on the same grid to 1e-6 of the response rang
 
 Prints the failure rate per method (and overall), on the well-conditioned systems and on
 all of them (a sensitive system's response moves by more than rtol when its loads are scaled
-by 1 + 1e-10: see slipstep.verification), and the worst cases.
+by 1 + 1e-10: see slipstep.study.verification), and the worst cases.
 A failure is a status-OK result that is wrong: it must never happen.
 
     python benchmarks/random_systems.py --families --n 200     # issue 29: n systems per family
 
-The issue-29 mode: the generators of slipstep.verification.family_system (single-stick,
+The issue-29 mode: the generators of slipstep.study.verification.family_system (single-stick,
 two-on-one, mixed, general, slow-load: 2D laws, harmonic loads and motions, load period tied
 to T_min) and, per method and family, the rate of results ending INVARIANT (an OK march that
-broke a contact invariant: slipstep.invariants) and, for Method 1, full Newton and Method 3 on
+broke a contact invariant: slipstep.methods.invariants) and, for Method 1, full Newton and Method 3 on
 the decidable systems (full Newton and the piecewise-linear solve at 1e-13 agree to 1e-8), the
 rate of OK results more than rtol of the range from them.
 """
@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from slipstep.verification import (
+from slipstep.study.verification import (
     CHECK_METHODS,
     FAMILIES,
     INVARIANT_METHODS,

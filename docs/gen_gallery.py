@@ -53,8 +53,7 @@ SNIPPETS = [
 import warnings
 
 import slipstep as ss
-from slipstep import plots
-
+from slipstep.post import plots
 system = ss.load_system("paper")
 ds = ss.run(system, "piecewise-linear", periods=3)
 reference = ss.run(system, "quasi-static", periods=3)
@@ -77,7 +76,7 @@ print(ss.post.loop_summary(ds, system).interface_energy_J.to_series())
         "machine that built this page.",
         """\
 import slipstep as ss
-from slipstep.compare import compare, write_outputs
+from slipstep.study.compare import compare, write_outputs
 
 system = ss.load_system("paper")
 datasets = {}
@@ -119,7 +118,7 @@ def _toml_commands(path: Path) -> list[str]:
 
 def _toml_title(path: Path) -> str:
     """A TOML file's ``description`` (or ``[sweep] description``), else its name."""
-    from slipstep.config import read_toml  # tomllib, or tomli on Python 3.10
+    from slipstep.casefile.case import read_toml  # tomllib, or tomli on Python 3.10
 
     data = read_toml(path)
     text = data.get("description") or data.get("sweep", {}).get("description") or path.stem.replace("_", " ")
@@ -177,7 +176,12 @@ def _run(args: list[str], workdir: Path) -> str:
 
 
 def _slipstep(*args: str) -> list[str]:
-    return [sys.executable, "-c", "import sys; from slipstep.cli import app; sys.argv[0] = 'slipstep'; app()", *args]
+    return [
+        sys.executable,
+        "-c",
+        "import sys; from slipstep.cli.main import app; sys.argv[0] = 'slipstep'; app()",
+        *args,
+    ]
 
 
 def _page(
@@ -233,7 +237,7 @@ def _command_available(commands: list[str]) -> bool:
     """Whether the CLI of this tree has the subcommands used (a tree without `slipstep frf` skips the entry)."""
     import typer
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     known = set(typer.main.get_command(app).commands)
     return all(shlex.split(c)[1] in known for c in commands)

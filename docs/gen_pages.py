@@ -1,7 +1,7 @@
 """Generate the documentation pages whose facts live in code (called by ``docs/hooks.py``).
 
 Nothing here is copied from the code by hand: the case-file key reference walks the pydantic
-specs of :mod:`slipstep.config`, the result reference is :data:`slipstep.results.SCHEMA` plus the
+specs of :mod:`slipstep.casefile.case`, the result reference is :data:`slipstep.output.results.SCHEMA` plus the
 coordinates and attributes of a real (tiny) run, the FRF reference is
 :data:`slipstep.frequency.schema.FRF_SCHEMA`, the methods page is
 :data:`slipstep.methods.registry.METHODS` and :data:`slipstep.integrators.INTEGRATORS`, the CLI
@@ -35,7 +35,7 @@ GENERATED_NOTE = (
 )
 
 # --------------------------------------------------------------------------------------------
-# Case files: the pydantic specs of slipstep.config
+# Case files: the pydantic specs of slipstep.casefile.case
 # --------------------------------------------------------------------------------------------
 
 # The unit is part of every key name; the suffix -> unit rule (longest suffix first).
@@ -161,7 +161,7 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "TableSpec.component": ("-", "what is driven: a prescribed motion component or a DOF"),
     "TableSpec.times_s": ("", "sample times, increasing; linear interpolation between them"),
     "TableSpec.values": ("", "one value per time"),
-    # Kind 3: assemblies (slipstep.config_assembly)
+    # Kind 3: assemblies (slipstep.casefile.assembly)
     "AssemblyCaseSpec.name": ("-", "case name, used in output file names and reports"),
     "AssemblyCaseSpec.description": ("-", "free text shown by `slipstep cases`"),
     "AssemblyCaseSpec.substructures": ("", "the substructures (blades, imported models)"),
@@ -284,7 +284,7 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
 }
 
 # Units and meanings that depend on the kind of case and the table: (kind, table, key) -> (unit, meaning);
-# an empty string keeps the KEY_DOCS entry. These are the scales slipstep.config.build_system applies.
+# an empty string keeps the KEY_DOCS entry. These are the scales slipstep.casefile.case.build_system applies.
 CONTEXT_DOCS: dict[tuple[str, str, str], tuple[str, str]] = {
     ("damper", "[[motion]]", "component"): ("-", "a platform motion component: `<platform>.x` or `<platform>.y`"),
     ("damper", "[[motion]]", "amplitude"): ("um", "platform motion amplitude"),
@@ -302,7 +302,7 @@ CONTEXT_DOCS: dict[tuple[str, str, str], tuple[str, str]] = {
     ("assembly", "[[force]]", "amplitude"): ("N (N m on rad DOFs)", "force amplitude"),
 }
 
-# which top-level entries a kind of case uses (the others are refused by slipstep.config.build_system)
+# which top-level entries a kind of case uses (the others are refused by slipstep.casefile.case.build_system)
 KIND_SKIPS = {
     "damper": {"structure", "contacts", "motion_names", "force", "force_table"},
     "structure": {"damper"},
@@ -311,8 +311,8 @@ KIND_SKIPS = {
 
 
 def case_kinds() -> list[tuple[str, type[BaseModel], str, str]]:
-    """(kind, root spec, heading, text) of every kind of case file slipstep.config.load_case reads."""
-    from slipstep.config import CaseSpec
+    """(kind, root spec, heading, text) of every kind of case file slipstep.casefile.case.load_case reads."""
+    from slipstep.casefile.case import CaseSpec
 
     kinds = [
         (
@@ -332,7 +332,7 @@ def case_kinds() -> list[tuple[str, type[BaseModel], str, str]]:
         ),
     ]
     try:
-        from slipstep.config_assembly import AssemblyCaseSpec
+        from slipstep.casefile.assembly import AssemblyCaseSpec
     except ImportError:  # pragma: no cover - a tree without assemblies
         return kinds
     kinds.append(
@@ -488,15 +488,15 @@ def contact_laws_section() -> list[str]:
 
 
 def case_file_reference() -> str:
-    from slipstep.config import CASES_DIR
+    from slipstep.casefile.case import CASES_DIR
 
     L = [
         GENERATED_NOTE,
         "# Case-file reference",
         "",
         "Every key a TOML case file accepts, read from the case-file schema (the pydantic models in "
-        "`slipstep/config.py`), so this page is complete by construction. Units are part of the key names "
-        "and are converted to SI in `slipstep/config.py` only. Unknown keys, missing required keys and values "
+        "`slipstep/casefile/case.py`), so this page is complete by construction. Units are part of the key names "
+        "and are converted to SI in `slipstep/casefile/case.py` only. Unknown keys, missing required keys and values "
         'of the wrong type (strict: `true` or `"0.012"` is not a number) are errors naming the key '
         "(see [Bad input](../bad_input.md)).",
         "",
@@ -526,7 +526,7 @@ def case_file_reference() -> str:
 
 
 # --------------------------------------------------------------------------------------------
-# Result Dataset: slipstep.results.SCHEMA, and the coordinates and attributes of a real run
+# Result Dataset: slipstep.output.results.SCHEMA, and the coordinates and attributes of a real run
 # --------------------------------------------------------------------------------------------
 
 COORD_DOCS: dict[str, tuple[str, str]] = {
@@ -684,7 +684,7 @@ def _schema_table(schema) -> list[str]:
 
 
 def results_reference(samples=None) -> str:
-    from slipstep.results import DYNAMIC_ONLY, SCHEMA, STATE_NAMES
+    from slipstep.output.results import DYNAMIC_ONLY, SCHEMA, STATE_NAMES
 
     samples = sample_results() if samples is None else samples
     ds = samples[0]
@@ -694,7 +694,7 @@ def results_reference(samples=None) -> str:
         "",
         "`slipstep.run` returns an `xarray.Dataset`; `slipstep run` saves it as netCDF "
         "(`slipstep.save_result`, `slipstep.load_result`). Time 0 is the preloaded static state. Every "
-        "variable carries `units` and `long_name` attributes. The table below is `slipstep.results.SCHEMA`, "
+        "variable carries `units` and `long_name` attributes. The table below is `slipstep.output.results.SCHEMA`, "
         "the one place the variables are declared.",
         "",
         "## Variables",
@@ -875,7 +875,7 @@ def methods_reference() -> str:
         "",
         "The methods `slipstep.run(system, METHOD)`, `slipstep run CASE --method METHOD` and the `[run] method` "
         "key accept, from the registry `slipstep.methods.registry.METHODS`. Which one to use: see "
-        "[Choosing a method](../guide/methods.md), or ask `slipstep advise CASE` (`slipstep.advise`), which "
+        "[Choosing a method](../guide/methods.md), or ask `slipstep advise CASE` (`slipstep.study.advise`), which "
         "analyses the case and recommends one with its reasons.",
         "",
         "| name | paper | also accepted | use it when | what it does | step solver | step |",
@@ -898,7 +898,7 @@ def methods_reference() -> str:
         "## Which one for my case?",
         "",
         "`slipstep advise CASE --rotor-speed-rpm ... --radius-m ... --displacement-um ...` "
-        "(`slipstep.advise`) analyses the case and recommends a method with its reasons: the inertia ratio "
+        "(`slipstep.study.advise`) analyses the case and recommends a method with its reasons: the inertia ratio "
         "of paper Eq. 9, T_min and internal frequencies of every visited contact state, states without a "
         "static equilibrium, flutter-prone states, and whether the ringing can be filtered "
         "(its report on the paper's case is [below](#the-advisor-on-the-papers-case)). "
@@ -950,7 +950,7 @@ def advice_example() -> str:
 def _cli_command():
     import typer
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     return typer.main.get_command(app)
 
@@ -1169,7 +1169,7 @@ def validation_report() -> str:
         for v in ("tangential_force", "normal_force")
         for j in range(nd)
     )
-    from slipstep.config import CASES_DIR, read_toml
+    from slipstep.casefile.case import CASES_DIR, read_toml
 
     cf = read_toml(CASES_DIR / "paper.toml")["damper"]["centrifugal_force_N"]  # forces in % of CF
 

@@ -1,5 +1,5 @@
 """Griffe extension: the Sphinx roles of slipstep's docstrings (``:class:`Signal```,
-``:func:`~slipstep.post.filtering.lowpass```, ``:mod:`slipstep.results```) become links of the
+``:func:`~slipstep.post.filtering.lowpass```, ``:mod:`slipstep.output.results```) become links of the
 API reference, resolved like Sphinx does: an absolute path, else a name of the object's class or
 module, else of the package; a name that resolves to nothing (a private helper) stays code.
 """

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import slipstep
-from slipstep.advise import advise, analyse_state, enumerate_states, inertia_limit_frequency, inertia_ratio
-from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
+from slipstep.study.advise import advise, analyse_state, enumerate_states, inertia_limit_frequency, inertia_ratio
+from slipstep.casefile.case import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.errors import InputError
 
 SLIP_POS, SLIP_NEG = 2, 3

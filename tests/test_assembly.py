@@ -14,7 +14,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 import slipstep as ss
-from slipstep.config import CASES_DIR, read_toml
+from slipstep.casefile.case import CASES_DIR, read_toml
 from slipstep.kernels.contact import add_contact_stiffness
 from slipstep.model.assembly import (
     DamperLink,

@@ -18,8 +18,8 @@ import pytest
 from typer.testing import CliRunner
 
 import slipstep as ss
-from slipstep.cli import app
-from slipstep.config import CASES_DIR
+from slipstep.cli.main import app
+from slipstep.casefile.case import CASES_DIR
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "bad_input.md"
 PAPER = (CASES_DIR / "paper.toml").read_text()

@@ -15,7 +15,7 @@ from slipstep.kernels import banded as BD
 from slipstep.kernels.contact import add_contact_stiffness
 from slipstep.kernels.settings import contact_table
 from slipstep.methods.step_control import state_omega2, state_t_min
-from slipstep.system import kernel_dofs, to_user_order
+from slipstep.model.system import kernel_dofs, to_user_order
 
 
 # ---- band storage and the banded LU ---------------------------------------------------------

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from slipstep.cli import app
+from slipstep.cli.main import app
 from slipstep.methods.registry import COMPARE_METHODS
-from slipstep.results import SCHEMA, load
+from slipstep.output.results import SCHEMA, load
 
 from test_bad_input import STRUCTURE
 

@@ -10,15 +10,15 @@ import numpy as np
 import slipstep as ss
 import importlib
 
-from slipstep import plots
+from slipstep.post import plots
 from slipstep.errors import Status
 from slipstep.kernels import codes
 from slipstep.model.contact import CONTACT_LAWS
 from slipstep.post import timeline
 
-from slipstep.results import SCHEMA
+from slipstep.output.results import SCHEMA
 
-advise = importlib.import_module("slipstep.advise")
+advise = importlib.import_module("slipstep.study.advise")
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 

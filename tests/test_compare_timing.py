@@ -1,10 +1,10 @@
 """Where `compare` times the kernels: a fresh process that loads them from numba's cache
-(slipstep.compare.fresh_process_times), or this process when that one cannot run."""
+(slipstep.study.compare.fresh_process_times), or this process when that one cannot run."""
 
 import math
 
 import slipstep
-from slipstep.compare import compare, fresh_process_times
+from slipstep.study.compare import compare, fresh_process_times
 
 
 def test_fresh_process_times_every_method_repeats_times():

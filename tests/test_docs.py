@@ -109,7 +109,7 @@ def test_unit_suffixes():
 
 
 def test_results_page_is_the_schema_with_units(pages):
-    from slipstep.results import SCHEMA
+    from slipstep.output.results import SCHEMA
 
     rows = _rows(_section(pages["reference/results.md"], "## Variables", "## Dimensions"))
     assert set(rows) == set(SCHEMA)
@@ -182,7 +182,9 @@ def test_cli_page_lists_every_command_and_option(pages):
 
 def test_every_module_has_an_api_page_in_the_nav(pages):
     modules = gen.module_names()
-    assert {"slipstep", "slipstep.config", "slipstep.methods.simulation", "slipstep.results"} <= set(modules)
+    assert {"slipstep", "slipstep.casefile.case", "slipstep.methods.simulation", "slipstep.output.results"} <= set(
+        modules
+    )
     for module in modules:
         assert pages[f"api/{module}.md"].startswith(f"::: {module}")
 
@@ -197,7 +199,7 @@ def test_every_module_has_an_api_page_in_the_nav(pages):
 def test_equation_index_finds_the_docstrings_that_cite_the_paper():
     index = gen.equation_index()
     assert "slipstep.methods.step_control.state_t_min" in index["paper Eq.", 8]  # T_min (paper Eq. 8)
-    assert "slipstep.advise.inertia_ratio" in index["paper Eq.", 9]
+    assert "slipstep.study.advise.inertia_ratio" in index["paper Eq.", 9]
     assert all(not part.startswith("_") for objs in index.values() for o in objs for part in o.split("."))
 
 

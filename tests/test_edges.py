@@ -29,12 +29,12 @@ import pytest
 from typer.testing import CliRunner
 
 import slipstep as ss
-from slipstep import io
-from slipstep.cli import app
+from slipstep.output import io
+from slipstep.cli.main import app
 from slipstep.errors import OutputError
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
-CLI = [sys.executable, "-c", "import sys; from slipstep.cli import app; sys.argv[0] = 'slipstep'; app()"]
+CLI = [sys.executable, "-c", "import sys; from slipstep.cli.main import app; sys.argv[0] = 'slipstep'; app()"]
 RESULT = "paper_newmark.nc"
 
 
@@ -404,7 +404,7 @@ def test_stop_flag_interrupts_both_kernels_and_keeps_the_steps(scheme):
 
 
 def test_deferred_interrupt_notes_the_first_and_aborts_on_the_second():
-    from slipstep.live import deferred_interrupt
+    from slipstep.methods.live import deferred_interrupt
 
     notes = []
     with pytest.raises(KeyboardInterrupt):
@@ -427,7 +427,7 @@ def test_internal_error_is_one_line_exit_4_with_saved_traceback(tmp_path, monkey
     def broken(*args, **kwargs):
         raise ZeroDivisionError("an internal slip")
 
-    monkeypatch.setattr("slipstep.config.load_case", broken)
+    monkeypatch.setattr("slipstep.casefile.case.load_case", broken)
     result = CliRunner().invoke(app, ["run", "paper"])
     assert result.exit_code == 4
     line = one_line(result.output)
@@ -445,7 +445,7 @@ def test_names_are_printed_as_text_not_markup_or_escapes(tmp_path):
     assert result.exit_code == 0, result.output
     assert "[/bad] [bold red]x[/bold red] \u2603" in result.output
     assert (tmp_path / "markup_newmark.nc").exists()  # named after the file, not the case name
-    from slipstep.cli import safe
+    from slipstep.cli.main import safe
 
     assert safe("a\x1b]0;t\x07b\u202ec\n") == "a\\x1b]0;t\\x07b\\u202ec\\x0a"
 
@@ -488,14 +488,14 @@ def test_memory_estimate_is_the_allocation_and_the_limit_is_checked_first():
 
 def test_light_imports_and_version():
     code = (
-        "import sys, slipstep, slipstep.cli; heavy = {'numpy', 'numba', 'xarray', 'pydantic', 'scipy', "
+        "import sys, slipstep, slipstep.cli.main; heavy = {'numpy', 'numba', 'xarray', 'pydantic', 'scipy', "
         "'matplotlib'}; print(sorted(heavy & {m.split('.')[0] for m in sys.modules}))"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=60)
     assert proc.stdout.strip() == "[]", proc.stdout + proc.stderr  # --help, cases, methods need none of them
     for command in ("--help", "cases", "methods"):
         code = (
-            "import atexit, sys; from slipstep.cli import app; sys.argv = ['slipstep', %r]; heavy = {'numpy', "
+            "import atexit, sys; from slipstep.cli.main import app; sys.argv = ['slipstep', %r]; heavy = {'numpy', "
             "'numba', 'xarray', 'pydantic', 'scipy', 'matplotlib'}; atexit.register(lambda: print(sorted(heavy & "
             "{m.split('.')[0] for m in sys.modules}), file=sys.stderr)); app()" % command
         )
@@ -512,16 +512,16 @@ def test_plugins_are_discovered_and_a_broken_one_is_skipped(tmp_path, monkeypatc
     import typer
 
     from slipstep import cli
+    from slipstep.cli import main
 
-    (tmp_path / "cli_zz_fake.py").write_text(
+    (tmp_path / "zz_fake.py").write_text(
         "import typer\n\ndef register(app):\n    app.command(name='fake')(lambda: print('fake ran'))\n"
     )
-    (tmp_path / "cli_zz_broken.py").write_text("raise ImportError('missing dependency')\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(ss, "__path__", list(ss.__path__) + [str(tmp_path)])
-    target = typer.Typer(cls=cli._Group)
+    (tmp_path / "zz_broken.py").write_text("raise ImportError('missing dependency')\n")
+    monkeypatch.setattr(cli, "__path__", list(cli.__path__) + [str(tmp_path)])
+    target = typer.Typer(cls=main._Group)
     target.command(name="noop")(lambda: None)
-    cli._register_plugins(target)
+    main._register_plugins(target)
     names = {c.name for c in target.registered_commands}
     assert {"fake", "plot", "report", "advise"} <= names
     assert CliRunner().invoke(target, ["fake"]).output.strip() == "fake ran"
@@ -570,9 +570,9 @@ def test_figures_draw_names_as_text_not_mathtext(tmp_path):
 
 
 def test_lazy_public_names_survive_submodule_imports():
-    """`slipstep.advise` is a function even when the module of the same name is imported first."""
+    """`slipstep.advise` is the function even when its module, slipstep.study.advise, is imported first."""
     code = (
-        "import importlib, slipstep; importlib.import_module('slipstep.advise'); import slipstep.report; "
+        "import importlib, slipstep; importlib.import_module('slipstep.study.advise'); import slipstep.study.report; "
         "print(callable(slipstep.advise), type(slipstep.post).__name__, slipstep.run.__module__)"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env(), timeout=120)

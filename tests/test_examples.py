@@ -98,7 +98,7 @@ def test_compare_without_constant_load(tmp_path):
 
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     result = CliRunner().invoke(
         app,

@@ -168,7 +168,7 @@ def test_frf_bad_input():
 def _cli(*args, cwd):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     return CliRunner().invoke(app, list(args))
 
@@ -244,7 +244,7 @@ def test_frf_interrupted_keeps_the_points_done(monkeypatch):
 
 def test_plot_many_contacts_and_both_sweeps(tmp_path):
     from slipstep.frequency.dataset import concat_sweeps, empty_frf
-    from slipstep.plots_frf import default_response, plot_frf
+    from slipstep.frequency.plots import default_response, plot_frf
 
     f = np.linspace(100, 200, 11)
     parts = []

@@ -25,7 +25,7 @@ COARSE = 50  # steps per period of the checks that need errors above 1e-3
 def _cli(*args):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     return CliRunner().invoke(app, list(args))
 
@@ -199,8 +199,8 @@ def test_auto_chooses_shooting_and_the_advisors_method():
         name, reason = choose_solver(ss.load_system(case))
         assert name == "shoot" and "piecewise-linear" in reason
     assert tuple(SOLVERS) == ("auto", "march", "shoot", "hbm")
-    import slipstep.cli  # noqa: F401  (first: cli_frf imported alone registers nothing: a circular import)
-    from slipstep.cli_frf import SOLVER_NAMES
+    import slipstep.cli.main  # noqa: F401  (first: cli_frf imported alone registers nothing: a circular import)
+    from slipstep.cli.frf import SOLVER_NAMES
 
     assert tuple(SOLVER_NAMES) == tuple(SOLVERS)
 
@@ -270,7 +270,7 @@ def test_cli_json_is_strict_where_values_are_missing(tmp_path):
 def test_every_output_option_has_the_same_short_name():
     import typer.main
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     group = typer.main.get_command(app)
     checked = 0

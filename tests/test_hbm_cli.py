@@ -12,7 +12,7 @@ from rich.console import Console
 
 import slipstep as ss
 from slipstep.frequency.response import check_frequencies, parse_frequencies
-from slipstep.hbm.cli_support import parse_harmonics, run_command
+from slipstep.cli.hbm import parse_harmonics, run_command
 
 
 def test_parse_harmonics_and_frequencies():
@@ -57,7 +57,7 @@ def test_run_command_writes_the_result_figure_and_summary(tmp_path):
 def _cli(*args):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     return CliRunner().invoke(app, list(args))
 

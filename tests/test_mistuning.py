@@ -8,7 +8,7 @@ import copy
 import numpy as np
 import pytest
 
-from slipstep.config import CASES_DIR, read_toml
+from slipstep.casefile.case import CASES_DIR, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep.cases import build_case
 

@@ -13,7 +13,7 @@ from slipstep.model.damper import Platform, rigid_damper
 from slipstep.model.excitation import Excitation, Signal, Tabulated
 from slipstep.model.patch import contact_patch, damper_face_contacts, face_points, rigid_face_gather
 from slipstep.model.structure import Structure
-from slipstep.system import System
+from slipstep.model.system import System
 
 KN2, KT2, MU, L, WIDTH = 2.0e13, 1.5e13, 0.4, 4e-3, 2e-3  # N/m^3, -, m, m
 

@@ -5,7 +5,7 @@ import pytest
 from PIL import Image
 
 import slipstep
-from slipstep import plots
+from slipstep.post import plots
 from slipstep.post import filter_dataset
 
 
@@ -62,7 +62,7 @@ def test_axis_labels_carry_units(runs):
 def test_write_figures_and_plot_cli(runs, tmp_path):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     system, qs, dyn, _ = runs
     paths = plots.write_figures(

@@ -1,4 +1,4 @@
-"""The README stays true: its schema table is slipstep.results.SCHEMA, its TOML example runs,
+"""The README stays true: its schema table is slipstep.output.results.SCHEMA, its TOML example runs,
 its set-up commands are the ones .ci/run executes."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import slipstep as ss
-from slipstep.results import SCHEMA
+from slipstep.output.results import SCHEMA
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()

@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 import slipstep as ss
-from slipstep.cli import app
+from slipstep.cli.main import app
 from slipstep.integrators import INTEGRATORS, get_integrator
 from slipstep.integrators.base import ImplicitIntegrator
 from slipstep.methods import registry as R
@@ -127,7 +127,7 @@ def test_comparison_figure_marks_the_papers_ratios(tmp_path, monkeypatch):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from slipstep import compare
+    from slipstep.study import compare
 
     rows = [
         {"method": m, "paper_method": R.get_method(m).paper_label, "time_ratio": 0.3, "kernel_time_s": 1e-3}

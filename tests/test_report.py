@@ -7,7 +7,7 @@ import subprocess
 import pytest
 
 import slipstep
-from slipstep.report import write_report
+from slipstep.study.report import write_report
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_report_tables(report):
 def test_report_cli_bad_case(tmp_path):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     res = CliRunner().invoke(app, ["report", str(tmp_path / "nope.toml"), "--output", str(tmp_path / "x.html")])
     assert res.exit_code == 2

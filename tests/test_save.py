@@ -11,8 +11,8 @@ import xarray as xr
 from typer.testing import CliRunner
 
 import slipstep as ss
-from slipstep.cli import app
-from slipstep.config import CASES_DIR
+from slipstep.cli.main import app
+from slipstep.casefile.case import CASES_DIR
 from slipstep.methods import memory
 from slipstep.methods import save as SV
 from slipstep.methods.simulation import Simulation

@@ -7,7 +7,7 @@ the same steps."""
 import pytest
 
 import slipstep as ss
-from slipstep.compare import compare
+from slipstep.study.compare import compare
 from slipstep.errors import InputError
 from slipstep.methods import step_control as SC
 from slipstep.methods.plan import plan_run

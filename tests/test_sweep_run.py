@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 import slipstep
-from slipstep.cli import app
+from slipstep.cli.main import app
 from slipstep.errors import InputError, Status
 from slipstep.post.summary import FIELDS, field_of, summarise
 from slipstep.sweep import Parameter, SerialExecutor, SweepSpec, open_sweep, run_sweep

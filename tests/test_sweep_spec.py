@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slipstep.config import CASES_DIR, read_toml
+from slipstep.casefile.case import CASES_DIR, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep import Parameter, SweepSpec, load_spec, make_plan, resolve, spec_from_dict
 from slipstep.sweep.cases import unit_of
@@ -175,7 +175,7 @@ def test_case_hashes_identify_the_resolved_case():
 
 
 def test_the_example_spec_reads(tmp_path):
-    spec = load_spec(CASES_DIR.parents[2] / "examples" / "amplitude_sweep.toml")
+    spec = load_spec(CASES_DIR.parents[3] / "examples" / "amplitude_sweep.toml")
     plan = make_plan(spec)
     assert plan.grid_shape == (8, 12) and spec.run["method"] == "quasi-static"
     # a relative base path is relative to the spec file
@@ -306,7 +306,7 @@ def test_one_parameter_sets_several_keys():
 def test_the_readme_sweep_example_is_a_valid_spec():
     import tomllib
 
-    readme = (CASES_DIR.parents[2] / "README.md").read_text()
+    readme = (CASES_DIR.parents[3] / "README.md").read_text()
     block = readme.split("## Design sweeps")[1].split("```toml\n")[1].split("```")[0]
     plan = make_plan(spec_from_dict(tomllib.loads(block)))
     assert plan.grid_shape == (3, 12, 3) and plan.outputs["frf"]["frequencies_Hz"] == [180.0, 200.0, 220.0]

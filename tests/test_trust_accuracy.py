@@ -91,7 +91,7 @@ def test_rtol_paper_case_beats_the_fixed_step():
 
 def test_rtol_on_a_low_frequency_case(tmp_path):
     """--rtol 1e-3 on the paper case at 20 Hz (10x lower): within 0.1 % of a converged reference."""
-    from slipstep.config import CASES_DIR
+    from slipstep.casefile.case import CASES_DIR
 
     path = tmp_path / "p20.toml"
     path.write_text((CASES_DIR / "paper.toml").read_text().replace("frequency_Hz = 200.0", "frequency_Hz = 20.0"))
@@ -134,7 +134,7 @@ def test_cli_rtol_and_error_estimate(tmp_path):
 
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     result = CliRunner().invoke(
         app, ["run", "paper", "-m", "3", "--periods", "1", "--rtol", "1e-3", "--json", "--output-dir", str(tmp_path)]

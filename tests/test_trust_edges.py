@@ -7,7 +7,7 @@ import scipy.io
 import scipy.sparse as sp
 
 import slipstep as ss
-from slipstep.config import load_case
+from slipstep.casefile.case import load_case
 from slipstep.errors import InputError
 from slipstep.model.substructure import load_npz, read_mtx
 

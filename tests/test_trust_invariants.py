@@ -1,9 +1,9 @@
-"""Issue 29 items 1-2: the contact invariants on every status-OK result (slipstep.invariants).
+"""Issue 29 items 1-2: the contact invariants on every status-OK result (slipstep.methods.invariants).
 
 * the check itself, on hand-made output rows: each invariant it names is caught, a valid
   march passes;
 * a broken OK march ends with status INVARIANT naming the invariant, the step and the time;
-* seeded random systems of the issue's families (slipstep.verification.family_system) keep
+* seeded random systems of the issue's families (slipstep.study.verification.family_system) keep
   every invariant under Methods 3 and 4 and the event-driven march, including the seeds that
   broke them before (Method 3 accepted a postulate past the friction limit within the
   tolerance; the event-driven march wrote its n x n LU into the low-rank backend's nq x nq
@@ -17,10 +17,10 @@ import pytest
 
 import slipstep as ss
 from slipstep.errors import Status
-from slipstep.invariants import check_march, check_outputs
+from slipstep.methods.invariants import check_march, check_outputs
 from slipstep.kernels.codes import LAW_UNCOUPLED, SLIP_NEG, SLIP_POS, STICK
 from slipstep.methods.simulation import Simulation
-from slipstep.verification import FAMILIES, family_system, invariant_check
+from slipstep.study.verification import FAMILIES, family_system, invariant_check
 
 MU, KN = 0.5, 1e6
 
@@ -161,7 +161,7 @@ def _events_system():
 def test_step_residual_of_a_tight_full_newton_march_is_round_off():
     """The balance residual recomputed from the rows (invariants.step_residuals) is ~0 where
     the step equation is solved to round-off: the formula is the march's own equation."""
-    from slipstep.invariants import step_residuals
+    from slipstep.methods.invariants import step_residuals
 
     sim = Simulation(ss.load_system("paper"), "full-newton", periods=0.5, tolerance=1e-13, error_estimate=False)
     assert sim.march() == Status.OK
@@ -180,7 +180,7 @@ def test_method_1_steps_accepted_off_the_discrete_solution_are_flagged():
     assert ds.attrs["status"] == "OK" and ds.attrs["steps_above_tolerance"] >= 1
     assert ds.attrs["max_step_residual"] > 1e4 * 1e-11
     ref = ss.run(system, "full-newton", periods=2.0, tolerance=1e-13, error_estimate=False)
-    from slipstep.verification import agreement_error
+    from slipstep.study.verification import agreement_error
 
     assert agreement_error(ds, ref) > 1e-6  # the flag is not a false alarm here
     paper = ss.run(ss.load_system("paper"), "newmark", periods=0.5, error_estimate=False)

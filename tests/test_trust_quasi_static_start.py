@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import slipstep as ss
-from slipstep.config import CASES_DIR
+from slipstep.casefile.case import CASES_DIR
 
 CF = 200.0
 

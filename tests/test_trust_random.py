@@ -4,7 +4,7 @@ Method 3 agrees with a tight full-Newton reference on the same grid to 1e-6 of t
 
 import numpy as np
 
-from slipstep.verification import CHECK_METHODS, check_system, failures, random_system
+from slipstep.study.verification import CHECK_METHODS, check_system, failures, random_system
 
 
 def test_random_systems_agree_with_tight_reference():

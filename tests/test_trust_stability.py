@@ -11,7 +11,7 @@ from slipstep.integrators import simulate
 from slipstep.kernels import march as K
 from slipstep.methods.accuracy import energy_diverged, highest_frequency
 from slipstep.methods.schemes import generalized_alpha, hht, newmark
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def test_omega_crit_of_the_newmark_family():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import slipstep
-from slipstep.config import CASES_DIR, build_system, parse_case, read_toml
+from slipstep.casefile.case import CASES_DIR, build_system, parse_case, read_toml
 from slipstep.post.energy import energy_balance
 
 BASE = read_toml(CASES_DIR / "paper.toml")

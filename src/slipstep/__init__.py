@@ -11,16 +11,14 @@ and a script that only loads a case does not pay for numba or xarray until it ru
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 
 # public name -> (module, attribute in it); None: the module itself
 _EXPORTS = {
     "post": ("slipstep.post", None),
-    "advise": ("slipstep.advise", "advise"),
-    "builtin_cases": ("slipstep.casefiles", "builtin_cases"),
-    "load_case": ("slipstep.config", "load_case"),
-    "load_system": ("slipstep.config", "load_system"),
+    "advise": ("slipstep.study.advise", "advise"),
+    "builtin_cases": ("slipstep.casefile.files", "builtin_cases"),
+    "load_case": ("slipstep.casefile.case", "load_case"),
+    "load_system": ("slipstep.casefile.case", "load_system"),
     "InputError": ("slipstep.errors", "InputError"),
     "Interrupted": ("slipstep.errors", "Interrupted"),
     "OutputError": ("slipstep.errors", "OutputError"),
@@ -48,10 +46,10 @@ _EXPORTS = {
     "Signal": ("slipstep.model.excitation", "Signal"),
     "Tabulated": ("slipstep.model.excitation", "Tabulated"),
     "Structure": ("slipstep.model.structure", "Structure"),
-    "load_result": ("slipstep.results", "load"),
-    "save_result": ("slipstep.results", "save"),
-    "CompiledSystem": ("slipstep.system", "CompiledSystem"),
-    "System": ("slipstep.system", "System"),
+    "load_result": ("slipstep.output.results", "load"),
+    "save_result": ("slipstep.output.results", "save"),
+    "CompiledSystem": ("slipstep.model.system", "CompiledSystem"),
+    "System": ("slipstep.model.system", "System"),
     # substructures and assemblies (issue 11)
     "DamperLink": ("slipstep.model.assembly", "DamperLink"),
     "HarmonicForce": ("slipstep.model.assembly", "HarmonicForce"),
@@ -91,23 +89,3 @@ def __getattr__(name: str):
 
 def __dir__():
     return __all__
-
-
-class _Package(types.ModuleType):
-    """The package module: when the import system binds a submodule whose name is also a public
-    function of it (``slipstep.advise``, the module, and ``slipstep.advise()``, the function),
-    the function is bound, as the eager ``from slipstep.advise import advise`` used to do."""
-
-    def __setattr__(self, name, value):
-        target = _EXPORTS.get(name)
-        if (
-            target is not None
-            and target[1] is not None
-            and isinstance(value, types.ModuleType)
-            and value.__name__ == target[0]
-        ):
-            value = getattr(value, target[1], value)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

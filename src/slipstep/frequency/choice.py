@@ -9,7 +9,7 @@ The rule:
    ``blades``; 1,000 periods were not enough), while Newton finds the orbit in a few periods
    whatever the damping and reports its Floquet multipliers.
 2. **The method**, when none is given: ``quasi-static-dofs`` (the contact-held DOFs without
-   inertia, the rest dynamic) where the advisor (:func:`slipstep.advise.advise`, its
+   inertia, the rest dynamic) where the advisor (:func:`slipstep.study.advise.advise`, its
    quasi-static-DOFs analysis, paper Remark 3) says it applies: their internal frequencies are
    far above the excitation, so their inertia only adds the ringing (on ``ring`` the dynamic
    damper leaves an orbit unconverged at 300 Hz); else ``quasi-static`` for a system without
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slipstep.model.structure import DENSE_MAX_N
-from slipstep.system import System
+from slipstep.model.system import System
 
 DEFAULT_METHOD = "piecewise-linear"
 
@@ -50,7 +50,7 @@ def choose_method(system: System) -> tuple[str, str]:
     cs = system.compile_dense("the solver choice")
     if not np.any(cs.M):
         return "quasi-static", "the system has no mass: the quasi-static method"
-    from slipstep.advise import advise
+    from slipstep.study.advise import advise
 
     partial = advise(system, run_cases=False, max_states=0).massless
     if partial is not None and partial["applies"]:

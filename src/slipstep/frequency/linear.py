@@ -22,7 +22,7 @@ from slipstep.frequency.retune import retune
 from slipstep.kernels.contact import LIFT, STICK
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def _phasors(signal, n_components: int) -> dict[float, np.ndarray]:

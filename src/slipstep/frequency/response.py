@@ -47,7 +47,7 @@ from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD, STEP_OPTIONS
 from slipstep.steady.state import SteadyState
-from slipstep.system import System
+from slipstep.model.system import System
 
 STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
     "march": lambda system, **kw: march_to_steady(system, **kw),

@@ -7,7 +7,7 @@ import dataclasses
 from slipstep.errors import InputError
 from slipstep.model.excitation import Harmonic, Signal
 from slipstep.model.validate import positive
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def _retuned(signal: Signal | None, f_old: float, f_new: float, what: str) -> Signal | None:

@@ -1,4 +1,4 @@
-"""The layout of a frequency-response Dataset, in one place (like ``slipstep.results.SCHEMA``).
+"""The layout of a frequency-response Dataset, in one place (like ``slipstep.output.results.SCHEMA``).
 
 Every FRF solver (marching to the steady state, shooting, harmonic balance) returns an
 ``xarray.Dataset`` with these variables, so that curves from different solvers overlay in one

@@ -28,7 +28,7 @@ from slipstep.frequency.dataset import empty_frf, finalise
 from slipstep.methods.save import Save
 from slipstep.model.excitation import Signal, Tabulated
 from slipstep.model.validate import positive
-from slipstep.system import System
+from slipstep.model.system import System
 
 LEAD_IN = 0.02
 

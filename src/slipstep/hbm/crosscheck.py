@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from slipstep.model.excitation import Excitation, Harmonic, Signal
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 @dataclass

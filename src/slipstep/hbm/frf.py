@@ -45,7 +45,7 @@ from slipstep.hbm.energy import (
 from slipstep.frequency.grid import check_frequencies as valid_frequencies
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def response_indices(system: System, responses) -> np.ndarray:

@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from slipstep.io import atomic_path
+from slipstep.output.io import atomic_path
 
 
 def _label(ds: xr.Dataset) -> str:

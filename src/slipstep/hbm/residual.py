@@ -37,7 +37,7 @@ from slipstep.hbm.fourier import Basis, harmonic_set
 from slipstep.hbm.linear import LinearPart, choose_gather
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:

@@ -49,7 +49,7 @@ class Integrator(abc.ABC):
        with ``kernel_kind`` selecting the step in :mod:`slipstep.kernels.explicit`.
        The step control and the piecewise-linear machinery live in the kernels, never
        in the scheme module.
-    7. The result is the standard Dataset of :mod:`slipstep.results` (``run``).
+    7. The result is the standard Dataset of :mod:`slipstep.output.results` (``run``).
     """
 
     name: str = ""

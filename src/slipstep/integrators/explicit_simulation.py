@@ -20,7 +20,7 @@ from slipstep.kernels import explicit as E
 from slipstep.kernels.settings import march_settings
 from slipstep.methods import accuracy
 from slipstep.methods.buffers import allocate_outputs
-from slipstep.invariants import check_march
+from slipstep.methods.invariants import check_march
 from slipstep.methods.divergence import check_divergence
 from slipstep.methods.marcher import KernelEntry
 from slipstep.methods.options import RunOptions
@@ -30,7 +30,7 @@ from slipstep.methods.start import static_equilibrium
 from slipstep.methods import step_control as SC
 from slipstep.methods.eigen import mass_factor
 from slipstep.model.validate import positive
-from slipstep.system import System
+from slipstep.model.system import System
 
 DEFAULT_STEP_RATIO = RunOptions.step_ratio  # the one default (RunOptions)
 
@@ -162,7 +162,7 @@ class ExplicitSimulation(Runner):
         )
         self._check_interrupted()
         self.status = check_divergence(self.status, self.compiled, self.out)
-        return check_march(self)  # the contact invariants of an OK march (slipstep.invariants)
+        return check_march(self)  # the contact invariants of an OK march (slipstep.methods.invariants)
 
     def _visited_states(self) -> str:
         return ""

@@ -16,7 +16,7 @@ from slipstep.kernels.state_solve import LowRank
 from slipstep.methods import memory
 from slipstep.methods import save as SV
 from slipstep.methods.eigen import band_mass_lu, mass_factor
-from slipstep.system import CompiledSystem
+from slipstep.model.system import CompiledSystem
 
 
 def reset_cache(ws: K.Workspace) -> None:

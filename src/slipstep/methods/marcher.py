@@ -28,7 +28,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.arguments import KernelArguments, pack_arguments
 from slipstep.kernels.events import event_arguments, event_march, event_march_packed
 from slipstep.kernels.quasi_static import quasi_static_march, quasi_static_march_packed
-from slipstep.live import call_kernel
+from slipstep.methods.live import call_kernel
 from slipstep.methods import save as SV
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache, reset_outputs, saved_rows
 from slipstep.methods.divergence import check_divergence
@@ -36,7 +36,7 @@ from slipstep.methods.plan import RunPlan
 from slipstep.methods.registry import Method
 from slipstep.methods.start import consistent_start
 from slipstep.methods.state import State
-from slipstep.system import to_user_order
+from slipstep.model.system import to_user_order
 
 #: each march kernel's twin taking a kernels.arguments.KernelArguments (its arrays unboxed once,
 #: not on every call); :class:`KernelEntry` calls the twin of a kernel that has one

@@ -31,7 +31,7 @@ import numpy as np
 
 from slipstep.errors import InputError
 from slipstep.kernels.contact import add_contact_stiffness
-from slipstep.system import CompiledSystem, System
+from slipstep.model.system import CompiledSystem, System
 
 
 def contact_held_dofs(system: System) -> np.ndarray:

@@ -81,7 +81,7 @@ def check(
     points: int, n: int, nq: int, nd: int, m: int, workspace: int, max_memory: float | None, field: str, fixes: str
 ) -> float:
     """Raise InputError(field) when the estimate exceeds the limit; return the estimate."""
-    from slipstep.io import format_bytes
+    from slipstep.output.io import format_bytes
 
     need = run_bytes(points, n, nq, nd, m, workspace)
     limit = memory_limit(max_memory)

@@ -40,9 +40,9 @@ class RunOptions:
     dt: an exact fixed step [s] for the fixed-step methods (overrides step_ratio/steps_per_period).
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py), 'banded' (the DOFs
-        reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.system,
+        reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.model.system,
         kernels/banded.py) or 'auto' (banded for a sparse structure of at least
-        slipstep.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
+        slipstep.model.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
         coordinates are at most half the DOFs, else direct).
     rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate
         of each step (kernels/march.py, "accuracy control") so that the loop energy per cycle is

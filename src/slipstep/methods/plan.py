@@ -39,7 +39,7 @@ from slipstep.methods.buffers import workspace_bytes
 from slipstep.methods.options import RunOptions
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.step_control import default_max_step, state_t_min
-from slipstep.system import CompiledSystem, System
+from slipstep.model.system import CompiledSystem, System
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1

@@ -78,7 +78,7 @@ class Plan:
     all_contacts: bool
 
     def attrs(self) -> dict:
-        """The result attrs of the choice (slipstep.results.saved reads them)."""
+        """The result attrs of the choice (slipstep.output.results.saved reads them)."""
         return {
             "save": self.text,
             "save_all_dofs": self.all_dofs,
@@ -95,10 +95,10 @@ class Plan:
 
 
 def kernel_dofs(cs, user: np.ndarray) -> np.ndarray:
-    """The kernel's DOF index of each user DOF index (slipstep.system.kernel_dofs: the banded
+    """The kernel's DOF index of each user DOF index (slipstep.model.system.kernel_dofs: the banded
     backend orders the DOFs by reverse Cuthill-McKee; identity for the dense one). The saved
     columns follow the user's order, so results never see the kernel's."""
-    from slipstep.system import kernel_dofs as system_kernel_dofs
+    from slipstep.model.system import kernel_dofs as system_kernel_dofs
 
     return system_kernel_dofs(cs, user)
 

@@ -1,7 +1,7 @@
 """The Python face of a time march (a facade, docs/architecture.md): a plan
 (methods/plan.py: options validated, system compiled, the step rule), a marcher
 (methods/marcher.py: buffers and kernel), the static equilibrium to start from
-(methods/start.py) and the result Dataset (slipstep.results). No numerics here.
+(methods/start.py) and the result Dataset (slipstep.output.results). No numerics here.
 
     sim = Simulation(system, "piecewise-linear", periods=3)
     ds = sim.run()            # march from the static preload + Dataset
@@ -19,7 +19,7 @@ import numpy as np
 from slipstep.errors import Interrupted, SolverError, Status
 from slipstep.kernels import march as K
 from slipstep.methods import accuracy
-from slipstep.invariants import check_march
+from slipstep.methods.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
 from slipstep.methods.buffers import (  # noqa: F401  (re-exported: the former homes of these names)
     allocate_outputs as _allocate_outputs,
@@ -61,8 +61,8 @@ from slipstep.methods.start import (  # noqa: F401  (re-exported)
 from slipstep.methods.state import State
 from slipstep.methods.step_control import default_max_step, state_t_min  # noqa: F401  (re-exported)
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
-from slipstep.results import STATE_NAMES, build_dataset
-from slipstep.system import System
+from slipstep.output.results import STATE_NAMES, build_dataset
+from slipstep.model.system import System
 
 _motion_signal, _force_signal = motion_signal, force_signal  # (their former names)
 
@@ -120,7 +120,7 @@ class Runner:
         visited = self._visited_states() if self.status != Status.INTERRUPTED else ""
         if visited:
             report["states_visited"] = visited
-        if getattr(self, "broken_invariant", None) is not None:  # Status.INVARIANT (slipstep.invariants)
+        if getattr(self, "broken_invariant", None) is not None:  # Status.INVARIANT (slipstep.methods.invariants)
             report["broken_invariant"] = self.broken_invariant.text()
         return report
 
@@ -157,7 +157,7 @@ class Runner:
             }
         )
         attrs.update(failure)
-        attrs.update(getattr(self, "step_audit", {}))  # slipstep.invariants.audit_steps (issue 29)
+        attrs.update(getattr(self, "step_audit", {}))  # slipstep.methods.invariants.audit_steps (issue 29)
         attrs.update(self.accuracy_attrs())
         if plan is not None:
             attrs.update(plan.attrs())
@@ -340,7 +340,7 @@ class Simulation(Runner):
         self.segment = self.marcher.advance(self.start, kernel=kernel)
         self.status, self.kernel_time = self.segment.status, self.segment.kernel_time_s
         self._check_interrupted()
-        return check_march(self)  # the contact invariants of an OK march (slipstep.invariants)
+        return check_march(self)  # the contact invariants of an OK march (slipstep.methods.invariants)
 
     def accuracy_attrs(self) -> dict:
         """energy_error_estimate, peak_force_error_estimate, error_estimate_method: see
@@ -387,7 +387,7 @@ class Simulation(Runner):
 
 def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
-    result Dataset (schema in slipstep.results). Options: see :class:`RunOptions`."""
+    result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`."""
     return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
 
 

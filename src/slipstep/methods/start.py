@@ -26,8 +26,8 @@ from slipstep.methods.eigen import band_mass_lu
 from slipstep.methods.plan import RunPlan
 from slipstep.methods.state import StartTerms, State
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
-from slipstep.results import STATE_NAMES
-from slipstep.system import CompiledSystem, to_user_order
+from slipstep.output.results import STATE_NAMES
+from slipstep.model.system import CompiledSystem, to_user_order
 
 
 def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> State:

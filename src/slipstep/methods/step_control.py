@@ -1,6 +1,6 @@
 """The time step of every method and scheme, in one place (issue 9 item 2): the implicit
 runner (methods/simulation.py), the explicit one (integrators/explicit_simulation.py), the
-accuracy rule (methods/accuracy.py) and the advisor (advise.py) take their steps from here; the
+accuracy rule (methods/accuracy.py) and the advisor (study/advise.py) take their steps from here; the
 march computes T_min of the states it visits with the same formula (kernels/march.py
 ``_state_step_limit``, kernels/eigen.py).
 

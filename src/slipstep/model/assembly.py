@@ -3,7 +3,7 @@
 The assembled DOFs are each substructure's DOFs prefixed by its name ('blade1.3.x'), then
 each damper's (x_G, y_G, phi) prefixed by the damper's name ('damper1.x_G'). Matrices are
 block diagonal; every coupling is a contact element, so the result is an ordinary
-:class:`~slipstep.system.System` (no solver knows how it was assembled).
+:class:`~slipstep.model.system.System` (no solver knows how it was assembled).
 
 A damper platform follows a point P of a substructure (DOFs x_P, y_P, rz_P of a 2D node)
 rigidly: the platform point touching damper contact c sits at l = offset + r_c from P
@@ -37,7 +37,7 @@ from slipstep.model.excitation import Excitation, Harmonic, Signal
 from slipstep.model.structure import Structure
 from slipstep.model.substructure import Substructure
 from slipstep.model.validate import finite, positive
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 @dataclass(frozen=True)

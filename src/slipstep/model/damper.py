@@ -24,7 +24,7 @@ from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
 from slipstep.model.structure import Structure
 from slipstep.model.validate import finite, float_array, positive
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 @dataclass(frozen=True)

@@ -190,7 +190,7 @@ def evaluate_compiled(sig: CompiledSignal, t: np.ndarray) -> np.ndarray:
 
 
 def force_signal(cs) -> CompiledSignal:
-    """The force signal of a compiled system (slipstep.system.CompiledSystem): f_e(t) is
+    """The force signal of a compiled system (slipstep.model.system.CompiledSystem): f_e(t) is
     ``evaluate_compiled(force_signal(cs), t) + cs.constant_force``."""
     return CompiledSignal(
         cs.force_frequency, cs.force_sin, cs.force_cos, cs.force_table_time, cs.force_table_value, cs.force_ramp

@@ -3,7 +3,7 @@
 A rigid damper has ``K = 0`` and ``C = 0``; the contacts alone hold it in place.
 M, C, K are dense arrays or scipy.sparse matrices (kept sparse, canonical CSR; validated
 without forming a dense n x n matrix: symmetry on the sparse difference, definiteness by a
-sparse LU's pivots). A sparse structure compiles to the banded backend (slipstep.system).
+sparse LU's pivots). A sparse structure compiles to the banded backend (slipstep.model.system).
 """
 
 from __future__ import annotations

@@ -39,7 +39,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from slipstep.errors import InputError
-from slipstep.io import atomic_path
+from slipstep.output.io import atomic_path
 from slipstep.model.structure import Structure
 from slipstep.model.validate import positive
 

@@ -8,7 +8,7 @@ import re
 import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.text import MAX_NAME_LENGTH, check_name, escape_text  # noqa: F401 (re-exported)
+from slipstep.model.text import MAX_NAME_LENGTH, check_name, escape_text  # noqa: F401 (re-exported)
 
 #: no physical input of slipstep reaches this magnitude in SI or in the units of a case file;
 #: beyond it products overflow (1e300 * 1e10 = inf) and the run would give inf/NaN, not an error

@@ -53,7 +53,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.model.excitation import compile_signal, evaluate_compiled
-from slipstep.system import quadratic_form
+from slipstep.model.system import quadratic_form
 
 _UNITS = "J"
 
@@ -72,9 +72,9 @@ _LONG_NAMES = {
 
 def require_saved(ds: xr.Dataset, needs, what: str) -> None:
     """Refuse (InputError naming ``save``) a result that did not save what ``what`` needs:
-    'all_dofs', 'all_contacts', 'every_step' (slipstep.results.saved)."""
+    'all_dofs', 'all_contacts', 'every_step' (slipstep.output.results.saved)."""
     from slipstep.errors import InputError
-    from slipstep.results import saved
+    from slipstep.output.results import saved
 
     labels = {"all_dofs": "every DOF", "all_contacts": "every contact", "every_step": "every step"}
     missing = [labels[n] for n in needs if not saved(ds, n)]

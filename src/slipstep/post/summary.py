@@ -206,7 +206,7 @@ def record_of(sim) -> Record:
     contact), from the kernel's output buffers (results.kernel_rows, as the Dataset is)."""
     from slipstep.kernels import march as K
     from slipstep.methods.buffers import saved_rows
-    from slipstep.results import kernel_rows
+    from slipstep.output.results import kernel_rows
 
     system, cs = sim.system, sim.compiled
     rows = saved_rows(sim.out, int(sim.out.counters[K.C_STEPS]))

@@ -25,7 +25,7 @@ from slipstep.steady.state import (
     period_change,
     period_scales,
 )
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 #: the steady states' fixed step T / N of the piecewise-linear Newmark methods (see period_simulation)

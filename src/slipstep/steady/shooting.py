@@ -47,7 +47,7 @@ from slipstep.steady.marching import (
     start,
 )
 from slipstep.steady.state import State, SteadyState, as_state, period_scales
-from slipstep.system import System
+from slipstep.model.system import System
 
 
 def _unknowns(s: State, quasi: bool) -> np.ndarray:

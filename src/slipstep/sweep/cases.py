@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slipstep.config import CASES_DIR, builtin_cases, read_toml
+from slipstep.casefile.case import CASES_DIR, builtin_cases, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep.spec import CASE_RUN_KEYS, SweepSpec, parameter_values
 
@@ -105,7 +105,7 @@ def base_dir_of(spec: SweepSpec) -> str | None:
 
 
 def case_kind(data: dict) -> str:
-    """The kind of a case dictionary (slipstep.config): damper, structure or assembly."""
+    """The kind of a case dictionary (slipstep.casefile.case): damper, structure or assembly."""
     if "substructures" in data:
         return "assembly"
     return "damper" if "damper" in data else "structure"
@@ -115,11 +115,11 @@ def build_case(data: dict, base_dir: str | None = None, source: str = "the swept
     """(System, run table) of a case dictionary of any kind, through the public config
     functions: parse_case + build_system, or parse_assembly + build_assembly."""
     if case_kind(data) == "assembly":
-        from slipstep.config_assembly import build_assembly, parse_assembly
+        from slipstep.casefile.assembly import build_assembly, parse_assembly
 
         spec = parse_assembly(data, source=source)
         return build_assembly(spec, Path(base_dir) if base_dir else Path.cwd()), spec.run
-    from slipstep.config import build_system, parse_case
+    from slipstep.casefile.case import build_system, parse_case
 
     spec = parse_case(data, source=source)
     return build_system(spec), spec.run
@@ -216,16 +216,16 @@ def _set(data, path: Path_, value) -> None:
 
 
 def _integer_key(path: Path_, kind: str = "damper") -> bool:
-    """True when the case format (slipstep.config.CaseSpec, or AssemblyCaseSpec) declares
+    """True when the case format (slipstep.casefile.case.CaseSpec, or AssemblyCaseSpec) declares
     the key an integer."""
     import typing
 
     from pydantic import BaseModel
 
     if kind == "assembly":
-        from slipstep.config_assembly import AssemblyCaseSpec as node
+        from slipstep.casefile.assembly import AssemblyCaseSpec as node
     else:
-        from slipstep.config import CaseSpec as node
+        from slipstep.casefile.case import CaseSpec as node
 
     for p in path:
         if isinstance(p, int):
@@ -269,9 +269,9 @@ def apply_values(base: dict, parameters, values) -> dict:
 
 def unit_of(key: str, kind: str) -> str:
     """The unit of a case-file key path, read from its last key's name by the case format's own
-    rule (slipstep.config_check.unit_of: motion and force amplitudes by their table); "1" for
+    rule (slipstep.casefile.check.unit_of: motion and force amplitudes by their table); "1" for
     a dimensionless key."""
-    from slipstep.config_check import unit_of as case_unit
+    from slipstep.casefile.check import unit_of as case_unit
 
     named = [s for s in _split(key) if s != "*" and not re.fullmatch(r"[+-]?\d+", s)]
     last = named[-1] if named else ""

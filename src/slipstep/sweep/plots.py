@@ -381,10 +381,10 @@ def write_figures(
 ) -> list:
     """design_map.png (two or more parameters), design_curves.png (grid sweeps) and
     frf_curves.png (sweeps with frequency responses) in ``output_dir``, each written atomically
-    (slipstep.io.save_figure); returns the paths."""
+    (slipstep.output.io.save_figure); returns the paths."""
     from pathlib import Path
 
-    from slipstep.io import save_figure
+    from slipstep.output.io import save_figure
 
     output_dir = Path(output_dir)
     check_at(ds, at)

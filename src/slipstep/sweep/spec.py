@@ -37,7 +37,7 @@ swept quantity and an optional ``[outputs]`` table::
 
 Sampled sweeps (latin-hypercube, sobol) give each parameter ``low`` and ``high`` (and an
 optional ``scale = "log"``) and draw ``samples`` points with ``seed`` (scipy.stats.qmc).
-Every error names the key the user wrote, as the case files' messages do (slipstep.config_check):
+Every error names the key the user wrote, as the case files' messages do (slipstep.casefile.check):
 ``[[parameter]] 2 (amplitude): stop``, ``[sweep] sampling``, ``[outputs.frf] solver``.
 """
 
@@ -494,7 +494,7 @@ def _is_number(value) -> bool:
 
 def _param_where(i: int, p: Parameter) -> str:
     """How messages name a [[parameter]] table: its position from 1, and its name if it has one
-    (the case files' convention, slipstep.config_check)."""
+    (the case files' convention, slipstep.casefile.check)."""
     return f"[[parameter]] {i + 1}" + (f" ({p.name})" if p.name else "")
 
 

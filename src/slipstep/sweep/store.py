@@ -335,7 +335,7 @@ def _is_sweep_store(path: Path) -> bool:
 def _create(path: Path, plan, labels: dict) -> None:
     """A new store for ``plan``: the case dimension, parameters, status, timings, histories."""
     from slipstep import __version__
-    from slipstep.results import SCHEMA
+    from slipstep.output.results import SCHEMA
 
     zarr = _zarr()
     g = zarr.open_group(str(path), mode="w")

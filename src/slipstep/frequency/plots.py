@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from slipstep.io import atomic_path
+from slipstep.output.io import atomic_path
 
 _DISPLAY = {"m": (1e6, "um"), "rad": (1e3, "mrad")}
 MAX_CONTACT_LINES = 6  # beyond this many contacts the energy panel shows their total and range

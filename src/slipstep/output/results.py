@@ -131,7 +131,7 @@ def saved(ds: xr.Dataset, what: str) -> bool:
 
 
 def save(ds: xr.Dataset, path) -> None:
-    """Write a result to netCDF-4 (h5netcdf engine), atomically (slipstep.io.atomic_path):
+    """Write a result to netCDF-4 (h5netcdf engine), atomically (slipstep.output.io.atomic_path):
     a failure (disk full, interrupt) leaves any previous file at ``path`` intact and raises
     :class:`~slipstep.errors.OutputError` for a failure of the disk.
 
@@ -141,7 +141,7 @@ def save(ds: xr.Dataset, path) -> None:
     import io
 
     from slipstep.errors import InputError
-    from slipstep.io import atomic_path, ensure_space
+    from slipstep.output.io import atomic_path, ensure_space
 
     if not isinstance(ds, xr.Dataset):
         raise InputError("ds", f"is a {type(ds).__name__}", "give the Dataset returned by slipstep.run")
@@ -196,7 +196,7 @@ def load(path, field: str = "result") -> xr.Dataset:
 
         limit = memory_limit()
         if nbytes > limit:
-            from slipstep.io import format_bytes
+            from slipstep.output.io import format_bytes
 
             raise refuse(
                 f"would need {format_bytes(nbytes)} of memory to load, more than the limit {format_bytes(limit)}"

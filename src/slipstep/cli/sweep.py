@@ -1,7 +1,7 @@
 """Sweep commands of the ``slipstep`` CLI: ``sweep`` (run a design sweep into a zarr store)
 and ``sweep-plot`` (design maps and curves from the store).
 
-Registered on the main Typer app by :func:`register` (slipstep.cli calls it). Module-level
+Registered on the main Typer app by :func:`register` (slipstep.cli.main calls it). Module-level
 imports are typer and the standard library only; the work is in slipstep.sweep.
 Exit codes: 0 every case OK; 1 some cases failed (recorded in the store) or the sweep was
 interrupted (rerun the same command to continue); 2 bad input.
@@ -51,7 +51,7 @@ def sweep(
     as_json: bool = typer.Option(False, "--json", help="no progress bar; print the final report as JSON"),
 ):
     """Run a design sweep: every case of SPEC, serially or on dask.distributed, into a zarr store."""
-    from slipstep.cli import err, out, user_errors
+    from slipstep.cli.main import err, out, user_errors
     from slipstep.sweep.execute import DaskExecutor, SerialExecutor
     from slipstep.sweep.run import run_sweep
 
@@ -219,7 +219,7 @@ def sweep_plot(
     output_dir: Path = typer.Option(Path("figures"), "--output-dir", "-o", help="folder for the PNG files"),
 ):
     """Design maps of a sweep: QUANTITY over two parameters (optimum marked) and curves over one."""
-    from slipstep.cli import _output_dir, out, user_errors
+    from slipstep.cli.main import _output_dir, out, user_errors
     from slipstep.errors import InputError
 
     with user_errors():

@@ -41,7 +41,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
-from slipstep.io import plain_text_figures, save_figure, write_text
+from slipstep.output.io import plain_text_figures, save_figure, write_text
 from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, get_method
 from slipstep.methods.simulation import Simulation
 from slipstep.post.filtering import (
@@ -52,7 +52,7 @@ from slipstep.post.filtering import (
     samples_per_period,
     visited_states,
 )
-from slipstep.system import System
+from slipstep.model.system import System
 
 REFERENCE = "newmark"
 

@@ -1,6 +1,6 @@
 """Case files without the model: where the built-in cases are, and reading TOML with errors
 that name the file. Light (standard library only) so that ``slipstep cases`` and
-``slipstep --help`` need neither numpy nor pydantic; slipstep.config builds the model."""
+``slipstep --help`` need neither numpy nor pydantic; slipstep.casefile.case builds the model."""
 
 from __future__ import annotations
 

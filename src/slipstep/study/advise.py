@@ -294,7 +294,7 @@ def advise(
     short quasi-static and Method-3 runs that find the visited states (else: full stick
     and, when enumerated, every state are treated as candidates but none as visited)."""
     from slipstep.post.filtering import excitation_frequencies
-    from slipstep.system import System
+    from slipstep.model.system import System
 
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")

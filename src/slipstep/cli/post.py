@@ -1,7 +1,7 @@
 """Post-processing commands of the ``slipstep`` CLI: ``plot``, ``report``, ``advise``.
 
-Registered on the main Typer app by :func:`register` (slipstep.cli calls it). No numerics
-here: the commands call slipstep.plots, slipstep.report and slipstep.advise. Bad input
+Registered on the main Typer app by :func:`register` (slipstep.cli.main calls it). No numerics
+here: the commands call slipstep.post.plots, slipstep.study.report and slipstep.study.advise. Bad input
 (InputError, a missing file) prints one red line on stderr and exits with code 2.
 """
 
@@ -15,12 +15,12 @@ import typer
 
 from slipstep.errors import InputError
 
-from slipstep.casefiles import case_stem
-from slipstep.cli import output_dir_option, say, user_errors as _user_errors  # one console setup
+from slipstep.casefile.files import case_stem
+from slipstep.cli.main import output_dir_option, say, user_errors as _user_errors  # one console setup
 
 
 def _load_case(case: str):
-    from slipstep.config import load_system
+    from slipstep.casefile.case import load_system
 
     return load_system(case)
 
@@ -37,9 +37,9 @@ def plot(
 ):
     """Write the figures of a result (time histories, loops, step size, iterations, states) as PNG."""
     with _user_errors():
-        from slipstep import plots
-        from slipstep.config import builtin_cases
-        from slipstep.results import load
+        from slipstep.post import plots
+        from slipstep.casefile.case import builtin_cases
+        from slipstep.output.results import load
 
         ds = load(result, field="RESULT")  # refuses foreign, corrupt and HDF5-external files
         directory = output_dir_option(output_dir, "--output-dir")
@@ -60,7 +60,7 @@ def report(
 ):
     """Run CASE (quasi-static + Method 3) and write one self-contained HTML report."""
     with _user_errors():
-        from slipstep.report import write_report
+        from slipstep.study.report import write_report
 
         path = Path(output) if output is not None else Path(f"{case_stem(case)}_report.html")
         if output is not None and not output.strip():
@@ -98,7 +98,7 @@ def advise(
 ):
     """Which method suits CASE and why: Eq. 9 inertia ratio, T_min per state, flutter, steps."""
     with _user_errors():
-        from slipstep.advise import advise as _advise
+        from slipstep.study.advise import advise as _advise
 
         system = _load_case(case)
         xd = None if displacement_um is None else displacement_um * 1e-6

@@ -23,8 +23,8 @@ from typing import Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, PrivateAttr, ValidationError
 
-from slipstep.casefiles import CASES_DIR, builtin_cases, case_path, read_toml  # noqa: F401 (re-exported)
-from slipstep.config_check import check_case, key_path, spec_error
+from slipstep.casefile.files import CASES_DIR, builtin_cases, case_path, read_toml  # noqa: F401 (re-exported)
+from slipstep.casefile.check import check_case, key_path, spec_error
 from slipstep.errors import InputError
 from slipstep.model.contact import ContactElement
 from slipstep.model.damper import DamperContact, Platform, rigid_damper
@@ -32,7 +32,7 @@ from slipstep.model.excitation import Excitation, Harmonic, Signal, Tabulated
 from slipstep.model.fe_files import case_face_contacts, case_structure
 from slipstep.model.structure import Structure
 from slipstep.model.substructure import read_mtx
-from slipstep.system import System
+from slipstep.model.system import System
 
 UM = 1e-6
 MM = 1e-3
@@ -177,13 +177,13 @@ def damper_contact(c: "DamperContactSpec") -> DamperContact:
 
 
 def _loc(err) -> str:
-    """A pydantic error location as a dotted path (slipstep.config_assembly names its fields so)."""
+    """A pydantic error location as a dotted path (slipstep.casefile.assembly names its fields so)."""
     return ".".join(str(p) for p in err["loc"]) or "case"
 
 
 def parse_case(data: dict, source: str = "case") -> CaseSpec:
     """Validate the TOML data of a case: the schema (pydantic: keys, types), then the checks in
-    the user's terms (slipstep.config_check: names, duplicates, ranges, shapes)."""
+    the user's terms (slipstep.casefile.check: names, duplicates, ranges, shapes)."""
     try:
         spec = CaseSpec.model_validate(data)
     except ValidationError as exc:
@@ -489,8 +489,8 @@ def load_case(name_or_path: str | Path) -> tuple[System, RunSpec]:
         )
     path = case_path(name_or_path)
     data = read_toml(path)
-    if "substructures" in data:  # the third kind: an assembly (slipstep.config_assembly)
-        from slipstep.config_assembly import load_assembly_case
+    if "substructures" in data:  # the third kind: an assembly (slipstep.casefile.assembly)
+        from slipstep.casefile.assembly import load_assembly_case
 
         return load_assembly_case(data, path)
     spec = parse_case(data, source=str(path))

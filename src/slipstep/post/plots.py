@@ -6,7 +6,7 @@
 * :func:`plot_step_size`      - step-size history with the contact states (Fig. 4b)
 * :func:`plot_iterations`     - histogram of linear solves per step (Fig. 5)
 * :func:`plot_method_comparison` - CPU time relative to Method 1 (Fig. 8), from rows
-  {"method": ..., "time_ratio": ...} (as written by slipstep.compare)
+  {"method": ..., "time_ratio": ...} (as written by slipstep.study.compare)
 * :func:`plot_state_timeline` - contact states over time per direction
 
 Units come from the Dataset attributes and are converted at the edge: m -> um, rad -> mrad,
@@ -25,8 +25,8 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from slipstep.io import plain_text_figures as _plain_text_figures  # noqa: E402
-from slipstep.results import STATE_NAMES  # noqa: E402
+from slipstep.output.io import plain_text_figures as _plain_text_figures  # noqa: E402
+from slipstep.output.results import STATE_NAMES  # noqa: E402
 
 STATE_COLORS = ("#bbbbbb", "#2b83ba", "#d7191c", "#fdae61", "#7b3294")  # one per STATE_NAMES entry
 _SCALE = {"m": (1e6, "um"), "rad": (1e3, "mrad"), "N": (1.0, "N"), "s": (1e3, "ms"), "J": (1e3, "mJ")}
@@ -63,7 +63,7 @@ def _as_list(datasets) -> list[tuple[str, xr.Dataset]]:
 
 def save_figure(fig, path) -> Path:
     """Write ``fig`` as PNG (150 dpi, tight) and close it."""
-    from slipstep import io
+    from slipstep.output import io
 
     path = Path(path)
     try:

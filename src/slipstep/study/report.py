@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from slipstep.errors import InputError
-from slipstep.io import plain_text_figures
+from slipstep.output.io import plain_text_figures
 
 _CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222;line-height:1.4}
 table{border-collapse:collapse;margin:0.6em 0 1.2em}td,th{border:1px solid #bbb;padding:3px 9px;text-align:right}
@@ -81,14 +81,14 @@ def write_report(
     """Run ``system`` (quasi-static + ``dynamic_method``, ``periods`` periods), write the HTML
     report to ``path`` and return the path. ``comparison``: optional method-comparison rows
     ({'method', 'time_ratio', ...}) for the Fig. 8 bars."""
-    from slipstep import plots
-    from slipstep.advise import advise
+    from slipstep.post import plots
+    from slipstep.study.advise import advise
     from slipstep.methods.simulation import run
     from slipstep.post.filtering import FilterWarning, filter_dataset
     from slipstep.post.loops import interfaces_from_system, loop_summary
     from slipstep.post.periodic import last_period, periodicity
     from slipstep.post.timeline import count_state_changes, full_slip_share, states_from_forces
-    from slipstep.system import System
+    from slipstep.model.system import System
 
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
@@ -212,7 +212,7 @@ def write_report(
         fig_html,
         "</body></html>",
     ]
-    from slipstep import io as sio
+    from slipstep.output import io as sio
 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -21,10 +21,10 @@ from pathlib import Path
 
 import typer
 
-from slipstep.cli import _case_stem, _output_dir
-from slipstep.cli import err as _err
-from slipstep.cli import out as _out
-from slipstep.cli import user_errors as _user_errors
+from slipstep.cli.main import _case_stem, _output_dir
+from slipstep.cli.main import err as _err
+from slipstep.cli.main import out as _out
+from slipstep.cli.main import user_errors as _user_errors
 from slipstep.errors import InputError
 
 SOLVER_NAMES = ("auto", "march", "shoot", "hbm")  # slipstep.frequency.SOLVERS (not imported: start-up time)
@@ -115,11 +115,11 @@ def frf(
             TimeRemainingColumn,
         )
 
-        from slipstep.config import load_system
+        from slipstep.casefile.case import load_system
         from slipstep.frequency.response import check_frequencies, parse_frequencies
-        from slipstep.plots_frf import plot_frf
-        from slipstep.results import save as save_netcdf
-        from slipstep.text import escape_text
+        from slipstep.frequency.plots import plot_frf
+        from slipstep.output.results import save as save_netcdf
+        from slipstep.model.text import escape_text
 
         if direction not in ("up", "down", "both"):
             raise InputError("--direction", f"is {direction!r}", "use up, down or both")
@@ -137,7 +137,7 @@ def frf(
                 _err.print(f"solver: {solver} ({reason})", markup=False, highlight=False, soft_wrap=True)
         hbm = solver == "hbm" and not sine_sweep
         if hbm:
-            from slipstep.hbm.cli_support import parse_harmonics
+            from slipstep.cli.hbm import parse_harmonics
 
             kept = parse_harmonics(harmonics)
             if direction == "both":
@@ -213,7 +213,7 @@ def frf(
         nc, png = folder / f"{stem}_frf.nc", folder / f"{stem}_frf.png"
         save_netcdf(ds, nc)
         if hbm:
-            from slipstep.hbm.cli_support import summary as hbm_summary
+            from slipstep.cli.hbm import summary as hbm_summary
             from slipstep.hbm.plot import plot_frf as plot_hbm
 
             plot_hbm(ds, png)
@@ -248,7 +248,7 @@ def _summary(ds, wall: float) -> dict:
     import numpy as np
 
     status = np.asarray(ds["status"].values).astype(str)
-    from slipstep.plots_frf import default_response
+    from slipstep.frequency.plots import default_response
 
     amp = ds["amplitude"]
     other = [d for d in amp.dims if d not in ("frequency", "response")]
@@ -317,7 +317,7 @@ def _text(s: dict) -> str:
         if s["points_above_rtol"]:
             lines.append(f"WARNING: {s['points_above_rtol']} point(s) above rtol (see the status_message variable)")
     if "checks" in s:  # harmonic balance: the retained harmonics, the adequacy estimate, the cross-check
-        from slipstep.hbm.cli_support import harmonics_text
+        from slipstep.cli.hbm import harmonics_text
 
         lines.append(
             f"harmonics {harmonics_text(s['harmonics'])} ({s['samples']} AFT samples), "

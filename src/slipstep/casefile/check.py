@@ -17,7 +17,7 @@ import typing
 
 from slipstep.errors import InputError
 from slipstep.model.validate import MAX_MAGNITUDE
-from slipstep.text import check_name, escape_text
+from slipstep.model.text import check_name, escape_text
 
 UNITS = (  # key suffix -> unit as printed (longest first)
     ("_N_s_per_m", "N s/m"),
@@ -348,7 +348,7 @@ def _check_damper(c: _Checker, data: dict) -> None:
 def _check_structure(c: _Checker, data: dict) -> None:
     s = data.get("structure", {})
     n = c.matrix(("structure", "mass_kg"), None, None, "a square n x n mass matrix")
-    if n is None:  # the matrices come from files (mass_file_kg): checked when read (slipstep.config)
+    if n is None:  # the matrices come from files (mass_file_kg): checked when read (slipstep.casefile.case)
         return
     c.matrix(("structure", "mass_kg"), n, n, f"a square {n} x {n} matrix (one row per DOF)")
     for key in ("mass_kg", "damping_N_s_per_m", "stiffness_N_per_m"):
@@ -399,7 +399,7 @@ def _components(data: dict, kind: str, table: str) -> list[str] | None:
         s = data.get("structure", {})
         names = s.get("dof_names")
         if not names and "mass_kg" not in s and ("mass_file_kg" in s or "file" in s):
-            return None  # the DOFs of a matrix file: checked when it is read (slipstep.config)
+            return None  # the DOFs of a matrix file: checked when it is read (slipstep.casefile.case)
         n = len(s.get("mass_kg") or [])
         return list(names) if names else [f"x{i}" for i in range(n)]
     return list(data.get("motion_names") or [])

@@ -1,15 +1,16 @@
 """The ``slipstep`` command line: run a case, compare the paper's methods, list cases/methods.
 
-No numerics here: commands load a case (slipstep.config), call slipstep.methods /
-slipstep.compare, and print. Exit codes (every command): 0 success, 1 a march that stopped
+No numerics here: commands load a case (slipstep.casefile.case), call slipstep.methods /
+slipstep.study.compare, and print. Exit codes (every command): 0 success, 1 a march that stopped
 early (the partial result is still written), 2 bad input (one red line naming the key and the
 fix), 3 an I/O or environment failure (disk full, read-only directory, out of memory), 4 an
 internal error (one line; the traceback is saved to a file), 130 aborted by Ctrl-C.
 
 Fast start: this module imports only typer, rich's console and light slipstep modules; the
 numerical stack (numpy, numba, xarray, pydantic) is imported inside the commands that need
-it. Command modules ``slipstep/cli_<name>.py`` with ``register(app)`` are found and registered
-by :func:`_register_plugins`; they import only typer and the standard library at module level.
+it. The other modules of this package that define ``register(app)`` (``slipstep/cli/<name>.py``)
+are command modules, found and registered by :func:`_register_plugins`; they import only typer
+and the standard library at module level.
 """
 
 from __future__ import annotations
@@ -28,10 +29,10 @@ from rich.console import Console
 from typer.core import TyperGroup
 from typer.exceptions import TyperException
 
-from slipstep.casefiles import CASES_DIR, builtin_cases, case_stem, read_toml
+from slipstep.casefile.files import CASES_DIR, builtin_cases, case_stem, read_toml
 from slipstep.errors import InputError, OutputError, SolverError
 from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, method_choices, scheme_choices
-from slipstep.text import escape_text
+from slipstep.model.text import escape_text
 
 EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
 _PASS_THROUGH = (typer.Exit, typer.Abort, TyperException, SystemExit)  # typer's own exits and usage errors
@@ -129,7 +130,7 @@ def report_failure(exc: BaseException) -> int:
         )
         return EXIT_IO
     if isinstance(exc, OSError):
-        from slipstep.io import output_error
+        from slipstep.output.io import output_error
 
         fail_line("I/O error", output_error(getattr(exc, "filename", None) or "(file)", exc))
         return EXIT_IO
@@ -148,7 +149,7 @@ def _save_traceback(exc: BaseException) -> str | None:
     import time
     import traceback
 
-    from slipstep.io import write_text
+    from slipstep.output.io import write_text
 
     text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
     name = f"slipstep-error-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
@@ -241,20 +242,20 @@ def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Pa
             option, f"{str(path)!r} cannot be created (a part of it is a file)", "give a directory path"
         ) from None
     except OSError as exc:
-        from slipstep.io import output_error
+        from slipstep.output.io import output_error
 
         raise output_error(path, exc) from None
     try:
         with tempfile.TemporaryFile(dir=path):
             pass
     except OSError as exc:
-        from slipstep.io import output_error
+        from slipstep.output.io import output_error
 
         raise output_error(path, exc) from None
     return path
 
 
-# the names plugin modules (cli_frf) import from earlier versions of this module
+# the names plugin modules (slipstep.cli.frf) import from earlier versions of this module
 _case_stem = case_stem
 
 
@@ -466,9 +467,9 @@ def run(
     the previous file.
     """
     with user_errors():
-        from slipstep.config import load_case
-        from slipstep.live import deferred_interrupt
-        from slipstep.results import save
+        from slipstep.casefile.case import load_case
+        from slipstep.methods.live import deferred_interrupt
+        from slipstep.output.results import save
 
         system, spec = load_case(case)
         chosen = _method(method, spec)
@@ -644,8 +645,8 @@ def compare(
     if schemes is not None:
         return _compare_schemes(case, schemes, periods, repeats, output_dir, as_json)
     with user_errors():
-        from slipstep import compare as cmp
-        from slipstep.config import load_case
+        from slipstep.study import compare as cmp
+        from slipstep.casefile.case import load_case
 
         system, spec = load_case(case)
         if not methods.strip():
@@ -685,9 +686,9 @@ def compare(
 def _compare_schemes(case, schemes, periods, repeats, output_dir, as_json):
     """`compare --schemes`: every scheme x variant, cost and error against a fine-step reference."""
     with user_errors():
-        from slipstep.config import load_case
+        from slipstep.casefile.case import load_case
         from slipstep.integrators.compare import compare_schemes, format_table
-        from slipstep.io import write_text
+        from slipstep.output.io import write_text
 
         system, spec = load_case(case)
         if not schemes.strip():
@@ -745,17 +746,18 @@ def methods(
 
 
 def _register_plugins(target: typer.Typer | None = None) -> None:
-    """Register every command module ``slipstep/cli_<name>.py`` (its ``register(app)``) on
+    """Register every command module ``slipstep/cli/<name>.py`` (its ``register(app)``) on
     ``target`` (default: the slipstep app), in name order. A module that cannot be imported is
     skipped with a warning on stderr, so one broken plugin never takes the command line down."""
     import importlib
 
-    import slipstep
+    from slipstep import cli
 
     target = app if target is None else target
-    stems = sorted({p.stem for d in slipstep.__path__ for p in Path(d).glob("cli_*.py")})
+    own = {"__init__", Path(__file__).stem}
+    stems = sorted({p.stem for d in cli.__path__ for p in Path(d).glob("*.py")} - own)
     for stem in stems:
-        name = f"slipstep.{stem}"
+        name = f"slipstep.cli.{stem}"
         try:
             module = importlib.import_module(name)
         except Exception as exc:  # noqa: BLE001

@@ -39,7 +39,7 @@ from slipstep.methods.eigen import omega_max
 from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, Harmonic, Signal
 from slipstep.model.structure import Structure
-from slipstep.system import System
+from slipstep.model.system import System
 
 CHECK_METHODS = ("newmark", "full-newton", "piecewise-linear")
 PERTURBATION = 1e-10
@@ -200,7 +200,7 @@ def family_system(rng: np.random.Generator, family: str = "general") -> System:
 
 
 def invariant_check(system: System, method: str, periods: float = 2.0, **options) -> tuple[str, str]:
-    """(status, broken invariant text or "") of one run of ``method`` (slipstep.invariants: an
+    """(status, broken invariant text or "") of one run of ``method`` (slipstep.methods.invariants: an
     OK march that breaks one ends with status INVARIANT); ("SETUP", message) when the system
     cannot even be set up (no static equilibrium: not counted)."""
     from slipstep.methods.simulation import run

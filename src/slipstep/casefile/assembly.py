@@ -1,6 +1,6 @@
 """TOML assembly cases: ``[[substructures]]`` joined by ``[[dampers]]`` and ``[[contacts]]``.
 
-The third kind of case file (beside ``[damper]`` and ``[structure]``, see slipstep.config):
+The third kind of case file (beside ``[damper]`` and ``[structure]``, see slipstep.casefile.case):
 substructures (a built-in frame blade, or M/K matrices from .npz / Matrix Market files,
 optionally Craig-Bampton reduced), rigid dampers whose platforms follow substructure points,
 contacts on named assembled DOFs, harmonic and engine-order forces, and an optional
@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 from pydantic import ValidationError
 
-from slipstep.config import (
+from slipstep.casefile.case import (
     MM,
     DamperContactSpec,
     HarmonicSpec,
@@ -45,7 +45,7 @@ from slipstep.model.substructure import (
     load_mtx,
     load_npz,
 )
-from slipstep.system import System
+from slipstep.model.system import System
 
 GPA = 1e9
 
@@ -161,7 +161,7 @@ def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
     try:
         return AssemblyCaseSpec.model_validate(data)
     except ValidationError as exc:
-        from slipstep.config_check import _model_at, suggestion
+        from slipstep.casefile.check import _model_at, suggestion
 
         order = {"extra_forbidden": 0, "missing": 2}  # an unknown key first, not the key it misspells
         first = sorted(exc.errors(), key=lambda e: order.get(e["type"], 1))[0]

@@ -147,7 +147,7 @@ def run_command(
     unless ``as_json``, printed as a table with the cross-check beside the answer), the
     figure written to ``plot_path`` when given. Returns (Dataset, summary dict)."""
     from slipstep.hbm.frf import frf
-    from slipstep.results import save
+    from slipstep.output.results import save
 
     hs = parse_harmonics(harmonics) if isinstance(harmonics, str) else harmonics
     kwargs = {
