@@ -252,7 +252,7 @@ def test_unknown_face_node_and_bad_normal_are_input_errors(tmp_path):
 def test_cli_exit_2_on_a_bad_fe_file(tmp_path):
     from typer.testing import CliRunner
 
-    from slipstep.cli import app
+    from slipstep.cli.main import app
 
     path = _case(tmp_path, 'file = "absent.op4"\n', "nodes = [103]\nnormal = [0, 0, 1]")
     result = CliRunner().invoke(app, ["run", str(path), "--output-dir", str(tmp_path / "out")])
