@@ -183,7 +183,7 @@ class LinearPart:
 
     def _factorise_sparse(self, omega: float):
         cs, g = self.cs, self.gather
-        WT = self._scatter(np.eye(g.size, dtype=complex)[None])[0]  # (n, r) as columns
+        WT = self._scatter(np.eye(g.size, dtype=complex)).T  # (n, r): the columns of W^T
         self.lu = []
         self.S = np.zeros((self.h.size, g.size, g.size), complex)
         for i in range(self.h.size):
@@ -192,20 +192,13 @@ class LinearPart:
             self.S[i] = g.of_dofs(lu.solve(WT).T, cs.A).T
 
     def _scatter(self, U: np.ndarray) -> np.ndarray:
-        """W^T U for gathered values U (nh, r) -> (nh, n); U (1, r, k) -> (1, n, k) columns."""
-        g, n = self.gather, self.cs.M.shape[0]
-        if U.ndim == 3:  # columns: (1, r, k)
-            out = np.zeros((1, n, U.shape[2]), U.dtype)
-            if g.dofs is not None:
-                out[0, g.dofs] = U[0]
-            else:
-                out[0] = self.cs.AT @ U[0]
-            return out
-        if g.dofs is not None:
-            out = np.zeros((U.shape[0], n), U.dtype)
-            out[:, g.dofs] = U
-            return out
-        return U @ self.cs.A
+        """W^T U for gathered values U (k, r): (k, n)."""
+        g = self.gather
+        if g.dofs is None:
+            return U @ self.cs.A
+        out = np.zeros((U.shape[0], self.cs.M.shape[0]), U.dtype)
+        out[:, g.dofs] = U
+        return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """D_h^-1 rhs_h for DOF right-hand sides rhs (nh, n)."""
