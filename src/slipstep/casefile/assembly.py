@@ -243,10 +243,11 @@ def build_assembly(spec: AssemblyCaseSpec, base_dir: Path = Path(".")) -> System
 
 def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
     subs: dict[str, Substructure] = {}
+    originals: dict[str, Substructure] = {}
     for s in spec.substructures:
         if s.name in subs:
             raise InputError(f"substructures[{s.name}].name", "is used twice", "give every substructure its own name")
-        subs[s.name] = _substructure(s, subs, base_dir)
+        originals[s.name] = subs[s.name] = _substructure(s, originals, base_dir)  # copy_of: the unmistuned one
         if s.mistuning is not None:
             subs[s.name] = _renamed(
                 subs[s.name], s.name, 1.0 + _delta(f"substructures[{s.name}].mistuning", s.mistuning)

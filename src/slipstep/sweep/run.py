@@ -145,7 +145,7 @@ def run_sweep(
 def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
     """The tuned peaks of a mistuning sweep (slipstep.sweep.mistuning.tuned_references), computed
     by the client once per sweep and kept in the store's attrs (``mistuning_reference``: a
-    resumed sweep reads them); [] for other sweeps."""
+    resumed sweep reads them; ``mistuning_responses``: the blade DOFs); [] for other sweeps."""
     import json
 
     if "mistuning" not in plan.outputs:
@@ -158,6 +158,7 @@ def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
 
     reference = tuned_references(plan, frf_values)
     store.group.attrs["mistuning_reference"] = json.dumps(reference)
+    store.group.attrs["mistuning_responses"] = list(plan.outputs["mistuning"]["responses"])
     store.consolidate()
     return reference
 
