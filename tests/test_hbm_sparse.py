@@ -70,3 +70,38 @@ def test_auto_chooses_harmonic_balance_above_the_dense_cap():
     big = choose(_chain(DENSE_MAX_N + 500, 5, dense=False))
     assert big.solver == "hbm" and "sparse" in big.reason
     assert choose(_chain(40, 4, dense=False)).solver == "shoot"
+
+
+def test_frf_above_the_dense_cap_skips_the_march_and_keeps_the_truncation_estimate():
+    """check='auto' (the default) marches no steady state on a sparse structure above the cap
+    (minutes there) and says so; the point still carries its harmonic-truncation estimate."""
+    from slipstep.frequency.response import frf
+    from slipstep.hbm.frf import resolved_check
+    from slipstep.model.structure import DENSE_MAX_N
+
+    big = _chain(DENSE_MAX_N + 100, 3, dense=False)
+    assert resolved_check(big, "auto")[0] == "none" and "sparse" in resolved_check(big, "auto")[1]
+    assert resolved_check(big, "peak") == ("peak", "")
+    assert resolved_check(_chain(40, 4, dense=False), "auto") == ("peak", "")
+    ds = frf(big, [40.0], solver="auto", harmonics=3, rtol=0.5)
+    assert ds.attrs["solver"] == "hbm" and "check_skipped" in ds.attrs
+    assert "check_summary" not in ds.attrs  # no march was run
+    assert str(ds["status"].values[0]) == "OK"
+    est = float(ds["error_estimate"].values[0])
+    assert np.isfinite(est) and est >= 0
+
+
+def test_level_continuation_keeps_one_factorisation_per_frequency():
+    """LinearPart.at refactorises only when omega changes (a level continuation at fixed omega
+    reuses the factors), and the answer is the same as from a fresh factorisation."""
+    hb = hbm.HarmonicBalance(_chain(40, 4, dense=False), harmonics=3)
+    omega = 2 * np.pi * 40.0
+    hb.linear.at(omega, 0.5)
+    lu = hb.linear.lu
+    hb.linear.at(omega, 1.0)
+    assert hb.linear.lu is lu and hb.linear.level == 1.0
+    hb.linear.at(omega * 1.01, 1.0)
+    assert hb.linear.lu is not lu
+    p = hb.solve(omega, 1.0)
+    fresh = hbm.HarmonicBalance(_chain(40, 4, dense=False), harmonics=3).solve(omega, 1.0)
+    assert p.converged and np.abs(p.X - fresh.X).max() <= 1e-12 * np.abs(fresh.X).max()

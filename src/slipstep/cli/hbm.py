@@ -133,7 +133,7 @@ def run_command(
     harmonics,
     samples=None,
     check_frequencies=(),
-    check="peak",
+    check="auto",
     responses=None,
     output,
     plot_path=None,

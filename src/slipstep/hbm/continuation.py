@@ -88,7 +88,7 @@ def solve_point(hb: HarmonicBalance, omega: float, level: float, Z0: np.ndarray 
     """Newton at (omega, level); if it fails, a homotopy in the excitation level at fixed omega,
     from 1 % of the level (where the contacts are near their static state and Newton from the
     preload converges) up to the level itself."""
-    pt = hb.solve(omega, level, Z0, max_iterations=15 if Z0 is None else 25)
+    pt = hb.solve(omega, level, Z0, max_iterations=30 if Z0 is None else 25)
     if pt.converged or level == 0:
         return pt
     branch = trace(hb, "level", 0.01 * level, level, omega, max_dp=0.1 * level, max_steps=500)

@@ -45,6 +45,7 @@ from slipstep.hbm.energy import (
 from slipstep.frequency.grid import check_frequencies as valid_frequencies
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
+from slipstep.model.structure import DENSE_MAX_N
 from slipstep.model.system import System
 
 
@@ -171,8 +172,9 @@ def _response_body(
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
     resp = response_indices(system, responses)
-    if check not in (True, False, "peak", "none", "all"):
-        raise InputError("check", f"is {check!r}", "use 'peak' (the default), 'all' or 'none'")
+    if check not in (True, False, "auto", "peak", "none", "all"):
+        raise InputError("check", f"is {check!r}", "use 'auto' (the default), 'peak', 'all' or 'none'")
+    check, check_skipped = resolved_check(system, check)
     start = time.perf_counter()
     callback = (lambda pt: progress(pt)) if progress else None
     hb, branch = _solve_branch(
@@ -235,6 +237,8 @@ def _response_body(
     )
     if check in (True, "peak", "all") and len(branch.points):
         _cross_check(ds, hb, branch, resp, check, check_at, check_options or {})
+    elif check_skipped:
+        ds.attrs["check_skipped"] = check_skipped
     ds.attrs["wall_time_s"] = time.perf_counter() - start
     return ds
 
@@ -248,7 +252,7 @@ def frf(
     level: float = 1.0,
     responses=None,
     continuation: bool = True,
-    check="peak",
+    check="auto",
     check_frequencies=(),
     check_options=None,
     adequacy: bool = True,
@@ -267,7 +271,8 @@ def frf(
     level: scale of the harmonic excitation. responses: DOF names reported (default all).
     continuation: pseudo-arclength from the first to the last frequency (step capped at the
     grid spacing or ``max_df`` Hz), else Newton at each given frequency. check: 'peak' (the
-    FRF peak and ``check_frequencies``), 'all' or 'none': the time-marching cross-check,
+    FRF peak and ``check_frequencies``), 'all' or 'none': the time-marching cross-check; 'auto'
+    (default): 'peak', or 'none' on a sparse structure above DENSE_MAX_N DOFs (attr check_skipped),
     options ``check_options`` (method, tolerance, max_periods, steps_per_period, start_from_hbm:
     march from the HBM state at t = 0 (default) rather than the static preload, run options).
     adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
@@ -329,7 +334,7 @@ def level_response(system: System, frequency_hz: float, levels, **options) -> xr
         "samples": None,
         "responses": None,
         "continuation": True,
-        "check": "peak",
+        "check": "auto",
         "check_options": None,
         "adequacy": True,
         "adequacy_tolerance": 0.01,
@@ -461,6 +466,21 @@ def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:
         if j not in idx:
             idx.append(j)
     return idx
+
+
+def resolved_check(system, check) -> tuple:
+    """The cross-check asked, with ``"auto"`` resolved: ``"peak"`` unless the structure is sparse
+    above ``model.structure.DENSE_MAX_N`` DOFs, where marching a steady state costs minutes and the
+    harmonic-truncation estimate is the point's error instead. Returns (check, why it was skipped)."""
+    if check != "auto":
+        return check, ""
+    if system.structure.sparse and system.n_dofs > DENSE_MAX_N:
+        return "none", (
+            f"the structure is sparse with {system.n_dofs} DOFs (above {DENSE_MAX_N}): marching a steady "
+            "state would take minutes, so each point's error is the harmonic-truncation estimate; pass "
+            "check='peak' to march the peak anyway"
+        )
+    return "peak", ""
 
 
 def _cross_check(ds, hb, branch, resp, check, check_at, options):

@@ -158,14 +158,18 @@ class LinearPart:
         self.KcD0 = KcD0 if self.sparse else KcD0.toarray()
         self.g0 = np.zeros((self.h.size, nq))
         self.g0[0] = cs.g
+        self.omega = None  # the omega of the current factorisation (none yet)
 
     def at(self, omega: float, level: float = 1.0):
-        """Factorise D_h(omega) and form S_h = W D_h^-1 W^T (the compliance on the gathered coordinates)."""
-        self.omega, self.level = omega, level
-        if self.sparse:
-            self._factorise_sparse(omega)
-        else:
-            self._invert_dense(omega)
+        """Factorise D_h(omega) and form S_h = W D_h^-1 W^T (the compliance on the gathered coordinates);
+        kept while omega is unchanged (a continuation in the level, or a Jacobian column in it)."""
+        self.level = level
+        if omega != self.omega:
+            if self.sparse:
+                self._factorise_sparse(omega)
+            else:
+                self._invert_dense(omega)
+            self.omega = omega
         return self
 
     def _dynamic_stiffness(self, i: int, omega: float):
