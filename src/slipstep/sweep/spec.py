@@ -597,14 +597,14 @@ FRF_KEYS = (
     "adequacy",
 )
 FRF_SOLVERS = ("march", "shoot", "hbm")
-HBM_CHECKS = ("peak", "all", "none")
+HBM_CHECKS = ("auto", "peak", "all", "none")
 
 
 def frf_config(table) -> dict:
     """The [outputs.frf] table checked and completed: the frequencies [Hz] (a list, or start_Hz,
     stop_Hz, num), solver (march | shoot | hbm), direction (up | down), harmonics H (hbm: H or a
     list of retained harmonics such as [1, 3, 5]), responses (DOF names, default all), the
-    steady-state tolerance, and for hbm its time-marching cross-check (check: peak | all | none)
+    steady-state tolerance, and for hbm its time-marching cross-check (check: auto | peak | all | none, as slipstep.hbm.frf)
     and truncation estimate (adequacy: true | false); slipstep.frequency.frf runs it per case."""
     import numpy as np
 
@@ -639,7 +639,7 @@ def frf_config(table) -> dict:
     for key in ("check", "adequacy"):
         if key in table and solver != "hbm":
             raise InputError(f"{where} {key}", f"is an option of solver hbm, not {solver}", "remove it or use hbm")
-    check, adequacy = table.get("check", "peak"), table.get("adequacy", True)
+    check, adequacy = table.get("check", "auto"), table.get("adequacy", True)
     if check not in HBM_CHECKS:
         raise InputError(f"{where} check", f"is {check!r}", f"use one of {', '.join(HBM_CHECKS)}")
     if not isinstance(adequacy, bool):
