@@ -105,3 +105,19 @@ def test_level_continuation_keeps_one_factorisation_per_frequency():
     p = hb.solve(omega, 1.0)
     fresh = hbm.HarmonicBalance(_chain(40, 4, dense=False), harmonics=3).solve(omega, 1.0)
     assert p.converged and np.abs(p.X - fresh.X).max() <= 1e-12 * np.abs(fresh.X).max()
+
+
+def test_auto_takes_harmonic_balance_where_shooting_costs_minutes():
+    """A dense structure whose one-period Jacobian is above SHOOTING_MAX_FLOP gets harmonic
+    balance (and no time-marching cross-check) from the auto rule; a small one keeps shooting."""
+    from slipstep.frequency.choice import SHOOTING_MAX_FLOP, choose, time_domain_cost
+    from slipstep.hbm.frf import resolved_check
+
+    big = _chain(300, 100, dense=True)
+    flop, why = time_domain_cost(big)
+    # N n (3 n + r) (2 n + n_d): 256 steps, 300 DOFs, r = 200 contact DOFs (A couples dof, dof + 1)
+    assert flop == 256 * 300 * (3 * 300 + 200) * (2 * 300 + 100) and flop > SHOOTING_MAX_FLOP
+    assert "multiply-adds" in why and choose(big).solver == "hbm"
+    assert resolved_check(big, "auto")[0] == "none"
+    small = _chain(40, 4, dense=True)
+    assert time_domain_cost(small)[1] == "" and choose(small).solver == "shoot"

@@ -15,10 +15,14 @@ The rule:
    damper leaves an orbit unconverged at 300 Hz); else ``quasi-static`` for a system without
    mass, else ``piecewise-linear`` (Method 3).
 
-3. **Harmonic balance** for a sparse structure above ``model.structure.DENSE_MAX_N`` DOFs:
-   shooting's Jacobian is dense over 2n unknowns there, while the harmonic balance factorises
-   the sparse dynamic stiffness once per harmonic and solves on the contact coordinates
-   (:mod:`slipstep.hbm.linear`); its truncation estimate is the point's error.
+3. **Harmonic balance** where a time-domain steady state costs minutes
+   (:func:`time_domain_cost`): a sparse structure above ``model.structure.DENSE_MAX_N`` DOFs,
+   or a dense one whose one-period Jacobian, about N n (3 n + r) (2 n + n_d) multiply-adds
+   (N = STEADY_STEPS_PER_PERIOD steps, r contact DOFs, n_d sliders: kernels/sensitivity.py),
+   exceeds SHOOTING_MAX_FLOP (about 1 s per Newton iteration here; the unreduced blade pair of
+   363 DOFs and 200 contact points needs 1e11). The harmonic balance factorises the dynamic
+   stiffness once per harmonic and solves on the contact DOFs (:mod:`slipstep.hbm.linear`);
+   its truncation estimate is the point's error.
 
 Elsewhere harmonic balance is not chosen: its contact forces are only as good as the retained
 harmonics (its truncation estimate says how good); ask for it with ``solver="hbm"``.
@@ -26,6 +30,7 @@ harmonics (its truncation estimate says how good); ask for it with ``solver="hbm
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +39,31 @@ from slipstep.model.structure import DENSE_MAX_N
 from slipstep.model.system import System
 
 DEFAULT_METHOD = "piecewise-linear"
+SHOOTING_MAX_FLOP = 2e10  # multiply-adds of one period Jacobian above which auto takes harmonic balance
+
+
+def time_domain_cost(system: System) -> tuple[float, str]:
+    """(multiply-adds of one shooting Newton iteration, why it is too costly or ""): infinite for a
+    sparse structure above DENSE_MAX_N (shooting needs the dense matrices); rule 3 of the module
+    docstring."""
+    n = system.n_dofs
+    if system.structure.sparse and n > DENSE_MAX_N:
+        return math.inf, (
+            f"the structure is sparse with {n} DOFs (above {DENSE_MAX_N}), where shooting's Jacobian would be "
+            "dense over 2n unknowns"
+        )
+    from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD
+
+    cs = system.compile("contacts")
+    touched = int(np.count_nonzero(np.asarray(abs(cs.A).sum(axis=0)).ravel()))  # the contact DOFs
+    nd = int(cs.kt.shape[0])
+    flop = float(STEADY_STEPS_PER_PERIOD) * n * (3 * n + touched) * (2 * n + nd)
+    if flop <= SHOOTING_MAX_FLOP:
+        return flop, ""
+    return flop, (
+        f"one shooting Newton iteration would cost about {flop:.1e} multiply-adds ({n} DOFs, {nd} sliders; "
+        f"above {SHOOTING_MAX_FLOP:.0e})"
+    )
 
 
 @dataclass(frozen=True)
@@ -68,13 +98,13 @@ def choose(system: System, method: str | None = None) -> SolverChoice:
 
     if not isinstance(system, System):
         raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
-    if system.structure.sparse and system.n_dofs > DENSE_MAX_N:
+    _, costly = time_domain_cost(system)
+    if costly:
         return SolverChoice(
             "hbm",
             method,
-            f"harmonic balance: the structure is sparse with {system.n_dofs} DOFs (above {DENSE_MAX_N}), where "
-            "shooting's Jacobian would be dense over 2n unknowns; the balance factorises the sparse dynamic "
-            "stiffness once per harmonic and reports its harmonic-truncation estimate",
+            f"harmonic balance: {costly}; the balance factorises the dynamic stiffness once per harmonic, "
+            "solves on the contact DOFs and reports its harmonic-truncation estimate",
         )
     if method is None:
         method, why = choose_method(system)

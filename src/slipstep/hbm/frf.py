@@ -45,7 +45,6 @@ from slipstep.hbm.energy import (
 from slipstep.frequency.grid import check_frequencies as valid_frequencies
 from slipstep.frequency.schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
-from slipstep.model.structure import DENSE_MAX_N
 from slipstep.model.system import System
 
 
@@ -272,7 +271,7 @@ def frf(
     continuation: pseudo-arclength from the first to the last frequency (step capped at the
     grid spacing or ``max_df`` Hz), else Newton at each given frequency. check: 'peak' (the
     FRF peak and ``check_frequencies``), 'all' or 'none': the time-marching cross-check; 'auto'
-    (default): 'peak', or 'none' on a sparse structure above DENSE_MAX_N DOFs (attr check_skipped),
+    (default): 'peak', or 'none' where a time-domain steady state costs minutes (attr check_skipped),
     options ``check_options`` (method, tolerance, max_periods, steps_per_period, start_from_hbm:
     march from the HBM state at t = 0 (default) rather than the static preload, run options).
     adequacy / adequacy_tolerance / auto_harmonics: the harmonic-adequacy estimate, its warning
@@ -469,16 +468,19 @@ def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:
 
 
 def resolved_check(system, check) -> tuple:
-    """The cross-check asked, with ``"auto"`` resolved: ``"peak"`` unless the structure is sparse
-    above ``model.structure.DENSE_MAX_N`` DOFs, where marching a steady state costs minutes and the
-    harmonic-truncation estimate is the point's error instead. Returns (check, why it was skipped)."""
+    """The cross-check asked, with ``"auto"`` resolved: ``"peak"`` unless a time-domain steady state
+    of the system costs minutes (slipstep.frequency.choice.time_domain_cost: a sparse structure
+    above DENSE_MAX_N DOFs, or a large dense one with many sliders), where the harmonic-truncation
+    estimate is the point's error instead. Returns (check, why it was skipped)."""
     if check != "auto":
         return check, ""
-    if system.structure.sparse and system.n_dofs > DENSE_MAX_N:
+    from slipstep.frequency.choice import time_domain_cost
+
+    _, costly = time_domain_cost(system)
+    if costly:
         return "none", (
-            f"the structure is sparse with {system.n_dofs} DOFs (above {DENSE_MAX_N}): marching a steady "
-            "state would take minutes, so each point's error is the harmonic-truncation estimate; pass "
-            "check='peak' to march the peak anyway"
+            f"no time-marching cross-check: {costly}; each point's error is the harmonic-truncation "
+            "estimate (pass check='peak' to march the peak anyway)"
         )
     return "peak", ""
 
