@@ -245,6 +245,10 @@ KEY_DOCS: dict[str, tuple[str, str]] = {
     "ChainSpec.damper": ("-", "the damper copied between each neighbouring pair of blades"),
     "ChainSpec.blades": ("1", "number of blades N"),
     "ChainSpec.closed": ("-", "true: also a damper between blade N and blade 1 (a ring)"),
+    "SubstructureSpec.mistuning": (
+        "1",
+        "mistuning of a blade without [chain]: its stiffness times 1 + delta, delta > -1 (default: tuned)",
+    ),
     "ChainSpec.mistuning": (
         "1",
         "blade-to-blade scatter: blade j's stiffness times 1 + delta_j, one delta > -1 per blade (default: tuned)",

@@ -31,6 +31,7 @@ from slipstep.sweep.store import VARYING
 distributed = pytest.importorskip("distributed")
 
 SRC = Path(__file__).resolve().parents[1] / "src"
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 @pytest.fixture(scope="module")
@@ -179,3 +180,51 @@ def test_a_killed_client_loses_nothing_and_duplicates_nothing(cluster, tmp_path)
         for key in ("energy_per_cycle_J", "solves", "state_changes", "full_slip_share"):
             assert after[key].values[i] == ref[key], (i, key)
         assert after.interface_k_eq_N_per_m.sel(interface="left").values[i] == ref["interface_k_eq_N_per_m[left]"]
+
+
+def test_a_killed_mistuning_sweep_resumes_to_the_serial_numbers(cluster, tmp_path):
+    """A mistuning sweep of the ring (examples/ring_mistuning.toml at 2 levels x 10 samples and
+    a coarse FRF): the client killed (SIGKILL) part-way, the same sweep run again; every case
+    equals the serial executor's, the tuned reference is computed once and kept."""
+    text = (EXAMPLES / "ring_mistuning.toml").read_text()
+    text = text.replace("std = [0.01, 0.02, 0.04, 0.08]", "std = [0.02, 0.06]").replace("samples = 50", "samples = 10")
+    text = text.replace("batch_size = 5", "batch_size = 1").replace("num = 21", "num = 7")
+    text = text.replace("start_Hz = 280.0", "start_Hz = 295.0").replace("stop_Hz = 340.0", "stop_Hz = 325.0")
+    text = text.replace("harmonics = [1, 3, 5, 7]", "harmonics = [1, 3]")
+    spec_file = tmp_path / "ring_mistuning.toml"
+    spec_file.write_text(text)
+    assert make_plan(load_spec(spec_file)).n_cases == 20
+    store = tmp_path / "ring.zarr"
+    env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    client = (
+        "import sys; from slipstep.sweep.run import run_sweep; from slipstep.sweep.execute import DaskExecutor; "
+        "run_sweep(sys.argv[1], sys.argv[2], executor=DaskExecutor(scheduler=sys.argv[3]), flush_seconds=0.2)"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", client, str(spec_file), str(store), cluster.scheduler_address],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 240
+        while _count_done(store) < 3 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode()
+    before = open_sweep(store)
+    done = before.status.values != ""
+    assert 0 < done.sum() < 20
+    assert np.isfinite(before.amplification_factor.values[done]).all()
+    reference = before.attrs["mistuning_reference"]
+
+    report = run_sweep(spec_file, store, executor=DaskExecutor(scheduler=cluster.scheduler_address))
+    assert report["skipped"] == done.sum() and report["computed"] == 20 - done.sum() and report["missing"] == 0
+    after = open_sweep(store)
+    assert after.attrs["mistuning_reference"] == reference
+    assert np.array_equal(after.run_index.values, np.where(done, 0, 1)) and (after.status.values == "OK").all()
+    serial = tmp_path / "serial.zarr"
+    run_sweep(spec_file, serial, executor=SerialExecutor())
+    _assert_same(after, open_sweep(serial))

@@ -93,6 +93,8 @@ class SubstructureSpec(_Strict):
     rayleigh_alpha_per_s: float | None = None
     rayleigh_beta_s: float | None = None
     reduction: ReductionSpec | None = None
+    # mistuning: the stiffness times 1 + mistuning (a blade of an assembly without [chain])
+    mistuning: float | None = None
 
 
 class PlatformLinkSpec(_Strict):
@@ -241,10 +243,15 @@ def build_assembly(spec: AssemblyCaseSpec, base_dir: Path = Path(".")) -> System
 
 def _build(spec: AssemblyCaseSpec, base_dir: Path) -> System:
     subs: dict[str, Substructure] = {}
+    originals: dict[str, Substructure] = {}
     for s in spec.substructures:
         if s.name in subs:
             raise InputError(f"substructures[{s.name}].name", "is used twice", "give every substructure its own name")
-        subs[s.name] = _substructure(s, subs, base_dir)
+        originals[s.name] = subs[s.name] = _substructure(s, originals, base_dir)  # copy_of: the unmistuned one
+        if s.mistuning is not None:
+            subs[s.name] = _renamed(
+                subs[s.name], s.name, 1.0 + _delta(f"substructures[{s.name}].mistuning", s.mistuning)
+            )
     dampers = {d.name: d for d in spec.dampers}
     if len(dampers) != len(spec.dampers):
         raise InputError("dampers.name", "a damper name is used twice", "give every damper its own name")
@@ -336,12 +343,14 @@ def _mistuning(chain: ChainSpec) -> list[float]:
         raise InputError(
             "chain.mistuning", f"has {len(deltas)} values for {chain.blades} blades", "give one delta per blade"
         )
-    for j, d in enumerate(deltas):
-        if not math.isfinite(d) or d <= -1.0:
-            raise InputError(
-                f"chain.mistuning.{j + 1}", f"is {d}", "give a finite delta > -1 (stiffness x (1 + delta))"
-            )
-    return deltas
+    return [_delta(f"chain.mistuning.{j + 1}", d) for j, d in enumerate(deltas)]
+
+
+def _delta(field: str, d: float) -> float:
+    """A mistuning delta, checked: finite and > -1 (the stiffness times 1 + delta stays positive)."""
+    if not math.isfinite(d) or d <= -1.0:
+        raise InputError(field, f"is {d}", "give a finite delta > -1 (stiffness x (1 + delta))")
+    return float(d)
 
 
 def _renamed(s: Substructure, name: str, stiffness_scale: float = 1.0) -> Substructure:

@@ -176,9 +176,32 @@ def _print_report(r: dict, output: Path, console) -> None:
     best = _best_case(output)
     if best:
         rows.append(("largest energy per cycle (all interfaces)", best))
+    worst = _worst_ring(output)
+    if worst:
+        rows.append(("largest amplification factor (mistuning)", worst))
     for name, value in rows:
         table.add_row(name, str(value))
     console.print(table)
+
+
+def _worst_ring(store: Path) -> str:
+    """The case of a mistuning store with the largest amplification factor, as text."""
+    import numpy as np
+
+    from slipstep.sweep.store import open_sweep
+
+    ds = open_sweep(store)
+    if "amplification_factor" not in ds:
+        return ""
+    af = np.where(ds.status.values == "OK", ds.amplification_factor.values, np.nan)
+    if not np.isfinite(af).any():
+        return ""
+    i = int(np.nanargmax(af))
+    where = ", ".join(f"{p} = {ds[p].values[i]:.4g}" for p in ds.attrs["parameters"])
+    return (
+        f"{af[i]:.4g} (blade {int(ds.peak_blade.values[i])} at {ds.peak_frequency_Hz.values[i]:.4g} Hz) "
+        f"at {where} (case {i})"
+    )
 
 
 def _best_case(store: Path) -> str:

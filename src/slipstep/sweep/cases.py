@@ -32,7 +32,7 @@ import numpy as np
 
 from slipstep.casefile.case import CASES_DIR, builtin_cases, read_toml
 from slipstep.errors import InputError
-from slipstep.sweep.spec import CASE_RUN_KEYS, SweepSpec, parameter_values
+from slipstep.sweep.spec import CASE_RUN_KEYS, Mistuning, SweepSpec, parameter_values
 
 Path_ = tuple  # a resolved key path: str keys and int list indices (0-based)
 
@@ -44,6 +44,8 @@ class ResolvedParameter:
     keys: tuple[str, ...]  # as the user wrote them
     paths: tuple[Path_, ...]  # every concrete location they set
     integer: bool  # the target holds integers (e.g. run.steps_per_period)
+    mistuning: Mistuning | None = None  # a coordinate of a mistuning parameter (slipstep.sweep.mistuning) ...
+    role: str = ""  # ... its "level" or its "sample"
 
 
 @dataclass(frozen=True)
@@ -255,12 +257,21 @@ def probe_case(plan: Plan) -> dict:
 
 
 def apply_values(base: dict, parameters, values) -> dict:
-    """A deep copy of ``base`` with each parameter's value written at all its paths."""
+    """A deep copy of ``base`` with each parameter's value written at all its paths (a
+    mistuning parameter: the blade deltas of its level and sample, slipstep.sweep.mistuning)."""
+    from slipstep.sweep.mistuning import apply_mistuning
+
     data = copy.deepcopy(base)
+    draws: dict = {}
     for param, value in zip(parameters, values):
+        if param.mistuning is not None:
+            draws.setdefault(param.mistuning, {})[param.role] = float(value)
+            continue
         v = round(float(value)) if param.integer else float(value)
         for path in param.paths:
             _set(data, path, v)
+    for m, d in draws.items():
+        apply_mistuning(data, m, d["level"], round(d["sample"]))
     return data
 
 
@@ -285,6 +296,9 @@ def _names(spec: SweepSpec) -> list[str]:
     for depth in range(1, 8):
         chosen = []
         for p in spec.parameters:
+            if isinstance(p, Mistuning):
+                chosen.extend(mistuning_names(p))
+                continue
             if p.name:
                 chosen.append(p.name)
                 continue
@@ -300,16 +314,35 @@ def _names(spec: SweepSpec) -> list[str]:
     raise InputError("[[parameter]] name", f"two parameters are both named {dup[0]!r}", "give each a distinct name")
 
 
+def mistuning_names(m: Mistuning) -> list[str]:
+    """The store coordinates of a mistuning parameter: <name>_level, <name>_sample."""
+    from slipstep.sweep.mistuning import LEVEL, SAMPLE
+
+    return [f"{m.name}_{LEVEL}", f"{m.name}_{SAMPLE}"]
+
+
+def _grid_lists(params) -> list[list[float]]:
+    """The grid's axes: one per parameter, two (levels, sample numbers) per mistuning one."""
+    out = []
+    for p in params:
+        if isinstance(p, Mistuning):
+            out += [[float(v) for v in p.levels], [float(k) for k in range(p.n_samples)]]
+        else:
+            out.append(parameter_values(p))
+    return out
+
+
 def _check_names(names: list[str]) -> None:
     """Parameter names become store variables: a plain name that no store variable uses."""
     from slipstep.post.summary import FIELDS
+    from slipstep.sweep.mistuning import MISTUNING_FIELDS
     from slipstep.sweep.store import RESERVED
 
     for i, name in enumerate(names):
         where = f"[[parameter]] {i + 1}: name"
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.+-]*", name):
             raise InputError(where, f"is {name!r}", "use letters, digits and _ (starting with a letter)")
-        if name in FIELDS or name in RESERVED or name.startswith(("history_", "frf_")):
+        if name in FIELDS or name in MISTUNING_FIELDS or name in RESERVED or name.startswith(("history_", "frf_")):
             raise InputError(where, f"{name!r} is a variable of the sweep store", "give the parameter another name")
 
 
@@ -320,8 +353,8 @@ def sample_points(spec: SweepSpec) -> tuple[np.ndarray, tuple[int, ...] | None]:
     """The (n_cases, n_parameters) values and the grid shape (grid sampling only)."""
     params = spec.parameters
     if spec.sampling == "grid":
-        lists = [parameter_values(p) for p in params]
-        values = np.array(list(itertools.product(*lists)), dtype=float).reshape(-1, len(params))
+        lists = _grid_lists(params)
+        values = np.array(list(itertools.product(*lists)), dtype=float).reshape(-1, len(lists))
         return values, tuple(len(v) for v in lists)
     if spec.sampling == "zip":
         return np.array([parameter_values(p) for p in params], dtype=float).T.copy(), None
@@ -342,6 +375,52 @@ def sample_points(spec: SweepSpec) -> tuple[np.ndarray, tuple[int, ...] | None]:
     return out, None
 
 
+def _mistuning_parameters(base: dict, m: Mistuning, names: list[str]) -> list[ResolvedParameter]:
+    """The level and sample coordinates of a mistuning parameter, checked against the base case
+    (an assembly; its blades; one delta vector per blade for a given list)."""
+    from slipstep.sweep.mistuning import LEVEL, SAMPLE, blades_of
+
+    blades = blades_of(base, m)
+    if m.deltas is not None and len(m.deltas[0]) != len(blades):
+        raise InputError(
+            f"[[parameter]] {m.name}: deltas",
+            f"has vectors of {len(m.deltas[0])} deltas for {len(blades)} blades",
+            "give one delta per blade",
+        )
+    key = (
+        ("chain.mistuning",) if base.get("chain") is not None else tuple(f"substructures.{b}.mistuning" for b in blades)
+    )
+    level_unit = {"normal": "1 (std)", "uniform": "1 (half-width)", "list": "1 (scale)"}[m.distribution]
+    return [
+        ResolvedParameter(names[0], level_unit, key, (), False, m, LEVEL),
+        ResolvedParameter(names[1], "1", key, (), True, m, SAMPLE),
+    ]
+
+
+def _mistuning_outputs(base: dict, spec: SweepSpec, outputs: dict) -> None:
+    """A mistuning sweep summarises each case's FRF at the blades' response DOFs: it needs
+    [outputs.frf], whose responses default to (and must hold) those DOFs."""
+    from slipstep.sweep.mistuning import response_dofs
+
+    m = next((p for p in spec.parameters if isinstance(p, Mistuning)), None)
+    if m is None:
+        return
+    if "frf" not in outputs:
+        raise InputError(
+            "[outputs.frf]",
+            "is missing: a mistuning sweep summarises each sample's frequency response",
+            'add [outputs.frf] with frequencies_Hz (or start_Hz, stop_Hz, num) and solver = "hbm"',
+        )
+    dofs = response_dofs(base, m)
+    cfg = outputs["frf"]
+    if cfg["responses"] is None:
+        cfg["responses"] = dofs
+    missing = [d for d in dofs if d not in cfg["responses"]]
+    if missing:
+        raise InputError("[outputs.frf] responses", f"lacks the blade DOFs {missing}", "add them (or remove responses)")
+    outputs["mistuning"] = {"responses": dofs}
+
+
 def case_hash(case: dict, extra_run: dict, outputs: dict) -> str:
     text = json.dumps(
         {"case": case, "run_options": extra_run, "outputs": outputs},
@@ -359,7 +438,12 @@ def make_plan(spec: SweepSpec) -> Plan:
     names = _names(spec)
     _check_names(names)
     resolved = []
-    for i, (p, name) in enumerate(zip(spec.parameters, names)):
+    names = iter(names)
+    for i, p in enumerate(spec.parameters):
+        if isinstance(p, Mistuning):
+            resolved += _mistuning_parameters(base, p, [next(names), next(names)])
+            continue
+        name = next(names)
         paths = []
         for key in p.keys:
             found = resolve(base, key)
@@ -402,6 +486,9 @@ def make_plan(spec: SweepSpec) -> Plan:
         from slipstep.sweep.spec import frf_config
 
         outputs["frf"] = frf_config(spec.outputs.frf)
+    if not spec.outputs.time_summary:
+        outputs["time_summary"] = False
+    _mistuning_outputs(base, spec, outputs)
     plan_params = tuple(resolved)
     hashes = tuple(case_hash(apply_values(base, plan_params, row), extra, outputs) for row in values)
     if len(set(hashes)) != len(hashes):

@@ -46,10 +46,11 @@ class Payload:
     extra_run: dict
     outputs: dict
     base_dir: str | None = None
+    reference: tuple = ()  # a mistuning sweep's tuned peaks (slipstep.sweep.mistuning.tuned_references)
 
 
-def payload_of(plan) -> Payload:
-    return Payload(plan.base, plan.parameters, plan.extra_run, plan.outputs, plan.base_dir)
+def payload_of(plan, reference=()) -> Payload:
+    return Payload(plan.base, plan.parameters, plan.extra_run, plan.outputs, plan.base_dir, tuple(reference))
 
 
 def run_case(payload: Payload, values) -> dict:
@@ -76,6 +77,9 @@ def run_case(payload: Payload, values) -> dict:
             system, run = build_case(data, payload.base_dir)
             options = _run_options(run, payload.extra_run)
             method = run.method or "newmark"
+            if payload.outputs.get("time_summary", True) is False:
+                result.update(_run_frf_only(payload, data, values, system, run))
+                return _finish(result, caught, start, cpu)
             sim = Simulation(system, method, **options)
             if _fast(payload, options):
                 result.update(_run_fast(sim, system))
@@ -89,6 +93,7 @@ def run_case(payload: Payload, values) -> dict:
                 result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
             if payload.outputs.get("frf"):
                 result["frf"] = frf_values(system, run, payload.outputs["frf"])
+                result["summary"].update(_mistuning_summary(payload, data, values, result["frf"]))
         except InputError as exc:
             result.update(status=STATUS_INPUT, message=str(exc))
         except SolverError as exc:
@@ -134,6 +139,37 @@ def _run_fast(sim, system) -> dict:
     }
 
 
+def _run_frf_only(payload: Payload, data: dict, values, system, run) -> dict:
+    """An FRF-only case ([outputs] time_summary = false): the FRF and its mistuning summary; the
+    status OK when every point is OK, else the most frequent other point status."""
+    from collections import Counter
+
+    wall = time.perf_counter()
+    frf = frf_values(system, run, payload.outputs["frf"])
+    points = [str(s) for s in np.atleast_1d(frf.get("status", np.array([], str)))]
+    bad = Counter(s for s in points if s != "OK")
+    status = bad.most_common(1)[0][0] if bad else "OK"
+    message = f"{sum(bad.values())} of {len(points)} FRF points are not OK ({dict(bad)})" if bad else ""
+    return {
+        "status": status,
+        "message": message,
+        "summary": _mistuning_summary(payload, data, values, frf),
+        "frf": frf,
+        "timing": {"kernel_time_s": math.nan, "wall_time_s": time.perf_counter() - wall},
+    }
+
+
+def _mistuning_summary(payload: Payload, data: dict, values, frf: dict) -> dict:
+    """The mistuning fields of a case (slipstep.sweep.mistuning), {} for other sweeps."""
+    from slipstep.sweep.mistuning import mistuning_stats, reference_for, summary_of
+
+    cfg = payload.outputs.get("mistuning")
+    if not cfg:
+        return {}
+    ref = reference_for(payload.reference, payload.parameters, values)
+    return {**summary_of(frf, payload.outputs["frf"], cfg, ref), **mistuning_stats(data)}
+
+
 def _run_options(run, extra: dict) -> dict:
     """RunOptions from a case's [run] table and the sweep's extra options."""
     opts = {}
@@ -167,17 +203,24 @@ def frf_values(system, run, cfg: dict) -> dict:
     from slipstep.frequency import FRF_SCHEMA, frf
 
     method = run.method if run.method and run.method not in ("quasi-static", "4") else "piecewise-linear"
+    hbm = {"check": cfg["check"], "adequacy": cfg["adequacy"]} if cfg["solver"] == "hbm" else {}
     ds = frf(
         system,
         cfg["frequencies_Hz"],
         solver=cfg["solver"],
         direction=cfg["direction"],
         responses=cfg["responses"],
-        harmonics=cfg["harmonics"],
+        harmonics=tuple(cfg["harmonics"]) if isinstance(cfg["harmonics"], list) else cfg["harmonics"],
         method=method,
         tolerance=cfg["tolerance"],
+        **hbm,
     )
+    if "point_kind" in ds and cfg["solver"] == "hbm":  # the asked points, not the continuation's steps
+        ds = ds.isel(frequency=np.flatnonzero(np.asarray(ds["point_kind"].values).astype(str) == "asked"))
     ds = ds.sortby("frequency")
+    _, first = np.unique(ds["frequency"].values, return_index=True)
+    if first.size != ds.sizes["frequency"]:  # a frequency met twice (a fold): its first point
+        ds = ds.isel(frequency=first)
     return {name: np.asarray(ds[name].transpose(*FRF_SCHEMA[name][0]).values) for name in FRF_SCHEMA if name in ds}
 
 

@@ -5,7 +5,13 @@
   optimum marked (star) and, on a grid, the best y for each x (the ridge a designer follows);
 * :func:`design_curves` - a quantity against one parameter, one curve per value of another
   (the energy-vs-amplitude curve of a damper for several centrifugal loads);
-* :func:`frf_curves`    - the stored frequency responses of one response DOF, one per case.
+* :func:`frf_curves`    - the stored frequency responses of one response DOF, one per case;
+* :func:`mistuning_distribution` - a mistuning sweep's amplification factors: histogram and
+  empirical CDF per mistuning level, with the tuned ring (1), the linear stuck-contact
+  amplification factors (dashed CDFs) and Whitehead's linear limit (1 + sqrt(N)) / 2 marked;
+* :func:`mistuning_levels` - the largest blade amplitude against the mistuning level, with
+  dampers and without (contacts removed): median, 5-95 % band and maximum over the samples,
+  the tuned values as horizontal lines (cases pooled over any other parameter).
 
 A quantity is a store variable, with a label in brackets for the labelled ones:
 ``energy_per_cycle_J``, ``interface_energy_per_cycle_J[right]``, ``interface_zeta_eq[left]``.
@@ -391,17 +397,116 @@ def write_figures(
     paths = []
     params = list(ds.attrs["parameters"])
     figures = []
+    mistuned = "amplification_factor" in ds and "mistuning_reference" in ds.attrs
+    if mistuned and name not in ds:  # an FRF-only mistuning sweep: no time summary to map
+        params = []
     if len(params) >= 2:
         figures.append(("design_map.png", design_map(ds, name, x, y, at, minimize)))
-    if ds.attrs.get("grid_shape") is not None:
+    if ds.attrs.get("grid_shape") is not None and params:
         cx = x or params[-1]
         cg = group or (y if y and y != cx else None)
         figures.append(("design_curves.png", design_curves(ds, name, cx, cg, at, minimize)))
-    if "frf_amplitude" in ds:
+    if "frf_amplitude" in ds and not mistuned:
         figures.append(("frf_curves.png", frf_curves(ds, group=y, at=at)))
+    if mistuned:
+        figures.append(("mistuning_distribution.png", mistuning_distribution(ds)))
+        figures.append(("mistuning_levels.png", mistuning_levels(ds)))
     for filename, fig in figures:
         path = output_dir / filename
         save_figure(fig, path, dpi=130)
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def _mistuning_level(ds) -> str:
+    """The level coordinate of a mistuning sweep (<name>_level)."""
+    from slipstep.sweep.mistuning import LEVEL
+
+    names = [p for p in ds.attrs["parameters"] if p.endswith(f"_{LEVEL}") and p[: -len(LEVEL)] + "sample" in ds]
+    if not names:
+        raise InputError("store", "is not a mistuning sweep", "plot a sweep with a [[parameter]] kind = mistuning")
+    return names[0]
+
+
+def _tuned(ds) -> dict:
+    import json
+
+    ref = json.loads(ds.attrs["mistuning_reference"])
+    return ref[0] if ref else {}
+
+
+def _ecdf(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The empirical CDF F(x_(i)) = i / n of the finite values, sorted."""
+    v = np.sort(values[np.isfinite(values)])
+    return v, np.arange(1, v.size + 1) / max(v.size, 1)
+
+
+def mistuning_distribution(ds, ax=None):
+    """Histogram (left) and empirical CDF (right) of the amplification factor per mistuning
+    level (OK cases), the linear stuck-contact amplification factors as dashed CDFs, the tuned
+    ring (AF = 1) and Whitehead's limit (1 + sqrt(N)) / 2 of a linear ring of N blades."""
+    level = _mistuning_level(ds)
+    ok = _ok(ds)
+    n_blades = len(ds.attrs.get("mistuning_responses", [])) or None
+    fig, (ax_h, ax_c) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    af_all = np.asarray(ds["amplification_factor"].values, float)[ok]
+    bins = np.histogram_bin_edges(af_all[np.isfinite(af_all)], bins=20) if np.isfinite(af_all).any() else 10
+    levels = np.unique(ds[level].values[ok])
+    colours = plt.cm.viridis(np.linspace(0.1, 0.85, max(levels.size, 1)))
+    for lev, c in zip(levels, colours):
+        at = ok & (ds[level].values == lev)
+        af = np.asarray(ds["amplification_factor"].values, float)[at]
+        label = f"{level} = {lev:g} ({np.isfinite(af).sum()} samples)"
+        ax_h.hist(af[np.isfinite(af)], bins=bins, color=c, alpha=0.55, label=label)
+        x, F = _ecdf(af)
+        ax_c.step(x, F, where="post", color=c, label=label)
+        if "linear_stuck_amplification_factor" in ds:
+            xs, Fs = _ecdf(np.asarray(ds["linear_stuck_amplification_factor"].values, float)[at])
+            ax_c.step(xs, Fs, where="post", color=c, ls="--", lw=1, label=f"linear stuck, {level} = {lev:g}")
+    for a in (ax_h, ax_c):
+        a.axvline(1.0, color="k", lw=1.2, label="tuned (AF = 1)")
+        if n_blades:
+            a.axvline((1 + np.sqrt(n_blades)) / 2, color="grey", ls=":", label=f"Whitehead limit, {n_blades} blades")
+        a.set_xlabel("amplification factor (largest blade amplitude / tuned) [1]")
+    ax_h.set_ylabel("samples")
+    ax_c.set_ylabel("empirical CDF [1]")
+    ax_c.set_ylim(0, 1.02)
+    ax_h.legend(fontsize=7)
+    ax_c.legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"{ds.attrs.get('sweep_name', 'sweep')}: amplification factor of the mistuned samples")
+    return fig
+
+
+def mistuning_levels(ds):
+    """Largest blade amplitude against the mistuning level, with dampers (the FRF) and without
+    (contacts removed, linear_free): median, 5-95 % band and maximum over the OK samples of each
+    level; the tuned ring's values as horizontal lines."""
+    level = _mistuning_level(ds)
+    ok = _ok(ds)
+    tuned = _tuned(ds)
+    scale, unit = _DISPLAY["m"]
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    levels = np.unique(ds[level].values[ok])
+    series = (
+        ("peak_blade_amplitude", "with dampers", "C0"),
+        ("linear_free_peak_amplitude", "without dampers (contacts removed)", "C3"),
+    )
+    for field, label, c in series:
+        if field not in ds:
+            continue
+        rows = [np.asarray(ds[field].values, float)[ok & (ds[level].values == lev)] * scale for lev in levels]
+        rows = [r[np.isfinite(r)] for r in rows]
+        keep = [i for i, r in enumerate(rows) if r.size]
+        x = levels[keep]
+        q = np.array([np.percentile(rows[i], [5, 50, 95]) for i in keep]).reshape(-1, 3)
+        ax.fill_between(x, q[:, 0], q[:, 2], color=c, alpha=0.2, label=f"{label}: 5-95 %")
+        ax.plot(x, q[:, 1], "o-", color=c, label=f"{label}: median")
+        ax.plot(x, [rows[i].max() for i in keep], "^--", color=c, ms=5, lw=1, label=f"{label}: maximum")
+        if field in tuned:
+            ax.axhline(tuned[field] * scale, color=c, ls=":", lw=1.2, label=f"{label}: tuned")
+    ax.set_xlabel(f"mistuning level {level} [{ds[level].attrs.get('units', '1')}]")
+    ax.set_ylabel(f"largest blade amplitude [{unit}]")
+    ax.legend(fontsize=7)
+    ax.set_title(f"{ds.attrs.get('sweep_name', 'sweep')}: blade amplitude against mistuning")
+    return fig

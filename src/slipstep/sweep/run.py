@@ -108,8 +108,9 @@ def run_sweep(
     if rows:
         executor = executor if executor is not None else DaskExecutor()
         started = time.perf_counter()
+        reference = _mistuning_reference(plan, sweep_store)
         with executor as ex:
-            payload = payload_of(plan)
+            payload = payload_of(plan, reference)
             ex.warm_up(payload, rows[0][2])
             start = time.perf_counter()
             startup = start - started
@@ -139,6 +140,27 @@ def run_sweep(
         "workers": workers,
         "executor": name,
     }
+
+
+def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
+    """The tuned peaks of a mistuning sweep (slipstep.sweep.mistuning.tuned_references), computed
+    by the client once per sweep and kept in the store's attrs (``mistuning_reference``: a
+    resumed sweep reads them; ``mistuning_responses``: the blade DOFs); [] for other sweeps."""
+    import json
+
+    if "mistuning" not in plan.outputs:
+        return []
+    stored = store.group.attrs.get("mistuning_reference")
+    if stored:
+        return json.loads(stored)
+    from slipstep.sweep.execute import frf_values
+    from slipstep.sweep.mistuning import tuned_references
+
+    reference = tuned_references(plan, frf_values)
+    store.group.attrs["mistuning_reference"] = json.dumps(reference)
+    store.group.attrs["mistuning_responses"] = list(plan.outputs["mistuning"]["responses"])
+    store.consolidate()
+    return reference
 
 
 def _collect(

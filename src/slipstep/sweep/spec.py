@@ -35,6 +35,19 @@ swept quantity and an optional ``[outputs]`` table::
     solver = "march"                         # march | shoot; direction = "up" | "down"
     harmonics = 3                            # responses = ["8.x", ...] (default: every DOF)
 
+A ``[[parameter]]`` of ``kind = "mistuning"`` (grid sampling) scatters the blades of an
+assembly (the built-in ``ring`` or any assembly case): blade j's stiffness times 1 + delta_j,
+delta = level * u with u drawn per sample (slipstep.sweep.mistuning)::
+
+    [[parameter]]
+    kind = "mistuning"
+    distribution = "normal"        # normal (std = ...) | uniform (half_width = ...) | list (deltas = [[...], ...])
+    std = [0.01, 0.02, 0.04]       # one level or a list of levels: the grid's mistuning levels
+    samples = 50                   # samples per level, drawn with seed (sample k alone is reproducible)
+    seed = 1
+    # blades = ["b1", "b2", ...]   # an assembly without [chain]: the blade substructures in order
+    # response = "8.x"             # the blade DOF of the amplitude (default: the engine-order force's)
+
 Sampled sweeps (latin-hypercube, sobol) give each parameter ``low`` and ``high`` (and an
 optional ``scale = "log"``) and draw ``samples`` points with ``seed`` (scipy.stats.qmc).
 Every error names the key the user wrote, as the case files' messages do (slipstep.casefile.check):
@@ -103,6 +116,62 @@ class Parameter:
         return (self.key,) if isinstance(self.key, str) else tuple(self.key)
 
 
+DISTRIBUTIONS = {"normal": "std", "uniform": "half_width", "list": "scale"}  # distribution -> its level key
+MISTUNING_KEYS = (
+    "kind",
+    "name",
+    "distribution",
+    "std",
+    "half_width",
+    "scale",
+    "samples",
+    "seed",
+    "deltas",
+    "blades",
+    "response",
+)
+
+
+@dataclass(frozen=True)
+class Mistuning:
+    """Random blade mistuning, a parameter of two store coordinates (``<name>_level``,
+    ``<name>_sample``): blade j's stiffness times 1 + delta_j with delta = level * u_k, where
+    u_k is the unit draw of sample k: normal u_j ~ N(0, 1) (level: the standard deviation),
+    uniform u_j ~ U(-1, 1) (level: the half-width), list u_k = deltas[k] as given (level: a
+    scale, default 1). ``blades`` names the blade substructures of an assembly without
+    [chain]; ``response`` the blade DOF whose amplitude is summarised."""
+
+    distribution: str = "normal"
+    levels: tuple[float, ...] = ()
+    samples: int | None = None
+    seed: int = 0
+    deltas: tuple[tuple[float, ...], ...] | None = None
+    blades: tuple[str, ...] | None = None
+    response: str | None = None
+    name: str = "mistuning"
+    kind = "mistuning"
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.deltas) if self.deltas is not None else int(self.samples or 0)
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return ("mistuning",)
+
+    def to_dict(self) -> dict:
+        d = {"kind": "mistuning", "name": self.name, "distribution": self.distribution, "seed": self.seed}
+        d[DISTRIBUTIONS.get(self.distribution, "std")] = list(self.levels)
+        if self.samples is not None:
+            d["samples"] = self.samples
+        if self.deltas is not None:
+            d["deltas"] = [list(v) for v in self.deltas]
+        for k in ("blades", "response"):
+            if getattr(self, k) is not None:
+                d[k] = list(getattr(self, k)) if k == "blades" else getattr(self, k)
+        return d
+
+
 @dataclass(frozen=True)
 class Outputs:
     """What each case returns besides its summary."""
@@ -110,6 +179,7 @@ class Outputs:
     histories: tuple[str, ...] = ()
     history_points: int = 64
     frf: dict | None = None  # the frequency response of each case (FRF_KEYS), see frf_config
+    time_summary: bool = True  # False: no time-domain run per case (an FRF-only sweep)
 
 
 @dataclass(frozen=True)
@@ -136,6 +206,9 @@ class SweepSpec:
         """The spec as plain data (the store keeps it in its attrs)."""
         params = []
         for p in self.parameters:
+            if isinstance(p, Mistuning):
+                params.append(p.to_dict())
+                continue
             d = {
                 k: getattr(p, k)
                 for k in ("key", "values", "start", "stop", "num", "low", "high", "name", "unit")
@@ -162,6 +235,8 @@ class SweepSpec:
             "history_points": self.outputs.history_points,
             "frf": self.outputs.frf,
         }
+        if not self.outputs.time_summary:
+            outputs["time_summary"] = False
         if self.outputs.frf is None:
             del outputs["frf"]
         return {"sweep": sweep, "run": dict(self.run), "parameter": params, "outputs": outputs}
@@ -208,7 +283,7 @@ def spec_from_dict(data: dict, source: str = "sweep", root: Path | None = None) 
         )
     parsed = tuple(_parameter(p, i) for i, p in enumerate(params))
     outputs = _table(data, "outputs")
-    _known(outputs, "[outputs] ", ("summary", "histories", "history_points", "frf"), "[outputs]")
+    _known(outputs, "[outputs] ", ("summary", "histories", "history_points", "frf", "time_summary"), "[outputs]")
     if outputs.get("summary", True) is not True:
         raise InputError(
             "[outputs] summary", "cannot be switched off", "remove the key: every case returns its summary"
@@ -217,6 +292,7 @@ def spec_from_dict(data: dict, source: str = "sweep", root: Path | None = None) 
         histories=tuple(_str_list(outputs.get("histories", []), "[outputs] histories")),
         history_points=outputs.get("history_points", 64),
         frf=outputs.get("frf"),
+        time_summary=outputs.get("time_summary", True),
     )
     return SweepSpec(
         base=base,
@@ -233,10 +309,16 @@ def spec_from_dict(data: dict, source: str = "sweep", root: Path | None = None) 
     )
 
 
-def _parameter(p, i: int) -> Parameter:
+def _parameter(p, i: int) -> Parameter | Mistuning:
     where = f"[[parameter]] {i + 1}"
     if not isinstance(p, dict):
         raise InputError(where, "is not a table", "write each parameter as a [[parameter]] table")
+    kind = p.get("kind", "value")
+    if kind == "mistuning":
+        return _mistuning(p, where)
+    if kind != "value":
+        raise InputError(f"{where}: kind", f"is {kind!r}", 'use "value" (the default) or "mistuning"')
+    p = {k: v for k, v in p.items() if k != "kind"}
     _known(
         p,
         f"{where}: ",
@@ -269,6 +351,83 @@ def _parameter(p, i: int) -> Parameter:
         name=p.get("name"),
         unit=p.get("unit"),
     )
+
+
+def _mistuning(p: dict, where: str) -> Mistuning:
+    """A Mistuning from its [[parameter]] table (the TOML keys MISTUNING_KEYS)."""
+    _known(p, f"{where}: ", MISTUNING_KEYS, 'a [[parameter]] table of kind = "mistuning"')
+    distribution = p.get("distribution", "normal")
+    if distribution not in DISTRIBUTIONS:
+        raise InputError(f"{where}: distribution", f"is {distribution!r}", f"use one of {', '.join(DISTRIBUTIONS)}")
+    level_key = DISTRIBUTIONS[distribution]
+    for other in set(DISTRIBUTIONS.values()) - {level_key}:
+        if other in p:
+            raise InputError(
+                f"{where}: {other}", f"is not the level of a {distribution} distribution", f"give {level_key} = ..."
+            )
+    if level_key not in p and distribution != "list":
+        raise InputError(f"{where}: {level_key}", "is required but missing", f"give {level_key} = 0.02 (or a list)")
+    levels = p.get(level_key, 1.0)
+    levels = tuple(levels) if isinstance(levels, list) else (levels,)
+    deltas = p.get("deltas")
+    if deltas is not None:
+        if not isinstance(deltas, list) or not all(isinstance(v, list) for v in deltas):
+            raise InputError(f"{where}: deltas", f"is {deltas!r}", "give a list of delta vectors, one per sample")
+        deltas = tuple(tuple(v) for v in deltas)
+    blades = p.get("blades")
+    if blades is not None:
+        blades = tuple(_str_list(blades, f"{where}: blades"))
+    return Mistuning(
+        distribution=distribution,
+        levels=levels,
+        samples=p.get("samples"),
+        seed=p.get("seed", 0),
+        deltas=deltas,
+        blades=blades,
+        response=p.get("response"),
+        name=p.get("name", "mistuning"),
+    )
+
+
+def _check_mistuning(m: Mistuning, where: str, sampling: str) -> None:
+    if sampling != "grid":
+        raise InputError(
+            f"{where}: kind",
+            f"a mistuning parameter needs grid sampling, not {sampling}",
+            'use sampling = "grid" (the samples are the mistuning parameter\'s own)',
+        )
+    level_key = DISTRIBUTIONS[m.distribution]
+    if not m.levels:
+        raise InputError(f"{where}: {level_key}", "is empty", "give at least one level")
+    for j, v in enumerate(m.levels):
+        if _number(f"{where}: {level_key}[{j}]", v) <= 0:
+            raise InputError(f"{where}: {level_key}[{j}]", f"is {v}", "give a level > 0")
+    if len(set(m.levels)) != len(m.levels):
+        raise InputError(f"{where}: {level_key}", f"repeats a level ({list(m.levels)})", "give each level once")
+    _integer(f"{where}: seed", m.seed, minimum=0)
+    if m.distribution == "list":
+        if m.deltas is None or not m.deltas:
+            raise InputError(
+                f"{where}: deltas", "is missing or empty", "give deltas = [[d1, d2, ...], ...], one per sample"
+            )
+        if m.samples is not None:
+            raise InputError(f"{where}: samples", "is given with deltas", "remove it: each delta vector is a sample")
+        widths = {len(v) for v in m.deltas}
+        if len(widths) != 1:
+            raise InputError(f"{where}: deltas", f"has vectors of lengths {sorted(widths)}", "give one delta per blade")
+        for k, vec in enumerate(m.deltas):
+            for j, v in enumerate(vec):
+                _number(f"{where}: deltas[{k}][{j}]", v)
+    else:
+        if m.deltas is not None:
+            raise InputError(
+                f"{where}: deltas", f"is given with distribution {m.distribution!r}", 'use distribution = "list"'
+            )
+        _integer(f"{where}: samples", m.samples, minimum=1, hint="the number of samples per level")
+    if m.response is not None and (not isinstance(m.response, str) or not m.response):
+        raise InputError(f"{where}: response", f"is {m.response!r}", 'give a blade DOF such as "8.x"')
+    if not isinstance(m.name, str) or not m.name:
+        raise InputError(f"{where}: name", f"is {m.name!r}", "give a non-empty text")
 
 
 # -- validation ----------------------------------------------------------------------------------
@@ -306,7 +465,12 @@ def validate(spec: SweepSpec) -> None:
             "remove it (the lists and ranges give the cases) or use latin-hypercube / sobol",
         )
     for i, p in enumerate(spec.parameters):
-        _check_parameter(p, _param_where(i, p), sampled, spec.sampling)
+        if isinstance(p, Mistuning):
+            _check_mistuning(p, _param_where(i, p), spec.sampling)
+        else:
+            _check_parameter(p, _param_where(i, p), sampled, spec.sampling)
+    if sum(isinstance(p, Mistuning) for p in spec.parameters) > 1:
+        raise InputError("[[parameter]] kind", "two parameters are of kind mistuning", "give one mistuning parameter")
     if spec.sampling == "zip":
         lengths = {len(parameter_values(p)) for p in spec.parameters}
         if len(lengths) > 1:
@@ -403,6 +567,18 @@ def _check_outputs(out: Outputs) -> None:
                 f"use some of {', '.join(HISTORY_VARIABLES)}",
             )
     _integer("[outputs] history_points", out.history_points, minimum=2)
+    if not isinstance(out.time_summary, bool):
+        raise InputError("[outputs] time_summary", f"is {out.time_summary!r}", "give true or false")
+    if not out.time_summary and out.frf is None:
+        raise InputError(
+            "[outputs] time_summary", "is false without [outputs.frf]", "keep the time summary or add [outputs.frf]"
+        )
+    if not out.time_summary and out.histories:
+        raise InputError(
+            "[outputs] histories",
+            "need the time-domain run (time_summary = false)",
+            "remove them or the time_summary key",
+        )
     if out.frf is not None:
         frf_config(out.frf)
 
@@ -417,13 +593,19 @@ FRF_KEYS = (
     "harmonics",
     "responses",
     "tolerance",
+    "check",
+    "adequacy",
 )
+FRF_SOLVERS = ("march", "shoot", "hbm")
+HBM_CHECKS = ("auto", "peak", "all", "none")
 
 
 def frf_config(table) -> dict:
     """The [outputs.frf] table checked and completed: the frequencies [Hz] (a list, or start_Hz,
-    stop_Hz, num), solver (march | shoot), direction (up | down), harmonics H, responses (DOF
-    names, default all) and the steady-state tolerance; slipstep.frequency.frf runs it per case."""
+    stop_Hz, num), solver (march | shoot | hbm), direction (up | down), harmonics H (hbm: H or a
+    list of retained harmonics such as [1, 3, 5]), responses (DOF names, default all), the
+    steady-state tolerance, and for hbm its time-marching cross-check (check: auto | peak | all | none, as slipstep.hbm.frf)
+    and truncation estimate (adequacy: true | false); slipstep.frequency.frf runs it per case."""
     import numpy as np
 
     where = "[outputs.frf]"
@@ -452,8 +634,16 @@ def frf_config(table) -> dict:
             "give distinct positive frequencies [Hz]",
         )
     solver, direction = table.get("solver", "march"), table.get("direction", "up")
-    if solver not in ("march", "shoot"):
-        raise InputError(f"{where} solver", f"is {solver!r}", "use march or shoot")
+    if solver not in FRF_SOLVERS:
+        raise InputError(f"{where} solver", f"is {solver!r}", f"use one of {', '.join(FRF_SOLVERS)}")
+    for key in ("check", "adequacy"):
+        if key in table and solver != "hbm":
+            raise InputError(f"{where} {key}", f"is an option of solver hbm, not {solver}", "remove it or use hbm")
+    check, adequacy = table.get("check", "auto"), table.get("adequacy", True)
+    if check not in HBM_CHECKS:
+        raise InputError(f"{where} check", f"is {check!r}", f"use one of {', '.join(HBM_CHECKS)}")
+    if not isinstance(adequacy, bool):
+        raise InputError(f"{where} adequacy", f"is {adequacy!r}", "give true or false")
     if direction not in ("up", "down"):
         raise InputError(
             f"{where} direction",
@@ -463,14 +653,28 @@ def frf_config(table) -> dict:
     responses = table.get("responses")
     if responses is not None:
         responses = _str_list(responses, f"{where} responses")
-    return {
+    out = {
         "frequencies_Hz": sorted(freqs),
         "solver": solver,
         "direction": direction,
-        "harmonics": _integer(f"{where} harmonics", table.get("harmonics", 3), minimum=0),
+        "harmonics": _harmonics(f"{where} harmonics", table.get("harmonics", 3), solver),
         "responses": responses,
         "tolerance": _number(f"{where} tolerance", table.get("tolerance", 1e-6)),
     }
+    if solver == "hbm":
+        out.update(check=check, adequacy=adequacy)
+    return out
+
+
+def _harmonics(where: str, value, solver: str):
+    """H >= 0, or (harmonic balance) a list of distinct retained harmonics >= 1."""
+    if solver == "hbm" and isinstance(value, list):
+        if not value or any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in value):
+            raise InputError(where, f"is {value!r}", "give H or a list of harmonics >= 1, e.g. [1, 3, 5]")
+        if len(set(value)) != len(value):
+            raise InputError(where, f"repeats a harmonic ({value})", "give each harmonic once")
+        return sorted(value)
+    return _integer(where, value, minimum=0)
 
 
 def parameter_values(p: Parameter) -> list[float]:

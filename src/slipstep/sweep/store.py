@@ -212,10 +212,11 @@ class SweepStore:
 
     def _summary_array(self, base: str, dim, labels, values):
         from slipstep.post.summary import FIELDS
+        from slipstep.sweep.mistuning import MISTUNING_FIELDS
 
         if base in self._arrays:
             return self._arrays[base]
-        units, long_name = FIELDS.get(base, ("1", base))
+        units, long_name = {**FIELDS, **MISTUNING_FIELDS}.get(base, ("1", base))
         if dim is None:
             sample = next((v for v in values if v is not None), 0.0)
             integer = isinstance(sample, (int, np.integer)) and not isinstance(sample, bool)
@@ -441,7 +442,7 @@ def _create_frf(g, plan, labels: dict) -> None:
     cfg = plan.outputs["frf"]
     coords = {
         "frequency": np.array(cfg["frequencies_Hz"], float),
-        "harmonic": np.arange(cfg["harmonics"] + 1),
+        "harmonic": np.arange(max(np.atleast_1d(cfg["harmonics"])) + 1),  # 0..H (hbm: H = the highest kept)
         "response": np.array(cfg["responses"] or labels["dof"], dtype=str),
     }
     attrs = {
