@@ -121,3 +121,13 @@ def test_auto_takes_harmonic_balance_where_shooting_costs_minutes():
     assert resolved_check(big, "auto")[0] == "none"
     small = _chain(40, 4, dense=True)
     assert time_domain_cost(small)[1] == "" and choose(small).solver == "shoot"
+
+
+def test_frf_passes_asked_only_to_harmonic_balance():
+    """frf(..., solver='hbm', asked_only=True) returns the asked frequencies only."""
+    from slipstep.frequency.response import frf
+
+    system = _chain(30, 2, dense=False)
+    ds = frf(system, [35.0, 40.0, 45.0], solver="hbm", harmonics=3, check="none", asked_only=True)
+    assert list(ds["point_kind"].values) == ["asked"] * 3
+    assert np.allclose(ds["frequency"].values, [35.0, 40.0, 45.0])

@@ -228,6 +228,7 @@ HBM_ONLY_OPTIONS = (
     "tol",
     "max_df",
     "level",
+    "asked_only",
 )
 """Options of :func:`frf` that only harmonic balance takes (slipstep.hbm.frf)."""
 
