@@ -95,7 +95,8 @@ def _module_doc(path: Path) -> str:
 
 def _toml_commands(path: Path) -> list[str]:
     """The commands a TOML file's leading comments give for itself: comment lines whose text (in
-    backticks or not) starts with ``slipstep ``, a trailing backslash continuing on the next line."""
+    backticks or not) starts with ``slipstep ``, a trailing backslash continuing on the next line,
+    a shell comment (`` # ...``) after the command dropped."""
     commands: list[str] = []
     pending = ""
     for line in path.read_text().splitlines():
@@ -111,7 +112,7 @@ def _toml_commands(path: Path) -> list[str]:
         if pending.endswith("\\"):
             pending = pending[:-1].rstrip()
         else:
-            commands.append(" ".join(pending.split()))
+            commands.append(shlex.join(shlex.split(pending, comments=True)))  # a trailing `# note` is not an argument
             pending = ""
     return commands
 
