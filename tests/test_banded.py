@@ -319,7 +319,9 @@ def test_banded_result_keeps_the_energy_balance_and_the_user_dof_order():
 def test_steady_state_by_marching_on_the_banded_backend_equals_the_dense_one():
     """Issue 24 item 7 (in part): march_to_steady runs on the banded backend (the marcher keeps
     states in the user's DOF order) and gives the dense backend's periodic orbit to round-off;
-    shooting, whose period Jacobian is dense in 2 n + nd unknowns, refuses it with the fix."""
+    shooting, whose period Jacobian is dense in 2 n + nd unknowns, marches a sparse structure
+    densely (the same orbit), refuses the banded backend when asked for it, and refuses a sparse
+    structure above DENSE_MAX_N naming harmonic balance."""
     from slipstep.steady import march_to_steady, shoot
 
     system = chain_system(120, 4)
@@ -330,5 +332,12 @@ def test_steady_state_by_marching_on_the_banded_backend_equals_the_dense_one():
         orbits[backend] = st.period["displacement"].values
     span = np.ptp(orbits["direct"])
     assert span > 0 and np.abs(orbits["banded"] - orbits["direct"]).max() <= 1e-9 * span
-    with pytest.raises(InputError, match="shooting's period Jacobian needs the dense one"):
+    shot = shoot(system, tolerance=1e-8)
+    assert shot.ok and shot.period.attrs["linear_solver"] == "direct"
+    assert np.abs(shot.period["displacement"].values - orbits["direct"]).max() <= 1e-6 * span
+    with pytest.raises(InputError, match="shooting's period Jacobian needs the dense matrices"):
         shoot(system, linear_solver="banded")
+    from slipstep.model.structure import DENSE_MAX_N
+
+    with pytest.raises(InputError, match="solver='hbm'"):
+        shoot(chain_system(DENSE_MAX_N + 10, 4))

@@ -47,6 +47,7 @@ from slipstep.steady.marching import (
     start,
 )
 from slipstep.steady.state import State, SteadyState, as_state, period_scales
+from slipstep.model.structure import DENSE_MAX_N
 from slipstep.model.system import System
 
 
@@ -56,6 +57,24 @@ def _unknowns(s: State, quasi: bool) -> np.ndarray:
 
 def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
     return State.from_unknowns(z, n, quasi, states)
+
+
+def dense_backend_options(system: System, run_options: dict) -> dict:
+    """The run options with ``linear_solver='direct'`` added for a sparse structure (which
+    ``System.compile`` would put on the banded backend): the period Jacobian Phi is dense over
+    2 n + n_d unknowns whatever the backend, so shooting marches densely (a sparse structure
+    above DENSE_MAX_N DOFs is refused there, naming harmonic balance). A given linear_solver is
+    kept."""
+    if not system.structure.sparse or "linear_solver" in run_options:
+        return run_options
+    if system.n_dofs > DENSE_MAX_N:
+        raise InputError(
+            "structure",
+            f"is a sparse structure of {system.n_dofs} DOFs: shooting's period Jacobian is dense over 2n unknowns "
+            f"(at most {DENSE_MAX_N} DOFs)",
+            "use solver='hbm' (slipstep.frf's auto rule takes it), or march_to_steady",
+        )
+    return {**run_options, "linear_solver": "direct"}
 
 
 def period_jacobian(sim: Simulation, sliders: np.ndarray | None = None) -> np.ndarray:
@@ -278,12 +297,14 @@ def shoot(
     ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
+    run_options = dense_backend_options(system, run_options)
     sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
     if sim.compiled.banded:  # the period Jacobian is dense in 2 n + nd unknowns
         raise InputError(
-            "structure",
-            "is a sparse structure on the banded backend: shooting's period Jacobian needs the dense one",
-            "use march_to_steady (or slipstep.frf with solver='march'), or linear_solver='direct' for a small model",
+            "linear_solver",
+            "is 'banded': shooting's period Jacobian needs the dense matrices",
+            "leave linear_solver unset (shooting then marches a sparse structure of up to "
+            f"{DENSE_MAX_N} DOFs densely), use solver='hbm', or march_to_steady",
         )
     scheme = sim.options.scheme
     if not sim.method.quasi_static and (scheme.alpha_m != 0 or scheme.alpha_f != 0):
