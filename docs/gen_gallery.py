@@ -24,6 +24,7 @@ import ast
 import contextlib
 import io
 import os
+import re
 import shlex
 import subprocess
 import sys
@@ -115,6 +116,27 @@ def _toml_commands(path: Path) -> list[str]:
             commands.append(shlex.join(shlex.split(pending, comments=True)))  # a trailing `# note` is not an argument
             pending = ""
     return commands
+
+
+GALLERY_SAMPLES = 3  # random samples per level of a Monte Carlo sweep run for the gallery
+
+
+def _gallery_copy(path: Path, workdir: Path) -> tuple[Path, str]:
+    """(the TOML file the gallery runs, a note for the page): a sweep with random samples
+    (``samples = N`` in a [[parameter]] table, N > GALLERY_SAMPLES) runs from a copy with
+    GALLERY_SAMPLES samples per level, so the site builds in minutes (the full study is the
+    file as written, timed by its benchmark); any other file runs as it is."""
+    text = path.read_text()
+    reduced, count = re.subn(r"(?m)^(samples\s*=\s*)(\d+)", lambda m: _fewer_samples(m), text)
+    if count == 0 or reduced == text:
+        return path, ""
+    copy = workdir / path.name
+    copy.write_text(reduced)
+    return copy, f"(run here with samples = {GALLERY_SAMPLES} per level; the file asks for more)\n"
+
+
+def _fewer_samples(match: re.Match) -> str:
+    return match.group(1) + str(min(int(match.group(2)), GALLERY_SAMPLES))
 
 
 def _toml_title(path: Path) -> str:
@@ -320,9 +342,9 @@ def gallery_pages(run: bool = True) -> dict[str, str | bytes]:
             commands = "\n".join(own)
 
             def run_case(d: Path, p=path, cmds=tuple(own)) -> str:
-                text = ""
+                spec, text = _gallery_copy(p, d)
                 for cmd in cmds:
-                    args = [str(p) if a == f"examples/{p.name}" else a for a in shlex.split(cmd)[1:]]
+                    args = [str(spec) if a == f"examples/{p.name}" else a for a in shlex.split(cmd)[1:]]
                     text += _run(_slipstep(*args), d)
                 return text.replace(str(d) + os.sep, "")
 
