@@ -145,11 +145,13 @@ def start(sim: Simulation, state: State | None, t_start: float) -> None:
     sim.start_from(state.x, state.v, state.a, state.w, state.contact_state, t_start=t_start)
 
 
-def march_one_period(sim: Simulation):
-    """March one period from the set start; (status, start state, end state, change e)."""
+def march_one_period(sim: Simulation, check: bool = True):
+    """March one period from the set start; (status, start state, end state, change e).
+    ``check`` False: without the contact invariants (Simulation.march), for an iterate whose
+    period is not kept."""
     quasi = sim.method.quasi_static
     s0 = sim.start
-    status = sim.march()
+    status = sim.march(check=check)
     end = sim.segment.end_state
     if status != Status.OK:
         return status, s0, end, math.inf

@@ -36,6 +36,7 @@ from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED, STICK
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.kernels.settings import contact_table
+from slipstep.methods.invariants import check_march
 from slipstep.methods.massless import inverse_mass
 from slipstep.methods.simulation import Simulation
 from slipstep.steady.marching import (
@@ -234,12 +235,30 @@ def floquet(phi: np.ndarray) -> np.ndarray:
     return ev[np.argsort(-np.abs(ev))]
 
 
+LU_PIVOT_FLOOR = 1e-12  # below this pivot ratio of its LU the Newton matrix is solved by least squares
+
+
 def newton_step(phi: np.ndarray, residual: np.ndarray, scale: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """dz solving (Phi - I) dz = -R over the free unknowns in scaled unknowns (least squares),
-    the neutral sliders fixed (dz = 0 there); phi is over z[free], residual and scale over z."""
+    """dz solving (Phi - I) dz = -R over the free unknowns in scaled unknowns,
+
+        (Phi_hat - I) dz_hat = -R_hat,   Phi_hat = S^-1 Phi S,  R_hat = S^-1 R[free],  dz = S dz_hat,
+
+    S = diag(scale[free]) the block scales, by LU (least squares where the matrix is singular to
+    round-off); the neutral sliders are kept fixed (dz = 0 there). phi is over z[free], residual
+    and scale over z."""
+    import scipy.linalg
+
     s = scale[free]
-    Ahat = (phi - np.eye(free.size)) * s[None, :] / s[:, None]
-    dhat = np.linalg.lstsq(Ahat, -residual[free] / s, rcond=1e-13)[0]
+    matrix = (phi - np.eye(free.size)) * s[None, :] / s[:, None]
+    rhs = -residual[free] / s
+    dhat = None
+    if free.size:
+        lu, piv = scipy.linalg.lu_factor(matrix, check_finite=False)
+        pivots = np.abs(np.diag(lu))
+        if pivots.min() > LU_PIVOT_FLOOR * pivots.max():
+            dhat = scipy.linalg.lu_solve((lu, piv), rhs, check_finite=False)
+    if dhat is None:
+        dhat = np.linalg.lstsq(matrix, rhs, rcond=1e-13)[0]
     dz = np.zeros(residual.size)
     dz[free] = dhat * s
     return dz
@@ -363,7 +382,7 @@ def shoot(
             if status not in ("OK", "NOT_STEADY"):
                 return stop(status, state)
         start(sim, guess if guess is not None else state, t0)
-        status, s0, end, e = march_one_period(sim)
+        status, s0, end, e = march_one_period(sim, check=False)  # an iterate: checked when kept
         periods += 1
         kernel += sim.kernel_time
         changes.append(e)
@@ -374,6 +393,9 @@ def shoot(
         if status != Status.OK:
             return stop(status.name, end)
         if e <= tolerance:
+            status = check_march(sim)  # the contact invariants of the period kept
+            if status != Status.OK:
+                return stop(status.name, end)
             phi, free = jacobian(sim)
             return stop(
                 "OK",
