@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 from pydantic import ValidationError
 
-from slipstep.casefile.case import (
+from slipstep.casefile.specs import (
     MM,
     DamperContactSpec,
     HarmonicSpec,
