@@ -21,10 +21,11 @@ from pathlib import Path
 
 import typer
 
-from slipstep.cli.main import _case_stem, _output_dir
-from slipstep.cli.main import err as _err
-from slipstep.cli.main import out as _out
-from slipstep.cli.main import user_errors as _user_errors
+from slipstep.casefile.files import case_stem as _case_stem
+from slipstep.cli.console import err as _err
+from slipstep.cli.console import out as _out
+from slipstep.cli.console import output_dir_option as _output_dir
+from slipstep.cli.console import user_errors as _user_errors
 from slipstep.errors import InputError
 
 SOLVER_NAMES = ("auto", "march", "shoot", "hbm")  # slipstep.frequency.SOLVERS (not imported: start-up time)
