@@ -3,7 +3,7 @@
 Nothing here is copied from the code by hand: the case-file key reference walks the pydantic
 specs of :mod:`slipstep.casefile.case`, the result reference is :data:`slipstep.output.results.SCHEMA` plus the
 coordinates and attributes of a real (tiny) run, the FRF reference is
-:data:`slipstep.frequency.schema.FRF_SCHEMA`, the methods page is
+:data:`slipstep.output.frf_schema.FRF_SCHEMA`, the methods page is
 :data:`slipstep.methods.registry.METHODS` and :data:`slipstep.integrators.INTEGRATORS`, the CLI
 reference is the typer app, the equation index is the docstrings that cite the paper or
 physics.md, and the API pages are one per module found under ``src/slipstep``.
@@ -760,11 +760,11 @@ def results_reference(samples=None) -> str:
 
 
 def frf_reference() -> str | None:
-    """The FRF Dataset layout (slipstep.frequency.schema), or None if the module is absent."""
+    """The FRF Dataset layout (slipstep.output.frf_schema), or None if the module is absent."""
     path = SRC / "slipstep" / "frequency" / "schema.py"
     if not path.exists():
         return None
-    from slipstep.frequency.schema import FRF_SCHEMA
+    from slipstep.output.frf_schema import FRF_SCHEMA
 
     tree = ast.parse(path.read_text())
     module_doc = ast.get_docstring(tree) or ""
@@ -782,7 +782,7 @@ def frf_reference() -> str | None:
         "# Frequency-response reference",
         "",
         "Every frequency-response solver returns an `xarray.Dataset` laid out as "
-        "`slipstep.frequency.schema.FRF_SCHEMA` (this table), so curves from different solvers overlay.",
+        "`slipstep.output.frf_schema.FRF_SCHEMA` (this table), so curves from different solvers overlay.",
         "",
         module_doc,
         "",

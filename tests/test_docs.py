@@ -136,7 +136,7 @@ def test_every_attribute_and_coordinate_of_a_run_is_documented(pages, samples):
 
 
 def test_frf_page_is_the_frf_schema(pages):
-    schema = pytest.importorskip("slipstep.frequency.schema")
+    schema = pytest.importorskip("slipstep.output.frf_schema")
     rows = _rows(_section(pages["reference/frequency_response.md"], "## Variables", "## Attributes"))
     assert {name: [f"({', '.join(d)})", u, m] for name, (d, u, m) in schema.FRF_SCHEMA.items()} == rows
 

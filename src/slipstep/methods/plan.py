@@ -113,7 +113,7 @@ class RunPlan:
     def retuned(self, frequency_hz: float, system: System | None = None, **option_changes) -> "RunPlan":
         """The plan of the same run at the excitation frequency ``frequency_hz`` [Hz] (the next
         FRF point): ``system`` is the retuned system when the caller has one (else
-        frequency.retune(self.system, frequency_hz)), ``option_changes`` the options that change
+        model.retune.retune(self.system, frequency_hz)), ``option_changes`` the options that change
         with the point (the steady solvers' step T / N). The compiled matrices, T_min and the
         step limits are kept (no compile, no eigenvalue problem) when only the frequencies
         change; the same array layout, so a marcher takes it (Marcher.retarget). Another system
@@ -290,7 +290,7 @@ def _timed_plan(
 
 def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = None, **option_changes) -> RunPlan:
     """:meth:`RunPlan.retuned` (see there)."""
-    from slipstep.frequency.retune import retune  # (frequency/ imports the steady solvers, which import methods/)
+    from slipstep.model.retune import retune
 
     system = retune(plan.system, frequency_hz) if system is None else system
     opt = replace(plan.options, **option_changes).validated()

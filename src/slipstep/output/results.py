@@ -36,13 +36,53 @@ SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
 DYNAMIC_ONLY = ("velocity", "acceleration")
 
 
+def interpolate(rows: dict, grid: np.ndarray, dynamic: bool, gamma: float | None) -> dict:
+    """The saved rows (t, x, v, a, q, f, w, state, solves, dt, step: the step ends around each
+    given time) at the given times ``grid`` (the ``times`` choice of slipstep.methods.save). theta = (t - t_0) / h in the
+    step [t_0, t_1] of length h:
+
+        x = h00 x_0 + h10 h v_0 + h01 x_1 + h11 h v_1   (cubic Hermite; linear without v)
+        a = (1 - theta) a_0 + theta a_1
+        v = v_0 + theta h ((1 - gamma) a_0 + gamma a)    (Newmark; v_1 at theta = 1)
+
+    with h00 = 2 th^3 - 3 th^2 + 1, h10 = th^3 - 2 th^2 + th, h01 = 3 th^2 - 2 th^3,
+    h11 = th^3 - th^2; q, f, w linear; the state of the nearest step end; solves and
+    step_size those of the step holding the time."""
+    t = rows["t"]
+    right = np.clip(np.searchsorted(t, grid, side="left"), 0, t.size - 1)
+    left = np.maximum(right - 1, 0)
+    h = t[right] - t[left]
+    safe = np.where(h > 0, h, 1.0)
+    th = np.where(h > 0, (grid - t[left]) / safe, 1.0)[:, None]
+    hh = h[:, None]
+    x0, x1 = rows["x"][left], rows["x"][right]
+    out = {"t": np.asarray(grid, float)}
+    if dynamic:
+        v0, v1, a0, a1 = rows["v"][left], rows["v"][right], rows["a"][left], rows["a"][right]
+        th2, th3 = th * th, th * th * th
+        out["x"] = (2 * th3 - 3 * th2 + 1) * x0 + (th3 - 2 * th2 + th) * hh * v0 + (3 * th2 - 2 * th3) * x1
+        out["x"] = out["x"] + (th3 - th2) * hh * v1
+        a = (1 - th) * a0 + th * a1
+        out["a"] = a
+        out["v"] = v0 + th * hh * ((1 - gamma) * a0 + gamma * a)
+    else:
+        out["x"] = (1 - th) * x0 + th * x1
+        out["v"] = np.zeros_like(out["x"])
+        out["a"] = np.zeros_like(out["x"])
+    for key in ("q", "f", "w"):
+        out[key] = (1 - th) * rows[key][left] + th * rows[key][right]
+    nearest = np.where(th[:, 0] < 0.5, left, right)
+    out["state"] = rows["state"][nearest]
+    out["solves"] = rows["solves"][right]
+    out["dt"] = h
+    return out
+
+
 def kernel_rows(system, out, n_stored: int, compiled, plan=None, grid=None, dynamic=True, gamma=None):
     """The first ``n_stored`` + 1 rows of the kernel outputs (dict of t, x, v, a, q, f, w,
     state, solves, dt, step; interpolated at the times ``grid`` if given), the saved contacts
     and directions, and the columns of q and f that hold the directions' tangential and the
     contacts' normal components: (rows, contacts, dirs, tan_cols, nrm_cols)."""
-    from slipstep.methods.save import interpolate
-
     k = n_stored + 1
     cs = compiled
     nc = len(system.contact_names)
@@ -72,7 +112,7 @@ def build_dataset(
     """Assemble the Dataset of the first ``n_stored`` + 1 rows of kernel outputs: the saved DOFs
     (coordinate ``dof``), contacts and directions of ``plan`` (slipstep.methods.save.Plan;
     None: all), at the saved steps (coordinate ``step``), or interpolated at the given times
-    ``grid`` (slipstep.methods.save.interpolate; ``gamma``: the Newmark gamma of the march)."""
+    ``grid`` (:func:`interpolate`; ``gamma``: the Newmark gamma of the march)."""
     cs = compiled
     n = len(system.structure.dof_names)
     dofs = np.arange(n) if plan is None else plan.dofs
@@ -192,7 +232,7 @@ def load(path, field: str = "result") -> xr.Dataset:
             raise refuse(f"is not a slipstep result ({kind})")
         fh.seek(0)
         nbytes = _check_hdf5(fh, refuse)
-        from slipstep.methods.memory import memory_limit
+        from slipstep.output.io import memory_limit
 
         limit = memory_limit()
         if nbytes > limit:
