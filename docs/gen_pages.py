@@ -921,6 +921,12 @@ def methods_reference() -> str:
     for name, cls in INTEGRATORS.items():
         doc = (cls.__doc__ or sys.modules[cls.__module__].__doc__ or "").strip().split("\n\n")[0]
         L.append(f"| `{name}` | [`{cls.__name__}`][{cls.__module__}.{cls.__name__}] | {' '.join(doc.split())} |")
+    from slipstep.methods import registry as R
+
+    L += ["", "## At a glance: paper numbers and the schemes' step limits", ""]
+    L.append("`slipstep methods --markdown` prints these two tables, from the same registry.")
+    for start, end, key in R.README_BLOCKS:
+        L += ["", start, R.readme_blocks()[key], end]
     return "\n".join(L) + "\n"
 
 

@@ -1,7 +1,9 @@
-"""One registry of methods x schemes x variants (issue 9 item 2): the README tables, the CLI
-help and `slipstep methods` come from slipstep.methods.registry, with one set of defaults."""
+"""One registry of methods x schemes x variants (issue 9 item 2): the tables of the methods page,
+the CLI help and `slipstep methods` come from slipstep.methods.registry, with one set of defaults."""
 
+import importlib.util
 import inspect
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,14 +16,24 @@ from slipstep.integrators.base import ImplicitIntegrator
 from slipstep.methods import registry as R
 from slipstep.methods import schemes
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 
 
-def test_readme_tables_are_the_generated_ones():
-    """Regenerate with `slipstep methods --markdown` (or registry.update_readme)."""
-    text = README.read_text()
-    assert R.update_readme(text) == text, "README tables are stale: run `slipstep methods --markdown`"
+def _methods_page() -> str:
+    """The site's methods page (reference/methods.md), as docs/gen_pages.py renders it."""
+    if "gen_pages" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("gen_pages", ROOT / "docs" / "gen_pages.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["gen_pages"] = module
+        spec.loader.exec_module(module)
+    return sys.modules["gen_pages"].methods_reference()
+
+
+def test_methods_page_tables_are_the_generated_ones():
+    """The page's method and scheme tables are the registry's (`slipstep methods --markdown`)."""
+    text = _methods_page()
+    assert R.update_readme(text) == text, "the methods page's tables are not the registry's"
     for start, end, key in R.README_BLOCKS:
         assert R.readme_blocks()[key] in text
     out = runner.invoke(app, ["methods", "--markdown"]).stdout

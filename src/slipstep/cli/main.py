@@ -573,7 +573,10 @@ def cases():
 @app.command()
 def methods(
     markdown: Annotated[
-        bool, typer.Option("--markdown", help="Print the README's method and scheme tables (markdown).")
+        bool,
+        typer.Option(
+            "--markdown", help="Print the method and scheme tables of the documentation's methods page (markdown)."
+        ),
     ] = False,
 ):
     """List the time-marching methods (with their paper numbers) and the time-integration schemes."""
