@@ -59,233 +59,6 @@ UNIT_SUFFIXES = (
     ("_s", "s"),
 )
 
-# Meaning of each key ("Spec.field"), and the unit of keys whose name carries none.
-# kind-dependent units are written "damper: ...; structure: ..."
-KEY_DOCS: dict[str, tuple[str, str]] = {
-    # field: (unit or "" to take it from the name, meaning)
-    "CaseSpec.name": ("-", "case name, used in output file names and reports"),
-    "CaseSpec.description": ("-", "free text shown by `slipstep cases`"),
-    "CaseSpec.damper": ("", "a rigid 2D underplatform damper (Kind 1)"),
-    "CaseSpec.structure": ("", "a general linear structure (Kind 2)"),
-    "CaseSpec.contacts": ("", "contact elements of a `[structure]` case"),
-    "CaseSpec.motion_names": ("-", "names of the prescribed motion components p (the columns of `motion_gather`)"),
-    "CaseSpec.motion": ("", "harmonic prescribed motions"),
-    "CaseSpec.force": ("", "harmonic forces on structure DOFs"),
-    "CaseSpec.motion_table": ("", "tabulated prescribed motions"),
-    "CaseSpec.force_table": ("", "tabulated forces on structure DOFs"),
-    "CaseSpec.period_s": ("", "excitation period when no harmonic sets it (tabulated excitation)"),
-    "CaseSpec.run": ("", "default run options (command-line options and `ss.run` keywords win)"),
-    "DamperSpec.mass_kg": ("", "damper mass"),
-    "DamperSpec.inertia_kg_m2": ("", "moment of inertia about the centre of mass"),
-    "DamperSpec.centrifugal_force_N": ("", "constant load on the centre of mass (ramped in the static preload)"),
-    "DamperSpec.centrifugal_angle_deg": ("", "direction of the centrifugal load from X (90: +Y, radial outward)"),
-    "DamperSpec.platforms": ("", "the platform faces the damper touches"),
-    "DamperSpec.contacts": ("", "the contact points of the damper"),
-    "PlatformSpec.name": ("-", "platform name; its motion components are `<name>.x` and `<name>.y`"),
-    "PlatformSpec.angle_deg": (
-        "",
-        "angle of the face from X: tangent (cos, sin); the normal points from the damper into the platform",
-    ),
-    "DamperContactSpec.name": ("-", "contact point name (a `contact` coordinate of the result)"),
-    "DamperContactSpec.platform": ("-", "name of the platform this point touches"),
-    "DamperContactSpec.position_mm": ("", "[a, b] of the point from the centre of mass"),
-    "DamperContactSpec.normal_stiffness_N_per_um": ("", "normal contact stiffness k_n"),
-    "DamperContactSpec.tangential_stiffness_N_per_um": ("", "tangential contact stiffness k_t"),
-    "DamperContactSpec.friction_coefficient": ("1", "friction coefficient mu >= 0"),
-    "StructureSpec.dof_names": ("-", "DOF names (default x0, x1, ...); `[[force]]` components refer to them"),
-    "StructureSpec.dof_units": ("-", 'unit of each DOF: "m" or "rad" (default m)'),
-    "StructureSpec.mass_kg": ("kg (kg m^2 on rad DOFs)", "mass matrix M, symmetric positive definite"),
-    "StructureSpec.damping_N_s_per_m": (
-        "N s/m (SI per DOF unit)",
-        "damping matrix C, symmetric positive semi-definite",
-    ),
-    "StructureSpec.stiffness_N_per_m": (
-        "N/m (SI per DOF unit)",
-        "stiffness matrix K, symmetric positive semi-definite",
-    ),
-    "StructureSpec.mass_file_kg": (
-        "kg",
-        "M from a file instead of mass_kg, relative to the case file: .npz (scipy.sparse.save_npz, kept sparse), "
-        ".mtx (Matrix Market) or .npy (dense); a sparse model runs on the banded backend",
-    ),
-    "StructureSpec.damping_file_N_s_per_m": ("N s/m", "C from a file instead of damping_N_s_per_m (as mass_file_kg)"),
-    "StructureSpec.stiffness_file_N_per_m": ("N/m", "K from a file instead of stiffness_N_per_m (as mass_file_kg)"),
-    "StructureSpec.file": (
-        "-",
-        "an FE code's matrix file, relative to the case file: Nastran OP4 text (.op4), DMIG bulk data (.bdf, .dat, "
-        ".nas, .blk) or ANSYS .full, see [Matrices from FE codes](../guide/fe_files.md)",
-    ),
-    "StructureSpec.format": (
-        "-",
-        'the format of `file`: "op4", "dmig", "ansys" (default: from the suffix); "abaqus" reads mass_file_kg, '
-        "stiffness_file_N_per_m (and damping_file_N_s_per_m) as Abaqus matrix output",
-    ),
-    "StructureSpec.mass_matrix": ("-", "the name of M in `file` (default: the first of MAA, MGG, MHH, MAAX, ...)"),
-    "StructureSpec.stiffness_matrix": ("-", "the name of K in `file` (default: the first of KAA, KGG, KHH, KAAX, ...)"),
-    "StructureSpec.damping_matrix": ("-", "the name of C in `file` (default: BAA, BGG, ... if present, else none)"),
-    "StructureSpec.constant_force_N": ("N (N m on rad DOFs)", "constant load per DOF, ramped in the static preload"),
-    "ContactSpec.name": ("-", "contact name (a `contact` coordinate of the result)"),
-    "ContactSpec.dof_gather": (
-        "1",
-        "A: rows u (tangential) then v (normal, > 0 = interference), one column per DOF; "
-        "2 rows = 2D contact, 3 rows = quasi-3D",
-    ),
-    "ContactSpec.dof_gather_entries": (
-        "1",
-        "the sparse form of dof_gather: [row, DOF index (from 0), value] triples; for models with many DOFs",
-    ),
-    "ContactSpec.dof_gather_rows": ("1", "rows of dof_gather_entries' matrix: 2 (2D, default) or 3 (quasi-3D)"),
-    "ContactSpec.nodes": (
-        "-",
-        'node ids of a contact face of an FE file: one contact per node, named "<name>.<node>", instead of dof_gather',
-    ),
-    "ContactSpec.normal": ("1", "the face's outward normal [nx, ny, nz] (with nodes)"),
-    "ContactSpec.tangent": (
-        "1",
-        "the first tangential direction (made normal to `normal`; default: the axis least aligned with it)",
-    ),
-    "ContactSpec.motion_gather": ("1", "B: one column per `motion_names` entry, q = A x - B p + g"),
-    "ContactSpec.normal_stiffness_N_per_m": ("", "normal contact stiffness k_n"),
-    "ContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] of a quasi-3D contact"),
-    "ContactSpec.friction_coefficient": ("1", "friction coefficient mu >= 0"),
-    "ContactSpec.normal_offset_m": ("", "g on v: initial interference (> 0) or gap (< 0)"),
-    "ContactSpec.law": (
-        "-",
-        "the contact's friction law, see [Contact laws](#contact-laws) (default: the paper's law for its number of "
-        "rows)",
-    ),
-    "HarmonicSpec.component": ("-", "what is driven: a prescribed motion component or a DOF"),
-    "HarmonicSpec.frequency_Hz": ("", "frequency f of amplitude sin(2 pi f t + phase)"),
-    "HarmonicSpec.amplitude": ("", "amplitude"),
-    "HarmonicSpec.phase_deg": ("", "phase"),
-    "TableSpec.component": ("-", "what is driven: a prescribed motion component or a DOF"),
-    "TableSpec.times_s": ("", "sample times, increasing; linear interpolation between them"),
-    "TableSpec.values": ("", "one value per time"),
-    # Kind 3: assemblies (slipstep.casefile.assembly)
-    "AssemblyCaseSpec.name": ("-", "case name, used in output file names and reports"),
-    "AssemblyCaseSpec.description": ("-", "free text shown by `slipstep cases`"),
-    "AssemblyCaseSpec.substructures": ("", "the substructures (blades, imported models)"),
-    "AssemblyCaseSpec.dampers": ("", "rigid dampers whose platforms follow substructure points"),
-    "AssemblyCaseSpec.contacts": ("", "contacts on named assembled DOFs"),
-    "AssemblyCaseSpec.chain": ("", "copy one blade and one damper into a chain or a closed ring"),
-    "AssemblyCaseSpec.force": ("", "harmonic forces on assembled DOFs"),
-    "AssemblyCaseSpec.engine_order_force": ("", "one harmonic force per blade with an engine-order phase lag"),
-    "AssemblyCaseSpec.constant_force_N": ("N", 'constant loads by assembled DOF name, e.g. `{"blade1.8.x" = 1.0}`'),
-    "AssemblyCaseSpec.period_s": ("", "excitation period when no harmonic sets it"),
-    "AssemblyCaseSpec.run": ("", "default run options"),
-    "SubstructureSpec.name": ("-", "substructure name, the prefix of its DOF names (`blade1.8.x`)"),
-    "SubstructureSpec.kind": (
-        "-",
-        "`frame_blade`: a 2D cantilever Euler-Bernoulli frame (axial and bending, DOFs "
-        "`<node>.x`, `.y`, `.rz`); `matrices`: M, K (and C) imported from files, SI",
-    ),
-    "SubstructureSpec.copy_of": ("-", "a renamed copy of an earlier substructure"),
-    "SubstructureSpec.length_mm": ("", "frame blade: length"),
-    "SubstructureSpec.elements": ("1", "frame blade: number of elements"),
-    "SubstructureSpec.youngs_modulus_GPa": ("", "frame blade: Young's modulus"),
-    "SubstructureSpec.density_kg_per_m3": ("", "frame blade: density"),
-    "SubstructureSpec.area_mm2": ("", "frame blade: cross-section area"),
-    "SubstructureSpec.second_moment_mm4": ("", "frame blade: second moment of area of the cross-section"),
-    "SubstructureSpec.platform_node": (
-        "1",
-        "frame blade: node of the point `platform` (default: the tip; the point `tip` is the last node)",
-    ),
-    "SubstructureSpec.platform_mass_kg": ("", "frame blade: lumped mass at the platform node"),
-    "SubstructureSpec.tip_mass_kg": ("", "frame blade: lumped mass at the tip"),
-    "SubstructureSpec.root_mm": ("", "frame blade: position of the root"),
-    "SubstructureSpec.angle_deg": ("", "frame blade: direction of the blade axis from X"),
-    "SubstructureSpec.file": ("-", "matrices: a .npz file with M, K (and C, dof_names, dof_units), dense or CSR, SI"),
-    "SubstructureSpec.mass_file": ("-", "matrices: M as a Matrix Market (.mtx) file, SI"),
-    "SubstructureSpec.stiffness_file": ("-", "matrices: K as a Matrix Market (.mtx) file, SI"),
-    "SubstructureSpec.damping_file": ("-", "matrices: C as a Matrix Market (.mtx) file, SI"),
-    "SubstructureSpec.dofs_file": ("-", 'matrices: the DOFs, one "name unit" a line'),
-    "SubstructureSpec.dof_names": ("-", "matrices: DOF names, when the files do not give them"),
-    "SubstructureSpec.dof_units": ("-", "matrices: DOF units (m or rad), when the files do not give them"),
-    "SubstructureSpec.points": ("", "named points for damper platforms"),
-    "SubstructureSpec.modal_damping_ratio": ("1", "damping ratio of every mode"),
-    "SubstructureSpec.rayleigh_alpha_per_s": ("", "alpha of Rayleigh damping C = alpha M + beta K"),
-    "SubstructureSpec.rayleigh_beta_s": ("", "beta of Rayleigh damping C = alpha M + beta K"),
-    "SubstructureSpec.reduction": ("", "optional Craig-Bampton reduction"),
-    "PointSpec.name": ("-", "point name (the `point` a damper platform follows)"),
-    "PointSpec.x": ("-", "the DOF carrying the point's x displacement"),
-    "PointSpec.y": ("-", "the DOF carrying the point's y displacement"),
-    "PointSpec.rz": ("-", "the DOF carrying the point's rotation"),
-    "PointSpec.position_mm": ("", "position of the point"),
-    "ReductionSpec.boundary_dofs": (
-        "-",
-        "DOFs kept as boundary DOFs (a point keeps only its components on the boundary)",
-    ),
-    "ReductionSpec.modes": ("1", "fixed-interface modes kept (DOFs mode1..modeN, in m)"),
-    "DamperLinkSpec.name": ("-", "damper name, the prefix of its DOF names"),
-    "DamperLinkSpec.mass_kg": ("", "damper mass"),
-    "DamperLinkSpec.inertia_kg_m2": ("", "moment of inertia about the centre of mass"),
-    "DamperLinkSpec.centrifugal_force_N": ("", "constant load on the centre of mass (ramped in the static preload)"),
-    "DamperLinkSpec.centrifugal_angle_deg": ("", "direction of the centrifugal load from X (90: +Y)"),
-    "DamperLinkSpec.platforms": ("", "the platform faces, each following a substructure point"),
-    "DamperLinkSpec.contacts": ("", "the contact points (the `[[damper.contacts]]` keys of kind 1)"),
-    "PlatformLinkSpec.name": ("-", "platform name"),
-    "PlatformLinkSpec.angle_deg": ("", "angle of the face from X: tangent (cos, sin)"),
-    "PlatformLinkSpec.substructure": (
-        "-",
-        "the substructure the platform moves with (set by `[chain]` for chained dampers)",
-    ),
-    "PlatformLinkSpec.point": ("-", "the point of that substructure"),
-    "PlatformLinkSpec.offset_mm": (
-        "",
-        "from the point to the damper's centre of mass (lever arm of the point's rotation)",
-    ),
-    "LinkContactSpec.name": ("-", "contact name (a `contact` coordinate of the result)"),
-    "LinkContactSpec.dofs": ("-", "assembled DOF names, one per column of `dof_gather`"),
-    "LinkContactSpec.dof_gather": ("1", "rows u (tangential) then v (normal), one column per name in `dofs`"),
-    "LinkContactSpec.normal_stiffness_N_per_m": ("", "normal contact stiffness k_n"),
-    "LinkContactSpec.tangential_stiffness_N_per_m": ("", "tangential stiffness k_t, or [k_t1, k_t2] (quasi-3D)"),
-    "LinkContactSpec.friction_coefficient": ("1", "friction coefficient mu >= 0"),
-    "LinkContactSpec.normal_offset_m": ("", "g on v: initial interference (> 0) or gap (< 0)"),
-    "ChainSpec.blade": ("-", "the substructure copied into `<blade>1` .. `<blade>N`"),
-    "ChainSpec.damper": ("-", "the damper copied between each neighbouring pair of blades"),
-    "ChainSpec.blades": ("1", "number of blades N"),
-    "ChainSpec.closed": ("-", "true: also a damper between blade N and blade 1 (a ring)"),
-    "SubstructureSpec.mistuning": (
-        "1",
-        "mistuning of a blade without [chain]: its stiffness times 1 + delta, delta > -1 (default: tuned)",
-    ),
-    "ChainSpec.mistuning": (
-        "1",
-        "blade-to-blade scatter: blade j's stiffness times 1 + delta_j, one delta > -1 per blade (default: tuned)",
-    ),
-    "EngineOrderSpec.dof": ("-", "the DOF of each blade, without the blade's name (e.g. `8.x`)"),
-    "EngineOrderSpec.amplitude_N": ("", "force amplitude on each blade"),
-    "EngineOrderSpec.frequency_Hz": ("", "excitation frequency"),
-    "EngineOrderSpec.engine_order": ("1", "engine order EO: blade j (0-based) lags by 2 pi EO j / N"),
-    "EngineOrderSpec.phase_deg": ("", "phase of blade 0"),
-    "EngineOrderSpec.blades": ("-", "the blades (default: the `[chain]`'s blades)"),
-    "RunSpec.method": ("-", "a method name or the paper's number (see Methods; default newmark)"),
-    "RunSpec.periods": ("1", "excitation periods simulated after the preload (default 3)"),
-    "RunSpec.duration_s": ("", "simulated time instead of periods"),
-    "RunSpec.step_ratio": ("1", "r in dt = r T_min / pi of the dynamic methods (default 1)"),
-    "RunSpec.steps_per_period": ("1", "steps per period of the quasi-static method (default 300)"),
-    "RunSpec.ramp_time_s": ("", "smooth start (1 - cos) / 2 of forces and motions"),
-    "RunSpec.save": (
-        "-",
-        "`[run.save]`: what the march stores (default: everything up to 200 DOFs, above it the contacts and "
-        "the response DOFs, every step); command line `--save-dofs`, `--save-contacts`, `--save-every`, "
-        "`--save-last-periods`, `--save-times`",
-    ),
-    "SaveSpec.dofs": (
-        "-",
-        '"all", "none", "response" (the DOFs the contacts see, the forced DOFs and `response`) or DOF names / '
-        'shell patterns (`["blade*"]`)',
-    ),
-    "SaveSpec.contacts": ("-", '"all", "none" or contact names: their q, f, sliders and states'),
-    "SaveSpec.every": ("1", "save every k-th step and the last one (default 1: every step)"),
-    "SaveSpec.last_periods": ("1", "save only the last P >= 1 excitation periods (from the step at or before)"),
-    "SaveSpec.times_s": (
-        "s",
-        "save at these times instead (x by the cubic Hermite of x, v; v, a by the Newmark relations; contacts "
-        "linear, states of the nearest step end)",
-    ),
-    "SaveSpec.response": ("-", "DOF names / patterns added to the response DOFs (the large-model default)"),
-}
 
 # Units and meanings that depend on the kind of case and the table: (kind, table, key) -> (unit, meaning);
 # an empty string keeps the KEY_DOCS entry. These are the scales slipstep.casefile.case.build_system applies.
@@ -430,12 +203,28 @@ def key_doc(qualname: str, key: str, kind: str = "", table: str = "") -> tuple[s
     return c_unit or unit or unit_of_key(key) or "-", c_meaning or meaning
 
 
+def spec_docs() -> dict[str, tuple[str, str]]:
+    """{``Spec.field``: (unit, meaning)} of every case-file key, read from the specs themselves: the
+    meaning is the field's ``description`` (slipstep.casefile.specs, slipstep.casefile.assembly), the
+    unit its ``json_schema_extra["unit"]`` where the key name carries none ("-": no unit; kind-dependent
+    units are written "damper: ...; structure: ..."). A key without a description is missing here."""
+    docs: dict[str, tuple[str, str]] = {}
+    for _, root, _, _ in case_kinds():
+        for _, _, qual, field, _ in key_rows(root):
+            if field.description:
+                docs[qual] = ((field.json_schema_extra or {}).get("unit", ""), field.description)
+    return docs
+
+
 def all_spec_keys() -> list[str]:
     """Every ``Spec.field`` reachable from the root spec of every kind of case file."""
     keys: list[str] = []
     for _, root, _, _ in case_kinds():
         keys += [q for _, _, q, _, _ in key_rows(root) if q not in keys]
     return keys
+
+
+KEY_DOCS = spec_docs()
 
 
 def _key_table(rows, kind: str) -> list[str]:
@@ -459,7 +248,7 @@ def _key_table(rows, kind: str) -> list[str]:
                 "|---|---|---|---|---|",
             ]
         unit, meaning = key_doc(qual, key, kind, table)
-        meaning = meaning or "**undocumented: add it to KEY_DOCS in docs/gen_pages.py**"
+        meaning = meaning or "**undocumented: give its spec field a description (slipstep.casefile.specs)**"
         out.append(f"| `{key}` | {_type_name(field.annotation)} | {_default(field)} | {unit} | {meaning} |")
     return out
 
@@ -761,7 +550,7 @@ def results_reference(samples=None) -> str:
 
 def frf_reference() -> str | None:
     """The FRF Dataset layout (slipstep.output.frf_schema), or None if the module is absent."""
-    path = SRC / "slipstep" / "frequency" / "schema.py"
+    path = SRC / "slipstep" / "output" / "frf_schema.py"
     if not path.exists():
         return None
     from slipstep.output.frf_schema import FRF_SCHEMA
@@ -921,13 +710,23 @@ def methods_reference() -> str:
     for name, cls in INTEGRATORS.items():
         doc = (cls.__doc__ or sys.modules[cls.__module__].__doc__ or "").strip().split("\n\n")[0]
         L.append(f"| `{name}` | [`{cls.__name__}`][{cls.__module__}.{cls.__name__}] | {' '.join(doc.split())} |")
+    return "\n".join(L) + "\n"
+
+
+def registry_tables() -> str:
+    """The registry's method and scheme tables (``slipstep methods --markdown``) at the end of the methods page."""
     from slipstep.methods import registry as R
 
-    L += ["", "## At a glance: paper numbers and the schemes' step limits", ""]
+    L = ["", "## At a glance: paper numbers and the schemes' step limits", ""]
     L.append("`slipstep methods --markdown` prints these two tables, from the same registry.")
     for start, end, key in R.README_BLOCKS:
         L += ["", start, R.readme_blocks()[key], end]
     return "\n".join(L) + "\n"
+
+
+def methods_page() -> str:
+    """The whole methods page: the methods and schemes, the advisor's report, the registry's tables."""
+    return methods_reference() + "\n" + advice_example() + registry_tables()
 
 
 def advice_example() -> str:
@@ -1309,7 +1108,7 @@ def all_pages(samples=None) -> dict[str, str]:
     pages = {
         "reference/case_file.md": case_file_reference(),
         "reference/results.md": results_reference(samples),
-        "reference/methods.md": methods_reference() + "\n" + advice_example(),
+        "reference/methods.md": methods_page(),
         "reference/cli.md": cli_reference(),
         "theory/equations.md": theory_index(),
         "theory/validation.md": validation_report(),

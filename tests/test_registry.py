@@ -27,7 +27,7 @@ def _methods_page() -> str:
         module = importlib.util.module_from_spec(spec)
         sys.modules["gen_pages"] = module
         spec.loader.exec_module(module)
-    return sys.modules["gen_pages"].methods_reference()
+    return sys.modules["gen_pages"].methods_page()
 
 
 def test_methods_page_tables_are_the_generated_ones():
