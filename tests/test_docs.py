@@ -121,10 +121,10 @@ def test_every_attribute_and_coordinate_of_a_run_is_documented(pages, samples):
     attrs = gen.result_attributes(samples)
     assert {"status", "steps", "solves", "dt_s", "t_min_s"} <= set(attrs)
     missing = [a for a in attrs if a not in gen.ATTR_DOCS]
-    assert not missing, f"add these result attributes to ATTR_DOCS in docs/gen_pages.py: {missing}"
+    assert not missing, f"add these result attributes to ATTRS in slipstep.output.results: {missing}"
     coords = [c for ds in samples for c in ds.coords]
     missing = sorted({c for c in coords if c not in gen.COORD_DOCS})
-    assert not missing, f"add these coordinates to COORD_DOCS in docs/gen_pages.py: {missing}"
+    assert not missing, f"add these coordinates to COORDS in slipstep.output.results: {missing}"
     page = pages["reference/results.md"]
     assert set(_rows(_section(page, "## Attributes", "## Reading"))) == set(attrs)
     coord_rows = _rows(_section(page, "## Dimensions and coordinates", "## Attributes"))

@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import Field, ValidationError
 
 from slipstep.casefile.specs import (
+    GPA,
     MM,
     DamperContactSpec,
     HarmonicSpec,
@@ -46,8 +47,6 @@ from slipstep.model.substructure import (
     load_npz,
 )
 from slipstep.model.system import System
-
-GPA = 1e9
 
 
 class PointSpec(_Strict):

@@ -8,6 +8,7 @@ the documentation's key tables print (docs/gen_pages.py).
 
 from __future__ import annotations
 
+import math
 from typing import Optional
 
 import numpy as np
@@ -15,9 +16,43 @@ from pydantic import Field, BaseModel, ConfigDict, PrivateAttr
 
 from slipstep.model.damper import DamperContact
 
-UM = 1e-6
-MM = 1e-3
-N_PER_UM = 1e6
+#: The one unit table of the case files: the unit a key name's suffix carries and its SI factor
+#: (longest suffix first). The conversions below and the documentation's key tables read it.
+UNITS: tuple[tuple[str, str, float], ...] = (
+    ("_kg_per_m3", "kg/m^3", 1.0),
+    ("_per_s", "1/s", 1.0),
+    ("_mm2", "mm^2", 1e-6),
+    ("_mm4", "mm^4", 1e-12),
+    ("_GPa", "GPa", 1e9),
+    ("_N_s_per_m", "N s/m", 1.0),
+    ("_N_per_um", "N/um", 1e6),
+    ("_N_per_m", "N/m", 1.0),
+    ("_kg_m2", "kg m^2", 1.0),
+    ("_kg", "kg", 1.0),
+    ("_mm", "mm", 1e-3),
+    ("_um", "um", 1e-6),
+    ("_deg", "deg", math.pi / 180.0),
+    ("_Hz", "Hz", 1.0),
+    ("_N", "N", 1.0),
+    ("_m", "m", 1.0),
+    ("_s", "s", 1.0),
+)
+
+
+def unit_of_key(key: str) -> tuple[str, float] | None:
+    """(unit, SI factor) a key name carries (``position_mm`` -> ("mm", 1e-3)), or None."""
+    return next(((unit, factor) for suffix, unit, factor in UNITS if key.endswith(suffix)), None)
+
+
+def si_factor(unit: str) -> float:
+    """The SI factor of a unit of :data:`UNITS` (``"mm"`` -> 1e-3)."""
+    return next(factor for _, name, factor in UNITS if name == unit)
+
+
+UM = si_factor("um")
+MM = si_factor("mm")
+N_PER_UM = si_factor("N/um")
+GPA = si_factor("GPa")
 
 
 class _Strict(BaseModel):

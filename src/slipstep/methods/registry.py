@@ -134,6 +134,30 @@ METHODS: dict[str, Method] = {
     )
 }
 
+#: when to use each method (the advice the advisor's rules and the measurements support): the
+#: methods page prints it beside each method
+METHOD_ADVICE: dict[str, str] = {
+    "newmark": "you want the reference: the standard method, the baseline of every comparison",
+    "newmark-adaptive": "you study the paper's Method 2; prefer Method 2+3, which takes the same steps at "
+    "a tenth of the solves",
+    "piecewise-linear": "dynamics matter (near a resonance, light dampers, high frequency, lift-off): "
+    "Method 1's solution at about one solve per step; the default choice for dynamic runs",
+    "piecewise-linear-adaptive": "slip or lift-off dominate the period: longer steps in the softer states, "
+    "partly paid back in redone steps",
+    "quasi-static": "the excitation is far below the damper's resonances (inertia below 5 % of the "
+    "centrifugal load, paper Eq. 9) and every visited state has a static equilibrium: about 300 steps "
+    "per period, no ringing to filter",
+    "full-newton": "Method 1 needs many iterations per step (strong slip): fewer iterations, one factorisation each",
+    "quasi-static-events": "the same conditions as Method 4 with harmonic excitation and piecewise-linear laws: "
+    "exact transition instants, a few solves per state change instead of per step (the paper case: 32 solves "
+    "in 3 periods against Method 4's 922)",
+    "newmark-adaptive-stick": "you reproduce the paper's Method 2 exactly (the full-stick tangent in every "
+    "state); slower than `newmark-adaptive`",
+    "quasi-static-dofs": "a structure (blades) carries light dampers whose internal modes are far above the "
+    "excitation (at least 5x and 1 kHz, paper Remark 3): the dampers without inertia, the rest dynamic; the "
+    "step is set by the structure, not the damper (`slipstep advise` says when it applies)",
+}
+
 ALIASES = {
     "1": "newmark",
     "2": "newmark-adaptive",
