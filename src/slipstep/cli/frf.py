@@ -27,8 +27,7 @@ from slipstep.cli.console import out as _out
 from slipstep.cli.console import output_dir_option as _output_dir
 from slipstep.cli.console import user_errors as _user_errors
 from slipstep.errors import InputError
-
-SOLVER_NAMES = ("auto", "march", "shoot", "hbm")  # slipstep.frequency.SOLVERS (not imported: start-up time)
+from slipstep.output.frf_schema import FRF_SOLVERS as SOLVER_NAMES  # (standard library only: start-up time)
 
 
 def _steady(system, frequencies, direction, options, progress):

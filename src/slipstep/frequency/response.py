@@ -42,7 +42,7 @@ from slipstep.model.frequency_grid import check_frequencies, parse_frequencies  
 from slipstep.frequency.harmonics import amplitudes_phases, fourier_coefficients
 from slipstep.steady.linear import linear_limits
 from slipstep.model.retune import retune
-from slipstep.output.frf_schema import TEXT_VARIABLES
+from slipstep.output.frf_schema import FRF_SOLVERS, TEXT_VARIABLES
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD, STEP_OPTIONS
@@ -55,7 +55,7 @@ STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
 }
 """Steady-state solvers of :func:`frf`: name -> f(system, initial=..., tolerance=..., ...)."""
 
-SOLVERS = ("auto", "march", "shoot", "hbm")
+SOLVERS = FRF_SOLVERS
 """The ``solver`` values of :func:`frf` (auto: slipstep.frequency.choice)."""
 DEFAULT_RTOL = 1e-2  # relative error of the energy per cycle allowed per point
 DEFAULT_MAX_REFINEMENTS = 3  # step halvings beyond the first step doubling

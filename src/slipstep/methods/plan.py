@@ -39,6 +39,7 @@ from slipstep.methods.buffers import workspace_bytes
 from slipstep.methods.options import RunOptions
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.step_control import default_max_step, state_t_min
+from slipstep.model.contact import without_piecewise_linear_form
 from slipstep.model.system import CompiledSystem, System
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
@@ -417,11 +418,12 @@ def check_event_case(system: System, cs: CompiledSystem) -> None:
             "is set: quasi-static-events needs unramped harmonic signals",
             "remove ramp_time or use method 'quasi-static'",
         )
-    circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+    circles = without_piecewise_linear_form(system.contacts)
     if circles:
+        laws = sorted({c.law for c in system.contacts if c.name in circles})
         raise InputError(
             "method",
-            f"quasi-static-events needs piecewise-linear contact laws; {circles} use '3d-circle'",
+            f"quasi-static-events needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
             "use method 'quasi-static' for friction-circle contacts",
         )
 
