@@ -258,7 +258,7 @@ def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
             raise InputError(
                 field,
                 f"is not a known key in {source}{suggestion(str(first['loc'][-1]), valid)}",
-                "check the spelling against the assembly case format in the README (units are part of key names)",
+                "check the spelling against the assembly keys of the documentation (Reference: Case-file keys; units are part of key names)",
             ) from None
         if first["type"] == "missing":
             raise InputError(field, f"is required in {source} but missing", "add it") from None
