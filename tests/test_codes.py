@@ -3,13 +3,12 @@ contact-state codes are the ones results, post, advise and plots name and the sc
 and every contact law of the model has a kernel code."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 
 import slipstep as ss
+from docs_pages import gen_pages
 import importlib
-import importlib.util
 
 from slipstep.post import plots
 from slipstep.errors import Status
@@ -21,19 +20,10 @@ from slipstep.output.results import SCHEMA
 
 advise = importlib.import_module("slipstep.study.advise")
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _contact_laws_section() -> str:
     """The contact-law section of the site's case-file page (docs/gen_pages.py renders it)."""
-    import sys
-
-    if "gen_pages" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("gen_pages", ROOT / "docs" / "gen_pages.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["gen_pages"] = module
-        spec.loader.exec_module(module)
-    page = sys.modules["gen_pages"].case_file_reference()
+    page = gen_pages().case_file_reference()
     return page.split("## Contact laws")[1].split("\n## ")[0]
 
 

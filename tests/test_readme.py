@@ -4,12 +4,11 @@ slipstep.output.results.SCHEMA, the TOML example of the case-file guide runs."""
 
 from __future__ import annotations
 
-import importlib.util
 import re
-import sys
 from pathlib import Path
 
 import slipstep as ss
+from docs_pages import gen_pages
 from slipstep.output.results import SCHEMA
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -17,17 +16,8 @@ README = (ROOT / "README.md").read_text()
 CASE_FILES = (ROOT / "docs" / "guide" / "case_files.md").read_text()
 
 
-def _gen_pages():
-    if "gen_pages" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("gen_pages", ROOT / "docs" / "gen_pages.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["gen_pages"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["gen_pages"]
-
-
 def test_schema_table_is_the_declared_schema():
-    page = _gen_pages().results_reference()  # the site's result page (reference/results.md)
+    page = gen_pages().results_reference()  # the site's result page (reference/results.md)
     variables = page.split("## Variables")[1].split("\n## ")[0]
     rows = re.findall(r"^\| `(\w+)` \| \(([^)]*)\) \| ([^|]+) \|", variables, flags=re.M)
     table = {name: (tuple(d.strip() for d in dims.split(",")), units.strip()) for name, dims, units in rows}

@@ -1,33 +1,26 @@
 """One registry of methods x schemes x variants (issue 9 item 2): the tables of the methods page,
 the CLI help and `slipstep methods` come from slipstep.methods.registry, with one set of defaults."""
 
-import importlib.util
 import inspect
-import sys
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 import slipstep as ss
+from docs_pages import gen_pages
 from slipstep.cli.main import app
 from slipstep.integrators import INTEGRATORS, get_integrator
 from slipstep.integrators.base import ImplicitIntegrator
 from slipstep.methods import registry as R
 from slipstep.methods import schemes
 
-ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 
 
 def _methods_page() -> str:
     """The site's methods page (reference/methods.md), as docs/gen_pages.py renders it."""
-    if "gen_pages" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("gen_pages", ROOT / "docs" / "gen_pages.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["gen_pages"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["gen_pages"].methods_page()
+    return gen_pages().methods_page()
 
 
 def test_methods_page_tables_are_the_generated_ones():
