@@ -556,12 +556,12 @@ def methods_reference() -> str:
 
 def registry_tables() -> str:
     """The registry's method and scheme tables (``slipstep methods --markdown``) at the end of the methods page."""
-    from slipstep.methods import registry as R
+    from slipstep.integrators import tables as T
 
     L = ["", "## At a glance: paper numbers and the schemes' step limits", ""]
     L.append("`slipstep methods --markdown` prints these two tables, from the same registry.")
-    for start, end, key in R.README_BLOCKS:
-        L += ["", start, R.readme_blocks()[key], end]
+    for start, end, key in T.TABLE_BLOCKS:
+        L += ["", start, T.table_blocks()[key], end]
     return "\n".join(L) + "\n"
 
 

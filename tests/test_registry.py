@@ -12,6 +12,7 @@ from docs_pages import gen_pages
 from slipstep.cli.main import app
 from slipstep.integrators import INTEGRATORS, get_integrator
 from slipstep.integrators.base import ImplicitIntegrator
+from slipstep.integrators import tables as T
 from slipstep.methods import registry as R
 from slipstep.methods import schemes
 
@@ -26,12 +27,12 @@ def _methods_page() -> str:
 def test_methods_page_tables_are_the_generated_ones():
     """The page's method and scheme tables are the registry's (`slipstep methods --markdown`)."""
     text = _methods_page()
-    assert R.update_readme(text) == text, "the methods page's tables are not the registry's"
-    for start, end, key in R.README_BLOCKS:
-        assert R.readme_blocks()[key] in text
+    assert T.update_tables(text) == text, "the methods page's tables are not the registry's"
+    for start, end, key in T.TABLE_BLOCKS:
+        assert T.table_blocks()[key] in text
     out = runner.invoke(app, ["methods", "--markdown"]).stdout
-    for start, end, key in R.README_BLOCKS:
-        assert f"{start}\n{R.readme_blocks()[key]}\n{end}" in out
+    for start, end, key in T.TABLE_BLOCKS:
+        assert f"{start}\n{T.table_blocks()[key]}\n{end}" in out
 
 
 def test_every_method_and_scheme_is_in_the_run_help_and_the_listing():

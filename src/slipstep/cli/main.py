@@ -583,8 +583,10 @@ def methods(
     from slipstep.methods import registry as R
 
     if markdown:
-        print(f"{R.README_BLOCKS[0][0]}\n{R.methods_markdown()}\n{R.README_BLOCKS[0][1]}\n")
-        print(f"{R.README_BLOCKS[1][0]}\n{R.schemes_markdown()}\n{R.README_BLOCKS[1][1]}")
+        from slipstep.integrators import tables as T
+
+        print(f"{T.TABLE_BLOCKS[0][0]}\n{T.methods_markdown()}\n{T.TABLE_BLOCKS[0][1]}\n")
+        print(f"{T.TABLE_BLOCKS[1][0]}\n{T.schemes_markdown()}\n{T.TABLE_BLOCKS[1][1]}")
         return
     table = _table("methods (use the name or the paper number with --method)", "name", "paper", "number", "description")
     for row in R.methods_rows():
