@@ -268,7 +268,7 @@ def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
     (x, v and the sliders that leave stick) against every slider as an unknown, and the floor
     of its matrix products per step (kernels/sensitivity.py) at the dgemm rate of a product of
     the same shape measured here."""
-    from slipstep.frequency.retune import retune
+    from slipstep.model.retune import retune
     from slipstep.steady import shoot
     from slipstep.steady.marching import march_one_period, period_simulation, start
     from slipstep.steady.shooting import moving_sliders, period_jacobian

@@ -26,7 +26,7 @@ import bench_blade_pair as bp  # noqa: E402
 
 import slipstep.hbm as hbm  # noqa: E402
 from slipstep.frequency.response import point_values  # noqa: E402
-from slipstep.frequency.retune import retune  # noqa: E402
+from slipstep.model.retune import retune  # noqa: E402
 from slipstep.hbm.crosscheck import hbm_initial_state  # noqa: E402
 from slipstep.hbm.energy import contact_energy  # noqa: E402
 from slipstep.steady import shoot  # noqa: E402

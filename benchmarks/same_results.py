@@ -32,7 +32,7 @@ SNIPPET = textwrap.dedent("""
     from slipstep.integrators import get_integrator
     from slipstep.steady import march_to_steady, shoot
     from slipstep.hbm.residual import preload_sliders
-    from slipstep.frequency.linear import stuck_state
+    from slipstep.steady.linear import stuck_state
 
     TIMES = ("wall_time_s", "kernel_time_s", "point_time")
     paper = ss.load_system("paper")

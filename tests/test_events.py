@@ -68,7 +68,13 @@ def test_energies_converge_with_the_output_grid(paper):
 
 def test_two_harmonics_general_root_finding(tmp_path):
     """Two frequencies (scan + Illinois): the event method against Method 4 on a fine grid."""
-    text = (ROOT / "README.md").read_text().split("### Kind 2")[1].split("```toml\n")[1].split("```")[0]
+    text = (
+        (ROOT / "docs" / "guide" / "case_files.md")
+        .read_text()
+        .split("## Kind 2")[1]
+        .split("```toml\n")[1]
+        .split("```")[0]
+    )
     path = tmp_path / "two_dof.toml"
     path.write_text(text)
     system, _ = ss.load_case(path)

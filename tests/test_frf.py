@@ -243,7 +243,7 @@ def test_frf_interrupted_keeps_the_points_done(monkeypatch):
 
 
 def test_plot_many_contacts_and_both_sweeps(tmp_path):
-    from slipstep.frequency.dataset import concat_sweeps, empty_frf
+    from slipstep.output.frf_dataset import concat_sweeps, empty_frf
     from slipstep.frequency.plots import default_response, plot_frf
 
     f = np.linspace(100, 200, 11)

@@ -9,7 +9,7 @@
   estimate is small where the harmonics suffice;
 - continuation: through the Jenkins resonance peak, around the two turning points of a
   stiffening (gap) oscillator, and over the excitation level (stuck at low levels);
-- the Dataset layout (slipstep.frequency.schema.FRF_SCHEMA) and bad input.
+- the Dataset layout (slipstep.output.frf_schema.FRF_SCHEMA) and bad input.
 """
 
 import json
@@ -20,7 +20,7 @@ import pytest
 from hbm_cases import gap_oscillator, jenkins_1dof, jenkins_2dof
 
 import slipstep as ss
-from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.output.frf_schema import FRF_SCHEMA
 from slipstep.hbm import frf, level_response
 from slipstep.hbm.adequacy import HarmonicAdequacyWarning
 

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 
 import slipstep as ss
 import slipstep.hbm as hbm
-from slipstep.frequency.linear import linear_limits
+from slipstep.steady.linear import linear_limits
 
 
 def _chain(n: int, n_contacts: int, dense: bool) -> ss.System:

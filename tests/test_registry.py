@@ -1,5 +1,5 @@
-"""One registry of methods x schemes x variants (issue 9 item 2): the README tables, the CLI
-help and `slipstep methods` come from slipstep.methods.registry, with one set of defaults."""
+"""One registry of methods x schemes x variants (issue 9 item 2): the tables of the methods page,
+the CLI help and `slipstep methods` come from slipstep.methods.registry, with one set of defaults."""
 
 import inspect
 from pathlib import Path
@@ -8,25 +8,31 @@ import pytest
 from typer.testing import CliRunner
 
 import slipstep as ss
+from docs_pages import gen_pages
 from slipstep.cli.main import app
 from slipstep.integrators import INTEGRATORS, get_integrator
 from slipstep.integrators.base import ImplicitIntegrator
+from slipstep.integrators import tables as T
 from slipstep.methods import registry as R
 from slipstep.methods import schemes
 
-README = Path(__file__).resolve().parents[1] / "README.md"
 runner = CliRunner()
 
 
-def test_readme_tables_are_the_generated_ones():
-    """Regenerate with `slipstep methods --markdown` (or registry.update_readme)."""
-    text = README.read_text()
-    assert R.update_readme(text) == text, "README tables are stale: run `slipstep methods --markdown`"
-    for start, end, key in R.README_BLOCKS:
-        assert R.readme_blocks()[key] in text
+def _methods_page() -> str:
+    """The site's methods page (reference/methods.md), as docs/gen_pages.py renders it."""
+    return gen_pages().methods_page()
+
+
+def test_methods_page_tables_are_the_generated_ones():
+    """The page's method and scheme tables are the registry's (`slipstep methods --markdown`)."""
+    text = _methods_page()
+    assert T.update_tables(text) == text, "the methods page's tables are not the registry's"
+    for start, end, key in T.TABLE_BLOCKS:
+        assert T.table_blocks()[key] in text
     out = runner.invoke(app, ["methods", "--markdown"]).stdout
-    for start, end, key in R.README_BLOCKS:
-        assert f"{start}\n{R.readme_blocks()[key]}\n{end}" in out
+    for start, end, key in T.TABLE_BLOCKS:
+        assert f"{start}\n{T.table_blocks()[key]}\n{end}" in out
 
 
 def test_every_method_and_scheme_is_in_the_run_help_and_the_listing():

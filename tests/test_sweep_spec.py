@@ -309,11 +309,11 @@ def test_one_parameter_sets_several_keys():
     assert plan.parameters[0].name == "k_P1" and plan.parameters[0].keys == tuple(keys)
 
 
-def test_the_readme_sweep_example_is_a_valid_spec():
+def test_the_guide_sweep_example_is_a_valid_spec():
     import tomllib
 
-    readme = (CASES_DIR.parents[3] / "README.md").read_text()
-    block = readme.split("## Design sweeps")[1].split("```toml\n")[1].split("```")[0]
+    guide = (CASES_DIR.parents[3] / "docs" / "guide" / "forced_response.md").read_text()
+    block = guide.split("### Every key of a sweep file")[1].split("```toml\n")[1].split("```")[0]
     plan = make_plan(spec_from_dict(tomllib.loads(block)))
     assert plan.grid_shape == (3, 12, 3) and plan.outputs["frf"]["frequencies_Hz"] == [180.0, 200.0, 220.0]
     assert [p.name for p in plan.parameters] == ["centrifugal_force_N", "amplitude", "friction_coefficient"]

@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import ValidationError
+from pydantic import Field, ValidationError
 
-from slipstep.casefile.case import (
+from slipstep.casefile.specs import (
+    GPA,
     MM,
     DamperContactSpec,
     HarmonicSpec,
@@ -47,115 +48,199 @@ from slipstep.model.substructure import (
 )
 from slipstep.model.system import System
 
-GPA = 1e9
-
 
 class PointSpec(_Strict):
-    name: str
-    x: str | None = None
-    y: str | None = None
-    rz: str | None = None
-    position_mm: list[float] = [0.0, 0.0]
+    name: str = Field(description="point name (the `point` a damper platform follows)", json_schema_extra={"unit": "-"})
+    x: str | None = Field(
+        None, description="the DOF carrying the point's x displacement", json_schema_extra={"unit": "-"}
+    )
+    y: str | None = Field(
+        None, description="the DOF carrying the point's y displacement", json_schema_extra={"unit": "-"}
+    )
+    rz: str | None = Field(None, description="the DOF carrying the point's rotation", json_schema_extra={"unit": "-"})
+    position_mm: list[float] = Field([0.0, 0.0], description="position of the point")
 
 
 class ReductionSpec(_Strict):
-    boundary_dofs: list[str]
-    modes: int
+    boundary_dofs: list[str] = Field(
+        description="DOFs kept as boundary DOFs (a point keeps only its components on the boundary)",
+        json_schema_extra={"unit": "-"},
+    )
+    modes: int = Field(
+        description="fixed-interface modes kept (DOFs mode1..modeN, in m)", json_schema_extra={"unit": "1"}
+    )
 
 
 class SubstructureSpec(_Strict):
-    name: str
-    kind: Literal["frame_blade", "matrices"] = "frame_blade"
-    copy_of: str | None = None
+    name: str = Field(
+        description="substructure name, the prefix of its DOF names (`blade1.8.x`)", json_schema_extra={"unit": "-"}
+    )
+    kind: Literal["frame_blade", "matrices"] = Field(
+        "frame_blade",
+        description="`frame_blade`: a 2D cantilever Euler-Bernoulli frame (axial and bending, DOFs `<node>.x`, `.y`, `.rz`); `matrices`: M, K (and C) imported from files, SI",
+        json_schema_extra={"unit": "-"},
+    )
+    copy_of: str | None = Field(
+        None, description="a renamed copy of an earlier substructure", json_schema_extra={"unit": "-"}
+    )
     # frame_blade
-    length_mm: float | None = None
-    elements: int | None = None
-    youngs_modulus_GPa: float | None = None
-    density_kg_per_m3: float | None = None
-    area_mm2: float | None = None
-    second_moment_mm4: float | None = None
-    platform_node: int | None = None
-    platform_mass_kg: float = 0.0
-    tip_mass_kg: float = 0.0
-    root_mm: list[float] = [0.0, 0.0]
-    angle_deg: float = 90.0
+    length_mm: float | None = Field(None, description="frame blade: length")
+    elements: int | None = Field(None, description="frame blade: number of elements", json_schema_extra={"unit": "1"})
+    youngs_modulus_GPa: float | None = Field(None, description="frame blade: Young's modulus")
+    density_kg_per_m3: float | None = Field(None, description="frame blade: density")
+    area_mm2: float | None = Field(None, description="frame blade: cross-section area")
+    second_moment_mm4: float | None = Field(None, description="frame blade: second moment of area of the cross-section")
+    platform_node: int | None = Field(
+        None,
+        description="frame blade: node of the point `platform` (default: the tip; the point `tip` is the last node)",
+        json_schema_extra={"unit": "1"},
+    )
+    platform_mass_kg: float = Field(0.0, description="frame blade: lumped mass at the platform node")
+    tip_mass_kg: float = Field(0.0, description="frame blade: lumped mass at the tip")
+    root_mm: list[float] = Field([0.0, 0.0], description="frame blade: position of the root")
+    angle_deg: float = Field(90.0, description="frame blade: direction of the blade axis from X")
     # matrices (SI)
-    file: str | None = None
-    mass_file: str | None = None
-    stiffness_file: str | None = None
-    damping_file: str | None = None
-    dofs_file: str | None = None
-    dof_names: list[str] | None = None
-    dof_units: list[str] | None = None
-    points: list[PointSpec] = []
+    file: str | None = Field(
+        None,
+        description="matrices: a .npz file with M, K (and C, dof_names, dof_units), dense or CSR, SI",
+        json_schema_extra={"unit": "-"},
+    )
+    mass_file: str | None = Field(
+        None, description="matrices: M as a Matrix Market (.mtx) file, SI", json_schema_extra={"unit": "-"}
+    )
+    stiffness_file: str | None = Field(
+        None, description="matrices: K as a Matrix Market (.mtx) file, SI", json_schema_extra={"unit": "-"}
+    )
+    damping_file: str | None = Field(
+        None, description="matrices: C as a Matrix Market (.mtx) file, SI", json_schema_extra={"unit": "-"}
+    )
+    dofs_file: str | None = Field(
+        None, description='matrices: the DOFs, one "name unit" a line', json_schema_extra={"unit": "-"}
+    )
+    dof_names: list[str] | None = Field(
+        None, description="matrices: DOF names, when the files do not give them", json_schema_extra={"unit": "-"}
+    )
+    dof_units: list[str] | None = Field(
+        None,
+        description="matrices: DOF units (m or rad), when the files do not give them",
+        json_schema_extra={"unit": "-"},
+    )
+    points: list[PointSpec] = Field([], description="named points for damper platforms")
     # damping
-    modal_damping_ratio: float | None = None
-    rayleigh_alpha_per_s: float | None = None
-    rayleigh_beta_s: float | None = None
-    reduction: ReductionSpec | None = None
+    modal_damping_ratio: float | None = Field(
+        None, description="damping ratio of every mode", json_schema_extra={"unit": "1"}
+    )
+    rayleigh_alpha_per_s: float | None = Field(None, description="alpha of Rayleigh damping C = alpha M + beta K")
+    rayleigh_beta_s: float | None = Field(None, description="beta of Rayleigh damping C = alpha M + beta K")
+    reduction: ReductionSpec | None = Field(None, description="optional Craig-Bampton reduction")
     # mistuning: the stiffness times 1 + mistuning (a blade of an assembly without [chain])
-    mistuning: float | None = None
+    mistuning: float | None = Field(
+        None,
+        description="mistuning of a blade without [chain]: its stiffness times 1 + delta, delta > -1 (default: tuned)",
+        json_schema_extra={"unit": "1"},
+    )
 
 
 class PlatformLinkSpec(_Strict):
-    name: str
-    angle_deg: float
-    substructure: str | None = None
-    point: str = "platform"
-    offset_mm: list[float] = [0.0, 0.0]
+    name: str = Field(description="platform name", json_schema_extra={"unit": "-"})
+    angle_deg: float = Field(description="angle of the face from X: tangent (cos, sin)")
+    substructure: str | None = Field(
+        None,
+        description="the substructure the platform moves with (set by `[chain]` for chained dampers)",
+        json_schema_extra={"unit": "-"},
+    )
+    point: str = Field("platform", description="the point of that substructure", json_schema_extra={"unit": "-"})
+    offset_mm: list[float] = Field(
+        [0.0, 0.0], description="from the point to the damper's centre of mass (lever arm of the point's rotation)"
+    )
 
 
 class DamperLinkSpec(_Strict):
-    name: str
-    mass_kg: float
-    inertia_kg_m2: float
-    centrifugal_force_N: float
-    centrifugal_angle_deg: float = 90.0
-    platforms: list[PlatformLinkSpec]
-    contacts: list[DamperContactSpec]
+    name: str = Field(description="damper name, the prefix of its DOF names", json_schema_extra={"unit": "-"})
+    mass_kg: float = Field(description="damper mass")
+    inertia_kg_m2: float = Field(description="moment of inertia about the centre of mass")
+    centrifugal_force_N: float = Field(description="constant load on the centre of mass (ramped in the static preload)")
+    centrifugal_angle_deg: float = Field(90.0, description="direction of the centrifugal load from X (90: +Y)")
+    platforms: list[PlatformLinkSpec] = Field(description="the platform faces, each following a substructure point")
+    contacts: list[DamperContactSpec] = Field(
+        description="the contact points (the `[[damper.contacts]]` keys of kind 1)"
+    )
 
 
 class LinkContactSpec(_Strict):
-    name: str
-    dofs: list[str]
-    dof_gather: list[list[float]]
-    normal_stiffness_N_per_m: float
-    tangential_stiffness_N_per_m: float | list[float]
-    friction_coefficient: float
-    normal_offset_m: float = 0.0
+    name: str = Field(
+        description="contact name (a `contact` coordinate of the result)", json_schema_extra={"unit": "-"}
+    )
+    dofs: list[str] = Field(
+        description="assembled DOF names, one per column of `dof_gather`", json_schema_extra={"unit": "-"}
+    )
+    dof_gather: list[list[float]] = Field(
+        description="rows u (tangential) then v (normal), one column per name in `dofs`",
+        json_schema_extra={"unit": "1"},
+    )
+    normal_stiffness_N_per_m: float = Field(description="normal contact stiffness k_n")
+    tangential_stiffness_N_per_m: float | list[float] = Field(
+        description="tangential stiffness k_t, or [k_t1, k_t2] (quasi-3D)"
+    )
+    friction_coefficient: float = Field(description="friction coefficient mu >= 0", json_schema_extra={"unit": "1"})
+    normal_offset_m: float = Field(0.0, description="g on v: initial interference (> 0) or gap (< 0)")
 
 
 class EngineOrderSpec(_Strict):
-    dof: str
-    amplitude_N: float
-    frequency_Hz: float
-    engine_order: int
-    phase_deg: float = 0.0
-    blades: list[str] | None = None
+    dof: str = Field(
+        description="the DOF of each blade, without the blade's name (e.g. `8.x`)", json_schema_extra={"unit": "-"}
+    )
+    amplitude_N: float = Field(description="force amplitude on each blade")
+    frequency_Hz: float = Field(description="excitation frequency")
+    engine_order: int = Field(
+        description="engine order EO: blade j (0-based) lags by 2 pi EO j / N", json_schema_extra={"unit": "1"}
+    )
+    phase_deg: float = Field(0.0, description="phase of blade 0")
+    blades: list[str] | None = Field(
+        None, description="the blades (default: the `[chain]`'s blades)", json_schema_extra={"unit": "-"}
+    )
 
 
 class ChainSpec(_Strict):
-    blade: str
-    damper: str
-    blades: int
-    closed: bool = False
+    blade: str = Field(
+        description="the substructure copied into `<blade>1` .. `<blade>N`", json_schema_extra={"unit": "-"}
+    )
+    damper: str = Field(
+        description="the damper copied between each neighbouring pair of blades", json_schema_extra={"unit": "-"}
+    )
+    blades: int = Field(description="number of blades N", json_schema_extra={"unit": "1"})
+    closed: bool = Field(
+        False, description="true: also a damper between blade N and blade 1 (a ring)", json_schema_extra={"unit": "-"}
+    )
     # blade j's stiffness scaled by 1 + mistuning[j] (blade-to-blade scatter: every modal
     # frequency of blade j times sqrt(1 + delta_j)); None: a tuned chain
-    mistuning: list[float] | None = None
+    mistuning: list[float] | None = Field(
+        None,
+        description="blade-to-blade scatter: blade j's stiffness times 1 + delta_j, one delta > -1 per blade (default: tuned)",
+        json_schema_extra={"unit": "1"},
+    )
 
 
 class AssemblyCaseSpec(_Strict):
-    name: str = "assembly"
-    description: str = ""
-    substructures: list[SubstructureSpec]
-    dampers: list[DamperLinkSpec] = []
-    contacts: list[LinkContactSpec] = []
-    chain: ChainSpec | None = None
-    force: list[HarmonicSpec] = []
-    engine_order_force: list[EngineOrderSpec] = []
-    constant_force_N: dict[str, float] = {}
-    period_s: float | None = None
-    run: RunSpec = RunSpec()
+    name: str = Field(
+        "assembly", description="case name, used in output file names and reports", json_schema_extra={"unit": "-"}
+    )
+    description: str = Field("", description="free text shown by `slipstep cases`", json_schema_extra={"unit": "-"})
+    substructures: list[SubstructureSpec] = Field(description="the substructures (blades, imported models)")
+    dampers: list[DamperLinkSpec] = Field([], description="rigid dampers whose platforms follow substructure points")
+    contacts: list[LinkContactSpec] = Field([], description="contacts on named assembled DOFs")
+    chain: ChainSpec | None = Field(None, description="copy one blade and one damper into a chain or a closed ring")
+    force: list[HarmonicSpec] = Field([], description="harmonic forces on assembled DOFs")
+    engine_order_force: list[EngineOrderSpec] = Field(
+        [], description="one harmonic force per blade with an engine-order phase lag"
+    )
+    constant_force_N: dict[str, float] = Field(
+        {},
+        description='constant loads by assembled DOF name, e.g. `{"blade1.8.x" = 1.0}`',
+        json_schema_extra={"unit": "N"},
+    )
+    period_s: float | None = Field(None, description="excitation period when no harmonic sets it")
+    run: RunSpec = Field(RunSpec(), description="default run options")
 
 
 def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
@@ -173,7 +258,7 @@ def parse_assembly(data: dict, source: str = "case") -> AssemblyCaseSpec:
             raise InputError(
                 field,
                 f"is not a known key in {source}{suggestion(str(first['loc'][-1]), valid)}",
-                "check the spelling against the assembly case format in the README (units are part of key names)",
+                "check the spelling against the assembly keys of the documentation (Reference: Case-file keys; units are part of key names)",
             ) from None
         if first["type"] == "missing":
             raise InputError(field, f"is required in {source} but missing", "add it") from None

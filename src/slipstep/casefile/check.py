@@ -32,7 +32,7 @@ UNITS = (  # key suffix -> unit as printed (longest first)
     ("_m", "m"),
     ("_s", "s"),
 )
-FIX_FORMAT = "check the spelling against the case format in the README (units are part of key names)"
+FIX_FORMAT = "check the spelling against the case-file keys of the documentation (Reference: Case-file keys; units are part of key names)"
 
 
 def unit_of(key: str, kind: str = "damper", table: str = "") -> str:

@@ -4,7 +4,7 @@
                       [--rtol 1e-2] [--harmonics 1,3,5] [--samples N] [--check-frequencies f1,f2]
                       [--sine-sweep] [-o DIR] [--json]
 
-Writes ``DIR/<case-stem>_frf.nc`` (the layout of slipstep.frequency.schema) and
+Writes ``DIR/<case-stem>_frf.nc`` (the layout of slipstep.output.frf_schema) and
 ``DIR/<case-stem>_frf.png`` (amplitude with both linear limits, energy per cycle). No
 numerics here: every solver is slipstep.frequency.frf (the sine sweep: sine_sweep). The
 default solver is auto (slipstep.frequency.choice), printed with its reason.
@@ -21,13 +21,13 @@ from pathlib import Path
 
 import typer
 
-from slipstep.cli.main import _case_stem, _output_dir
-from slipstep.cli.main import err as _err
-from slipstep.cli.main import out as _out
-from slipstep.cli.main import user_errors as _user_errors
+from slipstep.casefile.files import case_stem as _case_stem
+from slipstep.cli.console import err as _err
+from slipstep.cli.console import out as _out
+from slipstep.cli.console import output_dir_option as _output_dir
+from slipstep.cli.console import user_errors as _user_errors
 from slipstep.errors import InputError
-
-SOLVER_NAMES = ("auto", "march", "shoot", "hbm")  # slipstep.frequency.SOLVERS (not imported: start-up time)
+from slipstep.output.frf_schema import FRF_SOLVERS as SOLVER_NAMES  # (standard library only: start-up time)
 
 
 def _steady(system, frequencies, direction, options, progress):
@@ -38,7 +38,7 @@ def _steady(system, frequencies, direction, options, progress):
 
 def _sine_sweep(system, frequencies, direction, options, progress):
     from slipstep.frequency import sine_sweep
-    from slipstep.frequency.dataset import concat_sweeps
+    from slipstep.output.frf_dataset import concat_sweeps
 
     keep = {k: v for k, v in options.items() if k in ("method", "responses", "min_steps_per_period")}
     keep["method"] = keep.get("method") or "piecewise-linear"

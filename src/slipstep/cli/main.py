@@ -1,16 +1,14 @@
 """The ``slipstep`` command line: run a case, compare the paper's methods, list cases/methods.
 
 No numerics here: commands load a case (slipstep.casefile.case), call slipstep.methods /
-slipstep.study.compare, and print. Exit codes (every command): 0 success, 1 a march that stopped
-early (the partial result is still written), 2 bad input (one red line naming the key and the
-fix), 3 an I/O or environment failure (disk full, read-only directory, out of memory), 4 an
-internal error (one line; the traceback is saved to a file), 130 aborted by Ctrl-C.
+slipstep.study.compare, and print. The consoles, the exit codes and the turning of a failure into
+one line are slipstep.cli.console's, shared with the command modules.
 
 Fast start: this module imports only typer, rich's console and light slipstep modules; the
 numerical stack (numpy, numba, xarray, pydantic) is imported inside the commands that need
 it. The other modules of this package that define ``register(app)`` (``slipstep/cli/<name>.py``)
-are command modules, found and registered by :func:`_register_plugins`; they import only typer
-and the standard library at module level.
+are command modules, found and registered by :func:`_register_plugins`; they import only typer,
+the standard library and slipstep.cli.console at module level, and never this module.
 """
 
 from __future__ import annotations
@@ -18,24 +16,32 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
-import sys
-import warnings
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
-from rich.console import Console
 from typer.core import TyperGroup
-from typer.exceptions import TyperException
 
 from slipstep.casefile.files import CASES_DIR, builtin_cases, case_stem, read_toml
-from slipstep.errors import InputError, OutputError, SolverError
+from slipstep.cli.console import (  # noqa: F401 (safe, say, user_errors: the names tests and callers know here)
+    EXIT_INPUT,
+    EXIT_INTERNAL,
+    EXIT_IO,
+    EXIT_OK,
+    EXIT_STOPPED,
+    _PASS_THROUGH,
+    err,
+    out,
+    output_dir_option,
+    report_failure,
+    safe,
+    say,
+    user_errors,
+    version,
+)
+from slipstep.errors import InputError
 from slipstep.methods.registry import COMPARE_METHODS, PAPER_METHODS, method_choices, scheme_choices
-from slipstep.model.text import escape_text
 
-EXIT_OK, EXIT_STOPPED, EXIT_INPUT, EXIT_IO, EXIT_INTERNAL, EXIT_ABORTED = 0, 1, 2, 3, 4, 130
-_PASS_THROUGH = (typer.Exit, typer.Abort, TyperException, SystemExit)  # typer's own exits and usage errors
 _FAST_COMMANDS = ("cases", "methods")  # listings that take no argument: answered without typer's coercion
 
 
@@ -88,117 +94,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-# a pipe or CI log gets 140 columns rather than rich's default 80, so tables keep their labels
-out = Console(width=None if sys.stdout.isatty() else 140)
-err = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
-
-
-def safe(value) -> str:
-    """``value`` as plain text for the terminal: control characters escaped (print it with
-    markup=False, or wrap it in rich.text.Text, so that '[/bad]' is not markup)."""
-    return escape_text(value)
-
-
-def say(text, console: Console | None = None, style: str | None = None) -> None:
-    """Print one line of plain text (no markup, no highlighting, control characters escaped)."""
-    (console or out).print(safe(text), style=style, markup=False, highlight=False, soft_wrap=True)
-
-
-def fail_line(kind: str, message) -> None:
-    say(f"{kind}: {' '.join(str(message).split())}", err, "bold red")
-
-
-def report_failure(exc: BaseException) -> int:
-    """Print the one-line message of a failure and return its exit code."""
-    if isinstance(exc, InputError):
-        fail_line("input error", exc)
-        return EXIT_INPUT
-    if isinstance(exc, SolverError):
-        fail_line("solver error", exc)
-        return EXIT_INPUT
-    if isinstance(exc, OutputError):
-        fail_line("output error", exc)
-        return EXIT_IO
-    if isinstance(exc, KeyboardInterrupt):
-        fail_line("interrupted", "aborted by the user (Ctrl-C); files being written were not replaced")
-        return EXIT_ABORTED
-    if isinstance(exc, MemoryError):
-        fail_line(
-            "out of memory",
-            "the process ran out of memory. Fix: simulate fewer periods or use --max-memory "
-            "to be refused before the run",
-        )
-        return EXIT_IO
-    if isinstance(exc, OSError):
-        from slipstep.output.io import output_error
-
-        fail_line("I/O error", output_error(getattr(exc, "filename", None) or "(file)", exc))
-        return EXIT_IO
-    path = _save_traceback(exc)
-    where = f"the traceback is in {path}" if path else "the traceback could not be saved"
-    fail_line(
-        "internal error",
-        f"{type(exc).__name__}: {str(exc)[:200]} -- this is a bug in slipstep; please report "
-        f"it with the command you ran ({where})",
-    )
-    return EXIT_INTERNAL
-
-
-def _save_traceback(exc: BaseException) -> str | None:
-    import tempfile
-    import time
-    import traceback
-
-    from slipstep.output.io import write_text
-
-    text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
-    name = f"slipstep-error-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
-    for directory in (Path(tempfile.gettempdir()), Path.cwd()):
-        try:
-            return str(write_text(directory / name, f"slipstep {version()}\n{' '.join(sys.argv)}\n\n{text}"))
-        except Exception:  # noqa: BLE001 (best effort)
-            continue
-    return None
-
-
-@contextlib.contextmanager
-def user_errors():
-    """Show warnings as yellow lines on stderr (stdout stays clean for --json) and turn a failure
-    into its one-line message and exit code (see :func:`report_failure`)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        for category in _SILENT_WARNINGS:
-            warnings.simplefilter("ignore", category)
-        try:
-            yield
-        except _PASS_THROUGH:
-            _show_warnings(caught)
-            raise
-        except BaseException as exc:  # noqa: BLE001
-            _show_warnings(caught)  # before the failure line, which stays the last line
-            raise typer.Exit(report_failure(exc)) from None
-        _show_warnings(caught)
-
-
-# library noise that is not the user's business (an import interrupted by Ctrl-C leaves unclosed files)
-_SILENT_WARNINGS = (ResourceWarning, DeprecationWarning, PendingDeprecationWarning, ImportWarning)
-
-
-def _show_warnings(caught: list) -> None:
-    for w in caught:
-        say(f"warning: {' '.join(str(w.message).split())}", err, "yellow")
-    caught.clear()
-
-
-def version() -> str:
-    """The installed version (one place: pyproject.toml, read through importlib.metadata)."""
-    from importlib.metadata import PackageNotFoundError, version as dist_version
-
-    try:
-        return dist_version("slipstep")
-    except PackageNotFoundError:
-        return "0+unknown"
-
 
 @app.callback()
 def main():
@@ -216,51 +111,6 @@ def _ignore_file_size_signal() -> None:
 
 
 # -- options shared by the commands ------------------------------------------------------------
-
-
-def output_dir_option(path, option: str = "--output-dir", below: str = "") -> Path:
-    """Create the output directory and check that it takes a file, before any long run:
-    InputError (exit 2) for a path that cannot be a directory, OutputError (exit 3) for one
-    the environment refuses (read-only, no permission, disk full)."""
-    import tempfile
-
-    if not str(path).strip():
-        raise InputError(option, "is empty", "give a directory path (e.g. slipstep-out)")
-    if "\x00" in str(path):
-        raise InputError(option, "contains a NUL character", "give a directory path")
-    path = Path(path) / below if below else Path(path)
-    if path.exists() and not path.is_dir():
-        raise InputError(option, f"{str(path)!r} is an existing file, not a directory", "give a directory path")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise InputError(
-            option, f"{str(path)!r} cannot be created (a part of it is a file)", "give a directory path"
-        ) from None
-    except NotADirectoryError:
-        raise InputError(
-            option, f"{str(path)!r} cannot be created (a part of it is a file)", "give a directory path"
-        ) from None
-    except OSError as exc:
-        from slipstep.output.io import output_error
-
-        raise output_error(path, exc) from None
-    try:
-        with tempfile.TemporaryFile(dir=path):
-            pass
-    except OSError as exc:
-        from slipstep.output.io import output_error
-
-        raise output_error(path, exc) from None
-    return path
-
-
-# the names plugin modules (slipstep.cli.frf) import from earlier versions of this module
-_case_stem = case_stem
-
-
-def _output_dir(path, option: str = "--output-dir") -> Path:
-    return output_dir_option(path, option)
 
 
 def _method(cli_value: Optional[str], spec):
@@ -723,15 +573,20 @@ def cases():
 @app.command()
 def methods(
     markdown: Annotated[
-        bool, typer.Option("--markdown", help="Print the README's method and scheme tables (markdown).")
+        bool,
+        typer.Option(
+            "--markdown", help="Print the method and scheme tables of the documentation's methods page (markdown)."
+        ),
     ] = False,
 ):
     """List the time-marching methods (with their paper numbers) and the time-integration schemes."""
     from slipstep.methods import registry as R
 
     if markdown:
-        print(f"{R.README_BLOCKS[0][0]}\n{R.methods_markdown()}\n{R.README_BLOCKS[0][1]}\n")
-        print(f"{R.README_BLOCKS[1][0]}\n{R.schemes_markdown()}\n{R.README_BLOCKS[1][1]}")
+        from slipstep.integrators import tables as T
+
+        print(f"{T.TABLE_BLOCKS[0][0]}\n{T.methods_markdown()}\n{T.TABLE_BLOCKS[0][1]}\n")
+        print(f"{T.TABLE_BLOCKS[1][0]}\n{T.schemes_markdown()}\n{T.TABLE_BLOCKS[1][1]}")
         return
     table = _table("methods (use the name or the paper number with --method)", "name", "paper", "number", "description")
     for row in R.methods_rows():

@@ -16,7 +16,7 @@ import typer
 from slipstep.errors import InputError
 
 from slipstep.casefile.files import case_stem
-from slipstep.cli.main import output_dir_option, say, user_errors as _user_errors  # one console setup
+from slipstep.cli.console import output_dir_option, say, user_errors as _user_errors  # one console setup
 
 
 def _load_case(case: str):

@@ -51,7 +51,7 @@ def sweep(
     as_json: bool = typer.Option(False, "--json", help="no progress bar; print the final report as JSON"),
 ):
     """Run a design sweep: every case of SPEC, serially or on dask.distributed, into a zarr store."""
-    from slipstep.cli.main import err, out, user_errors
+    from slipstep.cli.console import err, out, user_errors
     from slipstep.sweep.execute import DaskExecutor, SerialExecutor
     from slipstep.sweep.run import run_sweep
 
@@ -242,7 +242,8 @@ def sweep_plot(
     output_dir: Path = typer.Option(Path("figures"), "--output-dir", "-o", help="folder for the PNG files"),
 ):
     """Design maps of a sweep: QUANTITY over two parameters (optimum marked) and curves over one."""
-    from slipstep.cli.main import _output_dir, out, user_errors
+    from slipstep.cli.console import out, user_errors
+    from slipstep.cli.console import output_dir_option as _output_dir
     from slipstep.errors import InputError
 
     with user_errors():

@@ -30,40 +30,14 @@ harmonics (its truncation estimate says how good); ask for it with ``solver="hbm
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from slipstep.model.structure import DENSE_MAX_N
 from slipstep.model.system import System
+from slipstep.steady.cost import SHOOTING_MAX_FLOP, time_domain_cost  # noqa: F401 (rule 3)
 
 DEFAULT_METHOD = "piecewise-linear"
-SHOOTING_MAX_FLOP = 2e10  # multiply-adds of one period Jacobian above which auto takes harmonic balance
-
-
-def time_domain_cost(system: System) -> tuple[float, str]:
-    """(multiply-adds of one shooting Newton iteration, why it is too costly or ""): infinite for a
-    sparse structure above DENSE_MAX_N (shooting needs the dense matrices); rule 3 of the module
-    docstring."""
-    n = system.n_dofs
-    if system.structure.sparse and n > DENSE_MAX_N:
-        return math.inf, (
-            f"the structure is sparse with {n} DOFs (above {DENSE_MAX_N}), where shooting's Jacobian would be "
-            "dense over 2n unknowns"
-        )
-    from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD
-
-    cs = system.compile("contacts")
-    touched = int(np.count_nonzero(np.asarray(abs(cs.A).sum(axis=0)).ravel()))  # the contact DOFs
-    nd = int(cs.kt.shape[0])
-    flop = float(STEADY_STEPS_PER_PERIOD) * n * (3 * n + touched) * (2 * n + nd)
-    if flop <= SHOOTING_MAX_FLOP:
-        return flop, ""
-    return flop, (
-        f"one shooting Newton iteration would cost about {flop:.1e} multiply-adds ({n} DOFs, {nd} sliders; "
-        f"above {SHOOTING_MAX_FLOP:.0e})"
-    )
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ def harmonics(
     of the result ``ds`` (a steady-state period or a longer record), for the DOFs named in
     ``responses`` (default all). Returns a Dataset with ``harmonic_amplitude`` and
     ``harmonic_phase`` over (harmonic, response) and ``amplitude`` (half the peak-to-peak
-    range) over response, units as in slipstep.frequency.schema."""
+    range) over response, units as in slipstep.output.frf_schema."""
     if isinstance(n_harmonics, bool) or not isinstance(n_harmonics, (int, np.integer)) or n_harmonics < 0:
         raise InputError("harmonics", f"is {n_harmonics!r}", "give a whole number >= 0")
     T = period_of(ds, period)

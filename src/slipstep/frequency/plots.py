@@ -1,4 +1,4 @@
-"""Figures of frequency-response Datasets (the layout of slipstep.frequency.schema): the
+"""Figures of frequency-response Datasets (the layout of slipstep.output.frf_schema): the
 response amplitude against frequency with both linear limits, and the friction energy per
 cycle of each contact. A leaf: reads Datasets only (matplotlib, Agg backend).
 """

@@ -3,7 +3,7 @@ state starting from the previous point's, upward, downward or both (to show jump
 is the one entry point of every solver (march, shoot, harmonic balance, and "auto":
 slipstep.frequency.choice); the CLI calls it.
 
-Per point (excitation retuned to the frequency, slipstep.frequency.retune): the steady state
+Per point (excitation retuned to the frequency, slipstep.model.retune): the steady state
 (``solver`` "march": slipstep.steady.march_to_steady, "shoot": slipstep.steady.shoot), re-solved
 from the converged orbit with half the step for its error estimate (and refined while the
 estimate exceeds ``rtol``: slipstep.frequency.error_estimate; the point is the finer solution),
@@ -14,7 +14,7 @@ cycle per contact and the energy balance over the period (slipstep.post.energy):
     energy_balance_residual = (W_exc - D_visc - D_fric) / |W_exc|
 
 (zero for an exactly periodic orbit of a piecewise-linear Newmark march, up to the change
-over the period), and the two linear limits in the frequency domain (slipstep.frequency.linear).
+over the period), and the two linear limits in the frequency domain (slipstep.steady.linear).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import xarray as xr
 
 from slipstep.errors import InputError
 from slipstep.frequency.choice import DEFAULT_METHOD, choose
-from slipstep.frequency.dataset import concat_sweeps, empty_frf, finalise
+from slipstep.output.frf_dataset import concat_sweeps, empty_frf, finalise
 from slipstep.frequency.error_estimate import (
     METHOD_TEXT,
     FrfAccuracyWarning,
@@ -38,11 +38,11 @@ from slipstep.frequency.error_estimate import (
     refine,
     steps_of,
 )
-from slipstep.frequency.grid import check_frequencies, parse_frequencies  # noqa: F401  (re-exported)
+from slipstep.model.frequency_grid import check_frequencies, parse_frequencies  # noqa: F401  (re-exported)
 from slipstep.frequency.harmonics import amplitudes_phases, fourier_coefficients
-from slipstep.frequency.linear import linear_limits
-from slipstep.frequency.retune import retune
-from slipstep.frequency.schema import TEXT_VARIABLES
+from slipstep.steady.linear import linear_limits
+from slipstep.model.retune import retune
+from slipstep.output.frf_schema import FRF_SOLVERS, TEXT_VARIABLES
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD, STEP_OPTIONS
@@ -55,7 +55,7 @@ STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
 }
 """Steady-state solvers of :func:`frf`: name -> f(system, initial=..., tolerance=..., ...)."""
 
-SOLVERS = ("auto", "march", "shoot", "hbm")
+SOLVERS = FRF_SOLVERS
 """The ``solver`` values of :func:`frf` (auto: slipstep.frequency.choice)."""
 DEFAULT_RTOL = 1e-2  # relative error of the energy per cycle allowed per point
 DEFAULT_MAX_REFINEMENTS = 3  # step halvings beyond the first step doubling

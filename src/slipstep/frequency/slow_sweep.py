@@ -24,7 +24,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError, Status
-from slipstep.frequency.dataset import empty_frf, finalise
+from slipstep.output.frf_dataset import empty_frf, finalise
 from slipstep.methods.save import Save
 from slipstep.model.excitation import Signal, Tabulated
 from slipstep.model.validate import positive
@@ -102,7 +102,7 @@ def sine_sweep(
     variables are NaN; the linear limits are computed unless linear=False). ``duration`` [s] defaults to ``cycles_per_point`` cycles of the mean
     frequency per grid point."""
     from slipstep import __version__
-    from slipstep.frequency.grid import check_frequencies
+    from slipstep.model.frequency_grid import check_frequencies
     from slipstep.methods.simulation import Simulation
 
     f = np.sort(check_frequencies(frequencies))
@@ -163,7 +163,7 @@ def sine_sweep(
         beyond = grid > reached if direction == "up" else grid < reached
         out["amplitude"][beyond] = np.nan
     if linear:
-        from slipstep.frequency.linear import linear_limits
+        from slipstep.steady.linear import linear_limits
 
         lim = linear_limits(system, grid, responses)
         for name in ("linear_free_amplitude", "linear_stuck_amplitude"):

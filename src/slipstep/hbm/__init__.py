@@ -8,7 +8,7 @@ as the time marching (issue 13): the designers' usual tool, cross-checked by the
 - :mod:`continuation`: pseudo-arclength over frequency or excitation level;
 - :mod:`adequacy`: the harmonic-adequacy estimate and warning;
 - :mod:`crosscheck`: the time-marching cross-check of chosen points;
-- :mod:`frf`: the FRF driver returning the Dataset of ``slipstep.frequency.schema``.
+- :mod:`frf`: the FRF driver returning the Dataset of ``slipstep.output.frf_schema``.
 """
 
 from slipstep.hbm.frf import frf, level_response

@@ -51,7 +51,7 @@ def retuned(system: System, frequency_hz: float, level: float = 1.0) -> System:
     """The system with its harmonic excitation moved to fundamental ``frequency_hz`` (multiples
     kept) and scaled by ``level`` (constant loads unchanged)."""
     try:  # the shared retune (issue 11), when it exists
-        from slipstep.frequency import retune as _retune
+        from slipstep.model.retune import retune as _retune
     except ImportError:
         _retune = None
     if _retune is not None and level == 1.0:

@@ -7,7 +7,7 @@ continuation (:mod:`slipstep.hbm.continuation`: turning points and both sides of
 followed; the points are where the continuation put them, in the order computed, so the
 ``frequency`` coordinate may go back and forth), or, with ``continuation=False``, solves at
 exactly the given frequencies, each from the previous solution. The result is laid out as
-``slipstep.frequency.schema.FRF_SCHEMA`` (the marched and shot FRFs overlay on it), plus a
+``slipstep.output.frf_schema.FRF_SCHEMA`` (the marched and shot FRFs overlay on it), plus a
 non-dimension coordinate ``excitation_level`` on ``frequency``. Each point carries the
 harmonic-adequacy estimate (:mod:`slipstep.hbm.adequacy`) and, at the peak and at chosen
 frequencies, the time-marching cross-check (:mod:`slipstep.hbm.crosscheck`).
@@ -42,8 +42,8 @@ from slipstep.hbm.energy import (
     half_peak_to_peak,
     viscous_dissipation,
 )
-from slipstep.frequency.grid import check_frequencies as valid_frequencies
-from slipstep.frequency.schema import FRF_SCHEMA
+from slipstep.model.frequency_grid import check_frequencies as valid_frequencies
+from slipstep.output.frf_schema import FRF_SCHEMA
 from slipstep.hbm.residual import HarmonicBalance, blas_threads
 from slipstep.model.system import System
 
@@ -376,7 +376,7 @@ def _positive_level(level) -> float:
 def _linear_limits(system, freq, level, names) -> tuple[np.ndarray, np.ndarray]:
     """Both linear limits at the points' frequencies (slipstep.frequency.linear_limits), scaled by
     the points' excitation levels; NaN where a limit is singular."""
-    from slipstep.frequency.linear import linear_limits
+    from slipstep.steady.linear import linear_limits
 
     try:
         lim = linear_limits(system, freq, names)
@@ -387,9 +387,9 @@ def _linear_limits(system, freq, level, names) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _dataset(hb: HarmonicBalance, branch: Branch, resp: np.ndarray, estimates, parameter, fixed) -> xr.Dataset:
-    """The FRF Dataset (slipstep.frequency.dataset.empty_frf: the one layout) of a branch."""
+    """The FRF Dataset (slipstep.output.frf_dataset.empty_frf: the one layout) of a branch."""
     from slipstep import __version__
-    from slipstep.frequency.dataset import empty_frf, finalise
+    from slipstep.output.frf_dataset import empty_frf, finalise
 
     system, pts = hb.system, branch.points
     names = [system.structure.dof_names[i] for i in resp]
@@ -469,12 +469,12 @@ def _check_indices(ds, branch, parameter_values, check, check_at) -> list[int]:
 
 def resolved_check(system, check) -> tuple:
     """The cross-check asked, with ``"auto"`` resolved: ``"peak"`` unless a time-domain steady state
-    of the system costs minutes (slipstep.frequency.choice.time_domain_cost: a sparse structure
+    of the system costs minutes (slipstep.steady.cost.time_domain_cost: a sparse structure
     above DENSE_MAX_N DOFs, or a large dense one with many sliders), where the harmonic-truncation
     estimate is the point's error instead. Returns (check, why it was skipped)."""
     if check != "auto":
         return check, ""
-    from slipstep.frequency.choice import time_domain_cost
+    from slipstep.steady.cost import time_domain_cost
 
     _, costly = time_domain_cost(system)
     if costly:

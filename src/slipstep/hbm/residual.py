@@ -37,6 +37,7 @@ from slipstep.hbm.fourier import Basis, harmonic_set
 from slipstep.hbm.linear import LinearPart, choose_gather
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
+from slipstep.model.contact import without_piecewise_linear_form
 from slipstep.model.system import System
 
 
@@ -108,11 +109,12 @@ class HarmonicBalance:
     ):
         if not isinstance(system, System):
             raise InputError("system", f"is a {type(system).__name__}", "build a slipstep.System or load a case")
-        circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+        circles = without_piecewise_linear_form(system.contacts)
         if circles:  # the AFT Jacobian (hbm/aft.py) is built from the piecewise-linear form of the law
+            laws = sorted({c.law for c in system.contacts if c.name in circles})
             raise InputError(
                 "contacts",
-                f"{circles} use law '3d-circle', whose coupled slip has no piecewise-linear form: the harmonic "
+                f"{circles} use law {', '.join(map(repr, laws))}, which has no piecewise-linear form: the harmonic "
                 "balance's AFT Jacobian supports the piecewise-linear laws only",
                 "compute this frequency response in the time domain (slipstep.frequency.frf with solver 'shoot' or "
                 "'march', or `slipstep frf ... --solver shoot`), or use a piecewise-linear law",

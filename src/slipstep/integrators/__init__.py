@@ -22,8 +22,17 @@ from slipstep.integrators.newmark import LinearAcceleration, Newmark
 from slipstep.integrators.rk4 import RK4
 from slipstep.methods.registry import SCHEME_ALIASES, SCHEMES
 
+
+def _class_of(path: str) -> type[Integrator]:
+    """The integrator class a registry entry names (``module:Class``)."""
+    import importlib
+
+    module, name = path.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
 #: name -> integrator class, in the order of slipstep.methods.registry.SCHEMES
-INTEGRATORS: dict[str, type[Integrator]] = {name: entry.integrator_class() for name, entry in SCHEMES.items()}
+INTEGRATORS: dict[str, type[Integrator]] = {name: _class_of(entry.cls) for name, entry in SCHEMES.items()}
 ALIASES = SCHEME_ALIASES
 for _name, _cls in INTEGRATORS.items():  # the registry's kind is the class's (its variants follow from it)
     if _cls.kind != SCHEMES[_name].kind:

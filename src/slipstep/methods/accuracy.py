@@ -14,7 +14,7 @@ dissipated energy per cycle (friction, last period, all contacts) and the peak c
 force over the last period, both relative. Explicit schemes cannot double their step
 (stability): their twin halves it, err ~ (Q_dt - Q_dt/2) * 4/3.
 
-Default step rule (item 4 of issue 8; README "Methods"; the limits: methods/step_control.py):
+Default step rule (item 4 of issue 8; docs/guide/method_details.md; the limits: methods/step_control.py):
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),  whole steps per period;
     then, while the step-doubling estimate at dt exceeds DEFAULT_TARGET = 0.5 % on the loop
     energy, dt = dt sqrt(DEFAULT_TARGET / estimate) (second order), whole steps per period,

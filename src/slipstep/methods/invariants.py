@@ -34,7 +34,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from slipstep.kernels.codes import LAW_CIRCLE, SLIP_STATES
+from slipstep.kernels.codes import SLIP_STATES
+from slipstep.model.contact import COUPLED_SLIP_CODES
 
 FRICTION_RTOL = 1e-12  # |T| <= mu N (1 + FRICTION_RTOL)
 SLIP_FLOOR = 1e-12  # rounding floor of the slip-along-T test, relative to |w| + L
@@ -102,7 +103,7 @@ def _contact_violation(cs, out, step, t, f, w, state) -> Violation | None:
     at = np.searchsorted(contacts, owner)  # the column of each direction's contact in N
     mu = np.asarray(cs.law_par)[contacts, 1]
     size = np.abs(T)  # per direction (uncoupled laws); the circle's norm over its directions
-    for k in np.flatnonzero(np.asarray(cs.law)[contacts] == LAW_CIRCLE):
+    for k in np.flatnonzero(np.isin(np.asarray(cs.law)[contacts], list(COUPLED_SLIP_CODES))):
         mine = at == k
         size[:, mine] = np.sqrt((T[:, mine] ** 2).sum(axis=1))[:, None]
     limit = (mu * N)[:, at]

@@ -17,53 +17,12 @@ or ``RunOptions.max_memory`` / ``--max-memory``) is refused with an InputError.
 from __future__ import annotations
 
 import math
-import os
 import re
 
 from slipstep.errors import InputError
+from slipstep.output.io import DEFAULT_FRACTION, available_memory, memory_limit  # noqa: F401 (re-exported)
 
-DEFAULT_FRACTION = 0.5
 PEAK_FACTOR = 3.0  # run + Dataset + save over the output buffer: 2.5 measured (benchmarks/bench_memory.py)
-
-
-def available_memory() -> int:
-    """Memory this process may still use [bytes]: MemAvailable of /proc/meminfo, capped by a
-    cgroup (container) limit; the physical memory where /proc is absent."""
-    avail = None
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    avail = int(line.split()[1]) * 1024
-                    break
-    except (OSError, ValueError, IndexError):
-        pass
-    if avail is None:
-        try:
-            avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (ValueError, OSError, AttributeError):
-            avail = 8 * 1024**3
-    for limit_file, usage_file in (
-        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
-    ):
-        try:
-            with open(limit_file) as fh:
-                text = fh.read().strip()
-            if text == "max":
-                continue
-            with open(usage_file) as fh:
-                used = int(fh.read().strip())
-            avail = min(avail, max(int(text) - used, 0))
-        except (OSError, ValueError):
-            continue
-    return int(avail)
-
-
-def memory_limit(max_memory: float | None = None) -> float:
-    """The limit [bytes] of one run: ``max_memory`` if given, else DEFAULT_FRACTION of the
-    available memory."""
-    return float(max_memory) if max_memory is not None else DEFAULT_FRACTION * available_memory()
 
 
 def point_bytes(n: int, nq: int, nd: int, m: int = 0) -> int:

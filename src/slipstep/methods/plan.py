@@ -39,6 +39,7 @@ from slipstep.methods.buffers import workspace_bytes
 from slipstep.methods.options import RunOptions
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.step_control import default_max_step, state_t_min
+from slipstep.model.contact import without_piecewise_linear_form
 from slipstep.model.system import CompiledSystem, System
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
@@ -113,7 +114,7 @@ class RunPlan:
     def retuned(self, frequency_hz: float, system: System | None = None, **option_changes) -> "RunPlan":
         """The plan of the same run at the excitation frequency ``frequency_hz`` [Hz] (the next
         FRF point): ``system`` is the retuned system when the caller has one (else
-        frequency.retune(self.system, frequency_hz)), ``option_changes`` the options that change
+        model.retune.retune(self.system, frequency_hz)), ``option_changes`` the options that change
         with the point (the steady solvers' step T / N). The compiled matrices, T_min and the
         step limits are kept (no compile, no eigenvalue problem) when only the frequencies
         change; the same array layout, so a marcher takes it (Marcher.retarget). Another system
@@ -290,7 +291,7 @@ def _timed_plan(
 
 def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = None, **option_changes) -> RunPlan:
     """:meth:`RunPlan.retuned` (see there)."""
-    from slipstep.frequency.retune import retune  # (frequency/ imports the steady solvers, which import methods/)
+    from slipstep.model.retune import retune
 
     system = retune(plan.system, frequency_hz) if system is None else system
     opt = replace(plan.options, **option_changes).validated()
@@ -417,11 +418,12 @@ def check_event_case(system: System, cs: CompiledSystem) -> None:
             "is set: quasi-static-events needs unramped harmonic signals",
             "remove ramp_time or use method 'quasi-static'",
         )
-    circles = [c.name for c in system.contacts if c.law == "3d-circle"]
+    circles = without_piecewise_linear_form(system.contacts)
     if circles:
+        laws = sorted({c.law for c in system.contacts if c.name in circles})
         raise InputError(
             "method",
-            f"quasi-static-events needs piecewise-linear contact laws; {circles} use '3d-circle'",
+            f"quasi-static-events needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
             "use method 'quasi-static' for friction-circle contacts",
         )
 

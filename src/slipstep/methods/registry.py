@@ -9,9 +9,11 @@ x variants (fixed / adaptive step, Newton / piecewise-linear solve).
   classes alike); :data:`SCHEME_ALIASES`.
 * :data:`VARIANTS`, :data:`VARIANT_METHODS`: a scheme's variant -> the method that runs it.
 
-The CLI help (``slipstep run --help``), ``slipstep methods`` and the README's method and scheme
-tables are generated from here: ``slipstep methods --markdown`` prints the README tables
-(tests/test_registry.py checks the README against it).
+The CLI help (``slipstep run --help``), ``slipstep methods`` and the method and scheme tables of
+the documentation's methods page are generated from here (the tables by
+slipstep.integrators.tables, which adds what each integrator class says of its scheme;
+``slipstep methods --markdown`` prints them; tests/test_registry.py checks the page and the command).
+The registry names each integrator class by its path (``module:Class``) and never imports it.
 """
 
 from __future__ import annotations
@@ -134,6 +136,30 @@ METHODS: dict[str, Method] = {
     )
 }
 
+#: when to use each method (the advice the advisor's rules and the measurements support): the
+#: methods page prints it beside each method
+METHOD_ADVICE: dict[str, str] = {
+    "newmark": "you want the reference: the standard method, the baseline of every comparison",
+    "newmark-adaptive": "you study the paper's Method 2; prefer Method 2+3, which takes the same steps at "
+    "a tenth of the solves",
+    "piecewise-linear": "dynamics matter (near a resonance, light dampers, high frequency, lift-off): "
+    "Method 1's solution at about one solve per step; the default choice for dynamic runs",
+    "piecewise-linear-adaptive": "slip or lift-off dominate the period: longer steps in the softer states, "
+    "partly paid back in redone steps",
+    "quasi-static": "the excitation is far below the damper's resonances (inertia below 5 % of the "
+    "centrifugal load, paper Eq. 9) and every visited state has a static equilibrium: about 300 steps "
+    "per period, no ringing to filter",
+    "full-newton": "Method 1 needs many iterations per step (strong slip): fewer iterations, one factorisation each",
+    "quasi-static-events": "the same conditions as Method 4 with harmonic excitation and piecewise-linear laws: "
+    "exact transition instants, a few solves per state change instead of per step (the paper case: 32 solves "
+    "in 3 periods against Method 4's 922)",
+    "newmark-adaptive-stick": "you reproduce the paper's Method 2 exactly (the full-stick tangent in every "
+    "state); slower than `newmark-adaptive`",
+    "quasi-static-dofs": "a structure (blades) carries light dampers whose internal modes are far above the "
+    "excitation (at least 5x and 1 kHz, paper Remark 3): the dampers without inertia, the rest dynamic; the "
+    "step is set by the structure, not the damper (`slipstep advise` says when it applies)",
+}
+
 ALIASES = {
     "1": "newmark",
     "2": "newmark-adaptive",
@@ -182,12 +208,6 @@ class SchemeEntry:
 
     def default(self, parameter: str) -> float:
         return dict(self.parameters)[parameter]
-
-    def integrator_class(self):
-        import importlib
-
-        module, name = self.cls.split(":")
-        return getattr(importlib.import_module(module), name)
 
 
 SCHEMES: dict[str, SchemeEntry] = {
@@ -278,7 +298,7 @@ def get_method(name: str) -> Method:
     return METHODS[key]
 
 
-# -- generated texts: CLI help, `slipstep methods`, README tables --------------------------
+# -- generated texts: CLI help, `slipstep methods` (the tables: slipstep.integrators.tables) ----------
 def method_choices() -> str:
     """'newmark|1, newmark-adaptive|2, ..., full-newton, ...': every method with its number."""
     return ", ".join(m.name + (f"|{m.number}" if m.number else "") for m in METHODS.values())
@@ -292,75 +312,3 @@ def scheme_choices() -> str:
 def methods_rows() -> list[tuple[str, str, str, str]]:
     """(name, paper label, number or '-', description) per method, in registry order."""
     return [(m.name, m.paper_label, m.number or "-", m.description) for m in METHODS.values()]
-
-
-def schemes_rows() -> list[tuple[str, ...]]:
-    """(spec with defaults, kind, order, step limit factor, Omega_crit, variants, summary) per
-    scheme (imports the integrators: numpy and numba)."""
-    rows = []
-    for e in SCHEMES.values():
-        integ = e.integrator_class()()
-        if integ.kind != e.kind or tuple(integ.variants) != e.variants:
-            raise RuntimeError(f"scheme {e.name}: the registry says {e.kind}, the class {integ.kind}")
-        omega_crit = integ.omega_crit if integ.kind == "explicit" else integ.scheme().omega_crit
-        stability = "unconditional" if omega_crit == float("inf") else f"{omega_crit:.4g}"
-        rows.append(
-            (
-                scheme_spec(e),
-                integ.kind,
-                str(integ.order),
-                f"{integ.step_limit_factor:.4g}",
-                stability,
-                ", ".join(integ.variants),
-                e.summary,
-            )
-        )
-    return rows
-
-
-def _markdown(head: tuple[str, ...], rows) -> str:
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def methods_markdown() -> str:
-    """The README's methods table (``slipstep methods --markdown``)."""
-    rows = [(f"`{n}`", p, num, d) for n, p, num, d in methods_rows()]
-    return _markdown(("name", "paper", "`--method` number", "what it does"), rows)
-
-
-def schemes_markdown() -> str:
-    """The README's schemes table (``slipstep methods --markdown``)."""
-    rows = [(f"`{r[0]}`",) + r[1:] for r in schemes_rows()]
-    head = (
-        "scheme (`--scheme`, defaults)",
-        "kind",
-        "order",
-        "step limit dt <= factor T_min",
-        "stability Omega_crit",
-        "variants",
-        "what it is",
-    )
-    return _markdown(head, rows)
-
-
-#: the README's generated blocks: (start marker, end marker, generator)
-README_BLOCKS = (
-    ("<!-- methods table: generated by `slipstep methods --markdown` -->", "<!-- end of methods table -->", "methods"),
-    ("<!-- schemes table: generated by `slipstep methods --markdown` -->", "<!-- end of schemes table -->", "schemes"),
-)
-
-
-def readme_blocks() -> dict[str, str]:
-    """{'methods': table, 'schemes': table}: the README's generated tables."""
-    return {"methods": methods_markdown(), "schemes": schemes_markdown()}
-
-
-def update_readme(text: str) -> str:
-    """``text`` (the README) with each generated block replaced by the current table."""
-    blocks = readme_blocks()
-    for start, end, key in README_BLOCKS:
-        a, b = text.index(start) + len(start), text.index(end)
-        text = text[:a] + "\n" + blocks[key] + "\n" + text[b:]
-    return text

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.output.results import interpolate  # noqa: F401 (the Dataset's values at given times)
 
 #: models with more DOFs than this save only the response DOFs and the contacts by default
 FULL_SAVE_MAX_DOFS = 200
@@ -284,48 +285,6 @@ def kernel_arrays(plan: Plan, cs, capacity: int):
     if plan.times is not None:
         times[2:-1] = plan.times
     return kernel_dofs(cs, plan.dofs), plan.rows.copy(), plan.directions.copy(), ip, times
-
-
-def interpolate(rows: dict, grid: np.ndarray, dynamic: bool, gamma: float | None) -> dict:
-    """The saved rows (t, x, v, a, q, f, w, state, solves, dt, step: the step ends around each
-    given time) at the given times ``grid`` (module docstring). theta = (t - t_0) / h in the
-    step [t_0, t_1] of length h:
-
-        x = h00 x_0 + h10 h v_0 + h01 x_1 + h11 h v_1   (cubic Hermite; linear without v)
-        a = (1 - theta) a_0 + theta a_1
-        v = v_0 + theta h ((1 - gamma) a_0 + gamma a)    (Newmark; v_1 at theta = 1)
-
-    with h00 = 2 th^3 - 3 th^2 + 1, h10 = th^3 - 2 th^2 + th, h01 = 3 th^2 - 2 th^3,
-    h11 = th^3 - th^2; q, f, w linear; the state of the nearest step end; solves and
-    step_size those of the step holding the time."""
-    t = rows["t"]
-    right = np.clip(np.searchsorted(t, grid, side="left"), 0, t.size - 1)
-    left = np.maximum(right - 1, 0)
-    h = t[right] - t[left]
-    safe = np.where(h > 0, h, 1.0)
-    th = np.where(h > 0, (grid - t[left]) / safe, 1.0)[:, None]
-    hh = h[:, None]
-    x0, x1 = rows["x"][left], rows["x"][right]
-    out = {"t": np.asarray(grid, float)}
-    if dynamic:
-        v0, v1, a0, a1 = rows["v"][left], rows["v"][right], rows["a"][left], rows["a"][right]
-        th2, th3 = th * th, th * th * th
-        out["x"] = (2 * th3 - 3 * th2 + 1) * x0 + (th3 - 2 * th2 + th) * hh * v0 + (3 * th2 - 2 * th3) * x1
-        out["x"] = out["x"] + (th3 - th2) * hh * v1
-        a = (1 - th) * a0 + th * a1
-        out["a"] = a
-        out["v"] = v0 + th * hh * ((1 - gamma) * a0 + gamma * a)
-    else:
-        out["x"] = (1 - th) * x0 + th * x1
-        out["v"] = np.zeros_like(out["x"])
-        out["a"] = np.zeros_like(out["x"])
-    for key in ("q", "f", "w"):
-        out[key] = (1 - th) * rows[key][left] + th * rows[key][right]
-    nearest = np.where(th[:, 0] < 0.5, left, right)
-    out["state"] = rows["state"][nearest]
-    out["solves"] = rows["solves"][right]
-    out["dt"] = h
-    return out
 
 
 def contact_columns(out, cs, directions=None, contacts=None) -> tuple[np.ndarray, np.ndarray]:

@@ -78,9 +78,14 @@ def contact_state_vector(cs, state, field: str = "state") -> "np.ndarray":
     return raw.astype(np.int8)
 
 
+def t_min_of_omega(omega_max: float) -> float:
+    """T_min = 2 pi / omega_max [s] (paper Eq. 8; inf when omega_max = 0): the one T_min formula."""
+    return 2 * math.pi / omega_max if omega_max > 0 else math.inf
+
+
 def t_min_of(omega2: float) -> float:
-    """T_min = 2 pi / sqrt(omega_max^2) [s] (inf when omega_max = 0)."""
-    return 2 * math.pi / math.sqrt(omega2) if omega2 > 0 else math.inf
+    """T_min of omega_max^2 [rad^2/s^2]: :func:`t_min_of_omega` of its square root."""
+    return t_min_of_omega(math.sqrt(omega2)) if omega2 > 0 else math.inf
 
 
 def state_omega2(cs, state) -> float:

@@ -32,6 +32,11 @@ class ContactLaw:
     rows: tuple[int, ...]  # allowed numbers of local rows (2: 2D, 3: quasi-3D / 3D)
     bounds: str
     description: str
+    #: every state has a piecewise-linear form (a step in it is one linear solve): what Methods 3 and 4
+    #: solve without Newton, the event-driven method and harmonic balance's AFT Jacobian need
+    piecewise_linear: bool = True
+    #: the tangential directions share one state and slip along the vector T (state slip-circle)
+    coupled_slip: bool = False
 
 
 CONTACT_LAWS: dict[str, ContactLaw] = {
@@ -66,9 +71,19 @@ CONTACT_LAWS: dict[str, ContactLaw] = {
             "norm(T1, T2) <= mu N: the friction circle",
             "coupled 3D friction: one slider in the tangent plane, radial return, variable normal load and "
             "lift-off; one tangential stiffness for both directions",
+            piecewise_linear=False,
+            coupled_slip=True,
         ),
     )
 }
+
+#: the kernel codes of the laws whose directions share one state (the capability, by code, for arrays)
+COUPLED_SLIP_CODES = frozenset(law.code for law in CONTACT_LAWS.values() if law.coupled_slip)
+
+
+def without_piecewise_linear_form(contacts) -> list[str]:
+    """The names of the contacts whose law has no piecewise-linear form in some state."""
+    return [c.name for c in contacts if not CONTACT_LAWS[c.law].piecewise_linear]
 
 
 @dataclass(frozen=True)
@@ -156,13 +171,18 @@ class ContactElement:
                 "is 'jenkins' (constant normal load) but the normal row of dof_gather or motion_gather is not all zero",
                 "zero the normal rows and set normal_offset > 0, or use the paper's law",
             )
-        if law.code == LAW_CIRCLE and kt[0] != kt[1]:
+        if law.coupled_slip and kt[0] != kt[1]:
             raise InputError(
                 f"{where}.tangential_stiffness",
-                f"is {list(kt)}: the friction circle ('3d-circle') needs one tangential stiffness for both directions",
+                f"is {list(kt)}: the friction circle ({law.name!r}) needs one tangential stiffness for both directions",
                 "give a single value, or use law = 'quasi-3d-uncoupled'",
             )
         return law.name
+
+    @property
+    def contact_law(self) -> ContactLaw:
+        """The law this contact uses, with its capabilities."""
+        return CONTACT_LAWS[self.law]
 
     @property
     def law_code(self) -> int:

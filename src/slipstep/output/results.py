@@ -35,14 +35,177 @@ SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
 
 DYNAMIC_ONLY = ("velocity", "acceleration")
 
+#: the coordinates of a result: name -> (unit when the coordinate has no ``units`` attribute, meaning)
+COORDS: dict[str, tuple[str, str]] = {
+    "time": ("s", "time after the static preload (non-uniform for the adaptive methods)"),
+    "dof": ("-", "structure DOF names"),
+    "dof_unit": ("-", "unit of each DOF (m or rad)"),
+    "motion": ("-", "prescribed motion components"),
+    "contact": ("-", "contact element names"),
+    "direction": (
+        "-",
+        "tangential directions (one per 2D contact, two per quasi-3D contact); each owns a slider and a state",
+    ),
+    "direction_contact": ("-", "the contact each direction belongs to"),
+    "contact_law": ("-", "the friction law each contact uses (see the case-file reference, Contact laws)"),
+    "friction_coefficient": ("1", "mu of each contact"),
+    "normal_stiffness": ("N/m", "k_n of each contact"),
+    "tangential_stiffness": ("N/m", "k_t of each direction"),
+    "step": ("1", "the march's step number of each saved time (absent for outputs at given times)"),
+}
+
+#: the attributes of a result (``ds.attrs``): name -> (unit, meaning)
+ATTRS: dict[str, tuple[str, str]] = {
+    "title": ("-", "one-line title of the result"),
+    "case": ("-", "case name"),
+    "method": ("-", "method name (see Methods)"),
+    "paper_method": ("-", "the paper's label of the method (Method 1 ... Method 4)"),
+    "solver": ("-", "step solver: modified-newton, full-newton or piecewise-linear"),
+    "adaptive_step": ("1", "1 when the step follows the contact state (Methods 2, 2+3), else 0"),
+    "quasi_static": ("1", "1 for the quasi-static method (no velocity, acceleration), else 0"),
+    "scheme": ("-", "time-integration scheme and its parameters, e.g. newmark(beta=1/4, gamma=1/2)"),
+    "linear_solver": (
+        "-",
+        "state solves: direct (LU per state), low-rank (Woodbury update) or banded (RCM-ordered banded LU per "
+        "state: sparse structures)",
+    ),
+    "bandwidth": ("1", "half-bandwidth kl = ku of the banded backend after the RCM order; -1 for dense backends"),
+    "status": (
+        "-",
+        "OK, or why the march stopped early (NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, "
+        "NON_FINITE, INTERRUPTED, DIVERGED; INVARIANT: completed but a contact invariant broken, see "
+        "broken_invariant); the result then holds the steps before it",
+    ),
+    "status_message": ("-", "the status in words, with the fix"),
+    "steps": ("1", "accepted time steps"),
+    "solves": ("1", "linear solves (iterations) over the run"),
+    "iterations": ("1", "the same count as solves (the paper's word)"),
+    "mean_solves_per_step": ("1", "solves / steps"),
+    "factorisations": ("1", "matrix factorisations (one per new contact state for the piecewise-linear solver)"),
+    "law_calls": ("1", "contact-law evaluations"),
+    "redone_steps": ("1", "steps redone with a smaller step (adaptive methods: the new state needed one)"),
+    "fallback_steps": (
+        "1",
+        "steps the piecewise-linear state loop did not settle (state cycling) and handed to modified Newton",
+    ),
+    "state_changes": ("1", "steps whose contact-state tuple differs from the previous step's"),
+    "dt_s": ("s", "the fixed step (adaptive methods: the full-stick step)"),
+    "t_min_s": ("s", "T_min of the full-stick state, 2 pi / omega_max (paper Eq. 8)"),
+    "t_end_s": ("s", "simulated time"),
+    "period_s": ("s", "excitation period"),
+    "step_ratio": ("1", "r in dt = r T_min / pi"),
+    "steps_per_period": ("1", "steps per period (quasi-static method)"),
+    "max_step_s": ("s", "accuracy cap of dynamic steps (default period / 50)"),
+    "tolerance": ("1", "Newton tolerance, relative to length_scale_m"),
+    "state_tolerance": ("1", "relative tolerance of the contact-state compatibility check"),
+    "kernel_time_s": ("s", "time spent in the compiled march (excludes set-up and the Dataset)"),
+    "save": ("-", "what the run saved (the save option): DOFs, contacts and time grid, in words"),
+    "save_all_dofs": ("1", "1 when every DOF was saved (dof coordinate: the saved ones)"),
+    "save_all_contacts": ("1", "1 when every contact was saved"),
+    "save_every_step": (
+        "1",
+        "1 when every step was saved (from the first saved time), 0 for every k-th or given times",
+    ),
+    "save_whole_run": ("1", "1 when the saved times start at the start of the march (not the last periods only)"),
+    "wall_time_s": ("s", "time of the whole run() call"),
+    "length_scale_m": (
+        "m",
+        "displacement scale of the tolerances: the larger of the motion amplitude and the static "
+        "deflection abs(f) / k of the loads, at least 1 nm",
+    ),
+    "energy_error_estimate": (
+        "1",
+        "relative error estimate of the loop energy per cycle, by step doubling (NaN when not available)",
+    ),
+    "peak_force_error_estimate": (
+        "1",
+        "relative error estimate of the peak contact force, by step doubling (NaN when not available)",
+    ),
+    "error_estimate_method": ("-", "how the error estimates were obtained"),
+    "step_rule": (
+        "-",
+        "what set the step: `t-min` (the paper's T_min rule) or `accuracy` (cap, error estimate and stability "
+        "only; `step_rule` option, `--step-rule`)",
+    ),
+    "rtol": ("1", "the accuracy the user set (`rtol` option, `--rtol`); NaN: off, the default step rule applies"),
+    "failed_at_step": ("1", "on failure: the step that failed"),
+    "failed_at_time_s": ("s", "on failure: the time it failed at"),
+    "states_visited": ("-", "on failure: the contact states tried in the failing step"),
+    "broken_invariant": (
+        "-",
+        "status INVARIANT: the contact invariant the march broke (finite, rows written, N >= 0, |T| <= mu N, "
+        "slip along T), its step, time and contact",
+    ),
+    "steps_above_tolerance": (
+        "1",
+        "Methods 1 and 2 (Newmark, full save): steps accepted with a balance residual above 1e4 x tolerance of "
+        "their forces (a warning names them; the result may be off the discrete solution)",
+    ),
+    "max_step_residual": ("1", "Methods 1 and 2: the largest balance residual of a step, relative to its forces"),
+    "first_step_above_tolerance": ("1", "the first step counted in steps_above_tolerance"),
+    "steps_over_planned": (
+        "1",
+        "steps taken over the steps of the planned step dt_s for the duration (slipstep.run; above 50 the step "
+        "collapsed and the run warns)",
+    ),
+}
+#: the attributes only a failed (or suspect) march has
+FAILURE_ATTRS = (
+    "failed_at_step",
+    "failed_at_time_s",
+    "states_visited",
+    "broken_invariant",
+    "first_step_above_tolerance",
+)
+
+
+def interpolate(rows: dict, grid: np.ndarray, dynamic: bool, gamma: float | None) -> dict:
+    """The saved rows (t, x, v, a, q, f, w, state, solves, dt, step: the step ends around each
+    given time) at the given times ``grid`` (the ``times`` choice of slipstep.methods.save). theta = (t - t_0) / h in the
+    step [t_0, t_1] of length h:
+
+        x = h00 x_0 + h10 h v_0 + h01 x_1 + h11 h v_1   (cubic Hermite; linear without v)
+        a = (1 - theta) a_0 + theta a_1
+        v = v_0 + theta h ((1 - gamma) a_0 + gamma a)    (Newmark; v_1 at theta = 1)
+
+    with h00 = 2 th^3 - 3 th^2 + 1, h10 = th^3 - 2 th^2 + th, h01 = 3 th^2 - 2 th^3,
+    h11 = th^3 - th^2; q, f, w linear; the state of the nearest step end; solves and
+    step_size those of the step holding the time."""
+    t = rows["t"]
+    right = np.clip(np.searchsorted(t, grid, side="left"), 0, t.size - 1)
+    left = np.maximum(right - 1, 0)
+    h = t[right] - t[left]
+    safe = np.where(h > 0, h, 1.0)
+    th = np.where(h > 0, (grid - t[left]) / safe, 1.0)[:, None]
+    hh = h[:, None]
+    x0, x1 = rows["x"][left], rows["x"][right]
+    out = {"t": np.asarray(grid, float)}
+    if dynamic:
+        v0, v1, a0, a1 = rows["v"][left], rows["v"][right], rows["a"][left], rows["a"][right]
+        th2, th3 = th * th, th * th * th
+        out["x"] = (2 * th3 - 3 * th2 + 1) * x0 + (th3 - 2 * th2 + th) * hh * v0 + (3 * th2 - 2 * th3) * x1
+        out["x"] = out["x"] + (th3 - th2) * hh * v1
+        a = (1 - th) * a0 + th * a1
+        out["a"] = a
+        out["v"] = v0 + th * hh * ((1 - gamma) * a0 + gamma * a)
+    else:
+        out["x"] = (1 - th) * x0 + th * x1
+        out["v"] = np.zeros_like(out["x"])
+        out["a"] = np.zeros_like(out["x"])
+    for key in ("q", "f", "w"):
+        out[key] = (1 - th) * rows[key][left] + th * rows[key][right]
+    nearest = np.where(th[:, 0] < 0.5, left, right)
+    out["state"] = rows["state"][nearest]
+    out["solves"] = rows["solves"][right]
+    out["dt"] = h
+    return out
+
 
 def kernel_rows(system, out, n_stored: int, compiled, plan=None, grid=None, dynamic=True, gamma=None):
     """The first ``n_stored`` + 1 rows of the kernel outputs (dict of t, x, v, a, q, f, w,
     state, solves, dt, step; interpolated at the times ``grid`` if given), the saved contacts
     and directions, and the columns of q and f that hold the directions' tangential and the
     contacts' normal components: (rows, contacts, dirs, tan_cols, nrm_cols)."""
-    from slipstep.methods.save import interpolate
-
     k = n_stored + 1
     cs = compiled
     nc = len(system.contact_names)
@@ -72,7 +235,7 @@ def build_dataset(
     """Assemble the Dataset of the first ``n_stored`` + 1 rows of kernel outputs: the saved DOFs
     (coordinate ``dof``), contacts and directions of ``plan`` (slipstep.methods.save.Plan;
     None: all), at the saved steps (coordinate ``step``), or interpolated at the given times
-    ``grid`` (slipstep.methods.save.interpolate; ``gamma``: the Newmark gamma of the march)."""
+    ``grid`` (:func:`interpolate`; ``gamma``: the Newmark gamma of the march)."""
     cs = compiled
     n = len(system.structure.dof_names)
     dofs = np.arange(n) if plan is None else plan.dofs
@@ -192,7 +355,7 @@ def load(path, field: str = "result") -> xr.Dataset:
             raise refuse(f"is not a slipstep result ({kind})")
         fh.seek(0)
         nbytes = _check_hdf5(fh, refuse)
-        from slipstep.methods.memory import memory_limit
+        from slipstep.output.io import memory_limit
 
         limit = memory_limit()
         if nbytes > limit:

@@ -88,15 +88,12 @@ def state_frequencies(system, state) -> np.ndarray:
     a damper, and others not, blades) the ringing is the damper's: its frequencies with the
     other DOFs fixed (M_mm^-1 (K + K_D(S))_mm, paper Remark 2), the blades' modes being physics."""
     from slipstep.methods.massless import contact_held_dofs
-    from slipstep.methods.step_control import state_eigenvalues
+    from slipstep.methods.step_control import effective_stiffness, state_eigenvalues
 
     cs = system.compile_dense("the filtered contact-state analysis")
     held = contact_held_dofs(system)
     if 0 < held.size < cs.M.shape[0]:
-        from slipstep.kernels.contact import add_contact_stiffness
-
-        K = cs.K.copy()
-        add_contact_stiffness(cs, np.asarray(state, np.int8), 1.0, K)
+        K = effective_stiffness(cs, np.asarray(state, np.int8))
         ev = np.linalg.eigvals(np.linalg.solve(cs.M[np.ix_(held, held)], K[np.ix_(held, held)]))
     else:
         ev = state_eigenvalues(cs, np.asarray(state, np.int8))

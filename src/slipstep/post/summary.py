@@ -204,12 +204,12 @@ class Record:
 def record_of(sim) -> Record:
     """The Record of a marched Simulation with the default save (every step, every DOF and
     contact), from the kernel's output buffers (results.kernel_rows, as the Dataset is)."""
-    from slipstep.kernels import march as K
+    from slipstep.kernels.codes import C_STEPS
     from slipstep.methods.buffers import saved_rows
     from slipstep.output.results import kernel_rows
 
     system, cs = sim.system, sim.compiled
-    rows = saved_rows(sim.out, int(sim.out.counters[K.C_STEPS]))
+    rows = saved_rows(sim.out, int(sim.out.counters[C_STEPS]))
     r, contacts, dirs, tan, nrm = kernel_rows(system, sim.out, rows - 1, cs, None, None, False)
     cnames, dnames = system.contact_names, system.direction_names()
     owner = np.asarray(cs.direction_contact)

@@ -21,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
+from slipstep.model.contact import CONTACT_LAWS
 from slipstep.kernels.codes import LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, SLIP_STATES, STATE_NAMES, STICK
 
 
@@ -75,7 +76,7 @@ def states_from_forces(ds: xr.Dataset, eps: float = 0.02) -> np.ndarray:
     S[slip & (T < 0)] = SLIP_NEG
     laws = ds["contact_law"].values if "contact_law" in ds.coords else ()
     for c, law in enumerate(laws):
-        if law == "3d-circle":
+        if getattr(CONTACT_LAWS.get(str(law)), "coupled_slip", False):
             cols = np.flatnonzero(col == c)
             norm = np.sqrt((T[:, cols] ** 2).sum(axis=1))
             S[:, cols] = np.where(norm >= (1 - eps) * lim[:, cols[0]], SLIP_COUPLED, STICK)[:, None]

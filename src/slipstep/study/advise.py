@@ -52,7 +52,8 @@ import numpy as np
 from slipstep.errors import InputError, SolverError
 from slipstep.methods import step_control as SC
 from slipstep.methods.schemes import newmark
-from slipstep.kernels.codes import LAW_CIRCLE, LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
+from slipstep.model.contact import COUPLED_SLIP_CODES
+from slipstep.kernels.codes import LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
 
 
 def rpm_to_rad_s(rpm: float) -> float:
@@ -121,7 +122,7 @@ def enumerate_states(cs, max_states: int = 4096) -> list[tuple[int, ...]] | None
     total = 1
     for c in range(cs.kn.shape[0]):
         nd = int(cs.n_directions[c])
-        if cs.law[c] == LAW_CIRCLE:  # the directions share every state
+        if int(cs.law[c]) in COUPLED_SLIP_CODES:  # the directions share every state
             opts = [(s,) * nd for s in (LIFT, STICK, SLIP_COUPLED)]
         else:
             opts = [(LIFT,) * nd] + list(itertools.product((STICK, SLIP_POS, SLIP_NEG), repeat=nd))

@@ -36,6 +36,7 @@ import numpy as np
 
 from slipstep.errors import InputError, SolverError
 from slipstep.methods.eigen import omega_max
+from slipstep.methods.step_control import t_min_of_omega
 from slipstep.model.contact import ContactElement
 from slipstep.model.excitation import Excitation, Harmonic, Signal
 from slipstep.model.structure import Structure
@@ -178,7 +179,7 @@ def family_system(rng: np.random.Generator, family: str = "general") -> System:
     cs = system0.compile_dense("the verification")
     Keff = cs.K + sum(cs.kn[c] * np.outer(cs.A[cs.normal_row[c]], cs.A[cs.normal_row[c]]) for c in range(nc))
     Keff = Keff + sum(cs.kt[d] * np.outer(cs.A[cs.tangential_row[d]], cs.A[cs.tangential_row[d]]) for d in range(nc))
-    t_min = 2 * math.pi / omega_max(M, Keff)
+    t_min = t_min_of_omega(omega_max(M, Keff))
     frequency = 1.0 / (t_min * 10 ** (rng.uniform(3.0, 4.5) if family == "slow-load" else rng.uniform(0.0, 2.0)))
     force = Signal(
         tuple(f"x{i}" for i in range(n)),

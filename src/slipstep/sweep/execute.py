@@ -46,7 +46,7 @@ class Payload:
     extra_run: dict
     outputs: dict
     base_dir: str | None = None
-    reference: tuple = ()  # a mistuning sweep's tuned peaks (slipstep.sweep.mistuning.tuned_references)
+    reference: tuple = ()  # a mistuning sweep's tuned peaks (slipstep.sweep.run.tuned_references)
 
 
 def payload_of(plan, reference=()) -> Payload:

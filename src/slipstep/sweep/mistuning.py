@@ -175,34 +175,6 @@ def reference_key(parameters, values) -> tuple:
     return tuple(float(v) for p, v in zip(parameters, values) if p.mistuning is None)
 
 
-def tuned_references(plan, frf_values) -> list[dict]:
-    """The tuned assembly's peaks, once per combination of the non-mistuning parameters:
-    [{"values": [...], "<peak field>": A_peak, ..., "peak_frequency_Hz", "peak_blade"}]. ``frf_values(system, run, cfg)`` computes the
-    FRF arrays (slipstep.sweep.execute.frf_values). A tuned case that cannot be built or solved
-    is an error of the sweep (its amplification factors would have no reference)."""
-    from slipstep.sweep.cases import apply_values, build_case
-
-    m = next(p.mistuning for p in plan.parameters if p.mistuning is not None)
-    seen: dict[tuple, int] = {}
-    for i, row in enumerate(plan.values):
-        seen.setdefault(reference_key(plan.parameters, row), i)
-    out = []
-    for key, i in seen.items():
-        data = apply_values(plan.base, plan.parameters, plan.values[i])
-        apply_mistuning(data, m, 0.0, 0)
-        try:
-            system, run = build_case(data, plan.base_dir, source="the tuned case of the sweep")
-        except InputError as exc:
-            raise InputError(exc.field, f"{exc.problem} (the tuned case of the sweep)", exc.fix) from None
-        frf = frf_values(system, run, plan.outputs["frf"])
-        cfg = plan.outputs["frf"]
-        p = peaks(frf, cfg["frequencies_Hz"], cfg["responses"], plan.outputs["mistuning"]["responses"])
-        entry = {"values": list(key), **{field: v[0] for field, v in p.items()}}
-        entry["peak_frequency_Hz"], entry["peak_blade"] = p["peak_blade_amplitude"][1:]
-        out.append(entry)
-    return out
-
-
 def reference_for(references, parameters, values) -> dict | None:
     key = list(reference_key(parameters, values))
     return next((r for r in references if r["values"] == key), None)

@@ -143,7 +143,7 @@ def run_sweep(
 
 
 def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
-    """The tuned peaks of a mistuning sweep (slipstep.sweep.mistuning.tuned_references), computed
+    """The tuned peaks of a mistuning sweep (:func:`tuned_references`), computed
     by the client once per sweep and kept in the store's attrs (``mistuning_reference``: a
     resumed sweep reads them; ``mistuning_responses``: the blade DOFs); [] for other sweeps."""
     import json
@@ -154,13 +154,41 @@ def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
     if stored:
         return json.loads(stored)
     from slipstep.sweep.execute import frf_values
-    from slipstep.sweep.mistuning import tuned_references
 
     reference = tuned_references(plan, frf_values)
     store.group.attrs["mistuning_reference"] = json.dumps(reference)
     store.group.attrs["mistuning_responses"] = list(plan.outputs["mistuning"]["responses"])
     store.consolidate()
     return reference
+
+
+def tuned_references(plan, frf_values) -> list[dict]:
+    """The tuned assembly's peaks, once per combination of the non-mistuning parameters:
+    [{"values": [...], "<peak field>": A_peak, ..., "peak_frequency_Hz", "peak_blade"}]. ``frf_values(system, run, cfg)`` computes the
+    FRF arrays (slipstep.sweep.execute.frf_values). A tuned case that cannot be built or solved
+    is an error of the sweep (its amplification factors would have no reference)."""
+    from slipstep.sweep.cases import apply_values, build_case
+    from slipstep.sweep.mistuning import apply_mistuning, peaks, reference_key
+
+    m = next(p.mistuning for p in plan.parameters if p.mistuning is not None)
+    seen: dict[tuple, int] = {}
+    for i, row in enumerate(plan.values):
+        seen.setdefault(reference_key(plan.parameters, row), i)
+    out = []
+    for key, i in seen.items():
+        data = apply_values(plan.base, plan.parameters, plan.values[i])
+        apply_mistuning(data, m, 0.0, 0)
+        try:
+            system, run = build_case(data, plan.base_dir, source="the tuned case of the sweep")
+        except InputError as exc:
+            raise InputError(exc.field, f"{exc.problem} (the tuned case of the sweep)", exc.fix) from None
+        frf = frf_values(system, run, plan.outputs["frf"])
+        cfg = plan.outputs["frf"]
+        p = peaks(frf, cfg["frequencies_Hz"], cfg["responses"], plan.outputs["mistuning"]["responses"])
+        entry = {"values": list(key), **{field: v[0] for field, v in p.items()}}
+        entry["peak_frequency_Hz"], entry["peak_blade"] = p["peak_blade_amplitude"][1:]
+        out.append(entry)
+    return out
 
 
 def _collect(

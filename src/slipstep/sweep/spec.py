@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from slipstep.errors import InputError
+from slipstep.output.frf_schema import FRF_SOLVERS as ALL_FRF_SOLVERS
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -596,7 +597,7 @@ FRF_KEYS = (
     "check",
     "adequacy",
 )
-FRF_SOLVERS = ("march", "shoot", "hbm")
+FRF_SOLVERS = tuple(s for s in ALL_FRF_SOLVERS if s != "auto")  # a sweep names its solver
 HBM_CHECKS = ("auto", "peak", "all", "none")
 
 

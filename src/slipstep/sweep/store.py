@@ -435,9 +435,9 @@ def _create(path: Path, plan, labels: dict) -> None:
 
 def _create_frf(g, plan, labels: dict) -> None:
     """The FRF variables of every case: ``frf_<name>`` over (case, <its FRF_SCHEMA dims>), with
-    the frequency [Hz], harmonic and response coordinates (slipstep.frequency.schema)."""
+    the frequency [Hz], harmonic and response coordinates (slipstep.output.frf_schema)."""
     from slipstep.frequency import FRF_SCHEMA
-    from slipstep.frequency.schema import TEXT_VARIABLES
+    from slipstep.output.frf_schema import TEXT_VARIABLES
 
     cfg = plan.outputs["frf"]
     coords = {

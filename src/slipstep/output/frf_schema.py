@@ -18,6 +18,11 @@ t = 0 at the start of the steady-state period.
 
 from __future__ import annotations
 
+#: The one table of the FRF solvers (``solver=`` of slipstep.frequency.frf, ``slipstep frf --solver``,
+#: a sweep's ``[outputs.frf] solver``): auto chooses one of the others (slipstep.frequency.choice);
+#: march and shoot are the steady-state solvers (slipstep.steady), hbm harmonic balance.
+FRF_SOLVERS = ("auto", "march", "shoot", "hbm")
+
 FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     # name: (dims, units, long_name)
     "amplitude": (

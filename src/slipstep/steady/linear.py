@@ -18,8 +18,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import xarray as xr
 
-from slipstep.frequency.retune import retune
-from slipstep.kernels.contact import LIFT, STICK
+from slipstep.model.retune import retune
+from slipstep.kernels.codes import LIFT, STICK
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
 from slipstep.model.system import System
@@ -94,7 +94,7 @@ def linear_response(system: System, stuck: bool, state: np.ndarray | None = None
 
 def linear_limits(system: System, frequencies, responses=None) -> xr.Dataset:
     """``linear_free_amplitude`` and ``linear_stuck_amplitude`` over (frequency, response) on
-    the grid ``frequencies`` [Hz] (the excitation retuned to each, slipstep.frequency.retune)."""
+    the grid ``frequencies`` [Hz] (the excitation retuned to each, slipstep.model.retune)."""
     freqs = np.atleast_1d(np.asarray(frequencies, float))
     names = list(system.structure.dof_names)
     responses = names if responses is None else list(responses)

@@ -1,11 +1,11 @@
-"""Building FRF Datasets in the one layout of :mod:`slipstep.frequency.schema`."""
+"""Building FRF Datasets in the one layout of :mod:`slipstep.output.frf_schema`."""
 
 from __future__ import annotations
 
 import numpy as np
 import xarray as xr
 
-from slipstep.frequency.schema import FRF_SCHEMA, TEXT_VARIABLES
+from slipstep.output.frf_schema import FRF_SCHEMA, TEXT_VARIABLES
 
 
 def empty_frf(
