@@ -43,8 +43,11 @@ from slipstep.model.system import System
 
 def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:
     """(x, w) of the static preload, the same one every time march starts from
-    (methods/start.py static_equilibrium)."""
-    start = static_equilibrium(plan_run(system, "piecewise-linear", periods=1, error_estimate=False))
+    (methods/start.py static_equilibrium). The plan's step is T / 4: the preload does not depend
+    on it, and the default step rule (T_min) would size outputs for a period of a stiff model
+    (1.5e6 steps and 35 GB on the unreduced blade pair) that nothing marches here."""
+    plan = plan_run(system, "piecewise-linear", periods=1, error_estimate=False, dt=system.period / 4)
+    start = static_equilibrium(plan)
     return start.x.copy(), start.w.copy()
 
 
