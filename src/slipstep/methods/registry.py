@@ -19,7 +19,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.codes import EVENTS, FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
+from slipstep.kernels.codes import (
+    EVENTS,
+    EXACT_EVENTS,
+    FULL_NEWTON,
+    MODIFIED_NEWTON,
+    MODIFIED_NEWTON_STATE,
+    PIECEWISE_LINEAR,
+)
 
 
 @dataclass(frozen=True)
@@ -121,6 +128,16 @@ METHODS: dict[str, Method] = {
             True,
             "event-driven quasi-static: exact state-transition instants by root finding in each linear phase, "
             "outputs on the steps_per_period grid (harmonic excitation, piecewise-linear laws)",
+        ),
+        Method(
+            "events",
+            "beyond the paper",
+            EXACT_EVENTS,
+            False,
+            False,
+            "exact event-driven dynamics: each linear phase by its exact propagator (modal form, harmonic and "
+            "constant loads in closed form), state changes located by root finding on the exact solution "
+            "(harmonic excitation, piecewise-linear laws)",
         ),
         Method(
             "newmark-adaptive-stick",

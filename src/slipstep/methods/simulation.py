@@ -387,7 +387,15 @@ class Simulation(Runner):
 
 def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
-    result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`."""
+    result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`
+    (method ``events``: methods/exact_events.py, which also takes ``max_events``)."""
+    from slipstep.kernels.codes import EXACT_EVENTS
+    from slipstep.methods.registry import get_method
+
+    if get_method(method).solver == EXACT_EVENTS:
+        from slipstep.methods import exact_events
+
+        return exact_events.run(system, raise_on_failure=raise_on_failure, **options)
     return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
 
 

@@ -1,0 +1,671 @@
+"""Exact event-driven dynamics (method ``events``, issue 28; equations in docs/exact_events.md).
+
+Between two contact-state changes the paper's piecewise-linear laws make the system linear
+with constant coefficients. In the contact state S (stick sliders w fixed):
+
+    M a + C v + K_S x = F_S(t, w),   K_S = K + A^T K(S) A,
+    F_S = f_c - A^T (K(S) g + s(S, w)) + sum_h Re[(F_h + A^T K(S) B P_h) exp(i Omega_h t)]
+
+(physics.md 3: f = K(S) q + s(S, w), q = A x - B p(t) + g; F_h = Fc - i Fs and P_h the complex
+amplitudes of the harmonic forces and motions). Its exact solution over a phase from t0:
+
+    z(t) = z_p(t) + Re[ Phi exp(Lambda (t - t0)) eta0 ],     eta0 = Phi^-1 (z(t0) - z_p(t0))
+
+with z = (x, v), the first-order matrix [[0, I], [-M^-1 K_S, -M^-1 C]] = Phi Lambda Phi^-1
+(complex modal form), the particular solution x_p(t) = x_c + Re sum_h X_h exp(i Omega_h t),
+K_S x_c = the constant load, (K_S - Omega_h^2 M + i Omega_h C) X_h = the harmonic amplitude.
+The eigendecomposition, the factorisations and the margins' modal coefficients are computed
+once per contact state and cached (:class:`StateModel`, keyed by the state's bytes).
+
+The state holds while every margin of the state table stays >= 0 (per contact in contact
+v >= 0, lifted -v >= 0; per direction in stick mu k_n v -/+ k_t (u - w) >= 0, in slip+/-
++/-(k_t du/dt - /+ ...) = k_t dw/dt (sign) >= 0, the slider moving with the force). The first
+zero of a margin on the exact solution is found by kernels/exact_events.py (sampling at a
+safe sub-step, bracket, Illinois to round-off). At the event the sliders take their
+value (slip: w = u - T / k_t, lift-off: w = u), and the contacts whose margins vanish there
+choose their new state by the sign of a second-order Taylor prediction of their trial force
+and gap a short probe time ahead (state-independent: forces, hence accelerations, are
+continuous at a switch), the rate-independent rule "stick when stick can hold". A run of
+more than MAX_FLIPS switches at one instant, or more than ``max_events`` in the run, stops
+with status EVENT_CAP naming the time and the contact.
+
+Refused (InputError): the friction circle ('3d-circle'), tabulated loads or motions, ramps,
+the banded backend, a singular mass matrix. A contact state whose K_S is singular (a free
+rigid mode, e.g. a damper in full lift-off) or whose modal matrix is defective stops with
+status SINGULAR (not built: the Van Loan fallback).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from slipstep.errors import InputError, SolverError, Status
+from slipstep.kernels import exact_events as KE
+from slipstep.kernels.codes import LIFT, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
+from slipstep.methods.plan import RunPlan, plan_run
+from slipstep.model.system import System
+
+#: margin tolerance, relative to the margin's scale (force: mu k_n L + k_t L; gap: L; rate: force / time scale)
+MARGIN_RTOL = 1e-12
+#: sampling sub-step h = SAMPLE_FACTOR / omega_max (omega_max: the fastest term of the phase)
+SAMPLE_FACTOR = 0.5
+#: the Taylor probe of the state choice at an event, in units of h
+PROBE_FACTOR = 1e-5
+#: roots within TOGETHER_FACTOR h of the first are one event
+TOGETHER_FACTOR = 1e-9
+#: switches at one instant (phases shorter than TOGETHER_FACTOR h) before EVENT_CAP
+MAX_FLIPS = 20
+#: default cap on the events of a run, per excitation period (or per millisecond without a period)
+EVENTS_PER_PERIOD = 10_000
+
+# margin kinds
+K_CONTACT, K_LIFT, K_STICK_POS, K_STICK_NEG, K_SLIP_POS, K_SLIP_NEG = range(6)
+
+
+# ---------------------------------------------------------------------------------------
+# the system's arrays
+# ---------------------------------------------------------------------------------------
+class Model:
+    """The arrays of a compiled system the exact march reads, and its excitation as complex
+    harmonics over the union of force and motion frequencies: F(t) = f_c + Re sum_h F_h
+    exp(i Omega_h t), p(t) = Re sum_h P_h exp(i Omega_h t)."""
+
+    def __init__(self, cs, system: System | None = None):
+        self.cs = cs
+        self.contact_names = list(system.contact_names) if system is not None else None
+        self.direction_names = list(system.direction_names()) if system is not None else None
+        self.M, self.C, self.K, self.A, self.B, self.g = cs.M, cs.C, cs.K, cs.A, cs.B, cs.g
+        self.n, self.nq, self.nd, self.nc = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.normal_row.shape[0]
+        self.mk = cs.law_par[:, 1] * cs.law_par[:, 0]  # mu k_n per contact
+        self.kn = cs.law_par[:, 0]
+        self.kt = np.asarray(cs.kt, float)
+        self.trow, self.nrow = np.asarray(cs.tangential_row), np.asarray(cs.normal_row)
+        self.owner = np.asarray(cs.direction_contact)
+        self.first, self.ndir = np.asarray(cs.first_direction), np.asarray(cs.n_directions)
+        freqs = sorted(set(np.round(np.concatenate([cs.force_frequency, cs.motion_frequency]), 12).tolist()))
+        self.omega = 2 * np.pi * np.array([f for f in freqs if f != 0.0], float)
+        H, m = self.omega.size, cs.B.shape[1]
+        self.f_const = np.array(cs.constant_force, float)
+        self.p_const = np.zeros(m)
+        self.F = np.zeros((H, self.n), complex)
+        self.P = np.zeros((H, m), complex)
+        for what, freq, sin_c, cos_c in (
+            ("F", cs.force_frequency, cs.force_sin, cs.force_cos),
+            ("P", cs.motion_frequency, cs.motion_sin, cs.motion_cos),
+        ):
+            for k, f in enumerate(np.asarray(freq, float)):
+                if round(f, 12) == 0.0:  # cos(0 t) = 1: a constant
+                    (self.f_const if what == "F" else self.p_const)[:] += cos_c[:, k]
+                    continue
+                h = int(np.argmin(np.abs(self.omega - 2 * np.pi * f)))
+                getattr(self, what)[h] += cos_c[:, k] - 1j * sin_c[:, k]
+        self.length = float(cs.length_scale) if cs.length_scale > 0 else 1.0
+        self.states: dict[bytes, StateModel] = {}
+
+    def motion(self, t: np.ndarray, order: int = 0) -> np.ndarray:
+        """d^order p / dt^order at the times t, shape (len(t), m)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        out = np.zeros((t.size, self.B.shape[1]))
+        if order == 0:
+            out += self.p_const
+        if self.omega.size:
+            e = np.exp(1j * np.outer(t, self.omega)) * (1j * self.omega) ** order
+            out += (e @ self.P).real
+        return out
+
+    def force(self, t: np.ndarray) -> np.ndarray:
+        """f_e(t), shape (len(t), n)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        out = np.zeros((t.size, self.n)) + self.f_const
+        if self.omega.size:
+            out += (np.exp(1j * np.outer(t, self.omega)) @ self.F).real
+        return out
+
+    def state_model(self, state: np.ndarray) -> "StateModel":
+        """The cached :class:`StateModel` of a contact state (nd int8 codes)."""
+        key = np.asarray(state, np.int8).tobytes()
+        sm = self.states.get(key)
+        if sm is None:
+            sm = self.states[key] = StateModel.build(self, np.asarray(state, np.int8).copy())
+        return sm
+
+    def law_matrix(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(K(S) (nq, nq), Sw (nq, nd)): f = K(S) q + Sw w in the state S (physics.md 3)."""
+        KS, Sw = np.zeros((self.nq, self.nq)), np.zeros((self.nq, self.nd))
+        for c in range(self.nc):
+            d0, nr = self.first[c], self.nrow[c]
+            if state[d0] == LIFT:
+                continue
+            KS[nr, nr] = self.kn[c]
+            for d in range(d0, d0 + self.ndir[c]):
+                tr = self.trow[d]
+                if state[d] == STICK:
+                    KS[tr, tr] = self.kt[d]
+                    Sw[tr, d] = -self.kt[d]
+                else:
+                    KS[tr, nr] = self.mk[c] if state[d] == SLIP_POS else -self.mk[c]
+        return KS, Sw
+
+
+@dataclass
+class StateModel:
+    """Everything of one contact state that does not depend on the phase (cached per state):
+    K_S, the modal form Lambda, Phi, Phi^-1, the particular solution's parts
+    (x_c = xc0 + Xw w; X_h), the margins (kinds, owners, q-rows Lq and qdot-rows Ld, the
+    slider part Ew w), their modal rows E = (Lq A Phi_x + Ld A Phi_v) and harmonic rows,
+    tolerances and the sampling sub-step h."""
+
+    state: np.ndarray
+    status: Status
+    KS: np.ndarray
+    Sw: np.ndarray
+    lam: np.ndarray = None
+    Phi: np.ndarray = None
+    Phi_inv: np.ndarray = None
+    xc0: np.ndarray = None
+    Xw: np.ndarray = None
+    X: np.ndarray = None  # (H, n) complex
+    kinds: np.ndarray = None
+    owners: np.ndarray = None
+    Lq: np.ndarray = None
+    Ld: np.ndarray = None
+    Ew: np.ndarray = None
+    E: np.ndarray = None
+    bh: np.ndarray = None  # (nm, H) complex
+    tol: np.ndarray = None
+    h: float = math.nan
+    problem: str = ""
+
+    @classmethod
+    def build(cls, model: Model, state: np.ndarray) -> "StateModel":
+        KS_loc, Sw = model.law_matrix(state)
+        A, n = model.A, model.n
+        KS = model.K + A.T @ KS_loc @ A
+        sm = cls(state, Status.OK, KS, Sw)
+        # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
+        try:
+            lu = sla.lu_factor(KS, check_finite=True)
+        except (ValueError, sla.LinAlgError):
+            lu = None
+        if lu is None or _rcond(KS, lu) < 1e-13:
+            sm.status, sm.problem = Status.SINGULAR, "K + A^T K(S) A is singular (a free rigid mode)"
+            return sm
+        rhs0 = model.f_const - A.T @ (KS_loc @ (model.g - model.B @ model.p_const))
+        sm.xc0 = sla.lu_solve(lu, rhs0)
+        sm.Xw = sla.lu_solve(lu, -A.T @ Sw)
+        H = model.omega.size
+        sm.X = np.zeros((H, n), complex)
+        for h, om in enumerate(model.omega):
+            D = KS - om**2 * model.M + 1j * om * model.C
+            amp = model.F[h] + A.T @ (KS_loc @ (model.B @ model.P[h]))
+            try:
+                sm.X[h] = np.linalg.solve(D, amp)
+            except np.linalg.LinAlgError:
+                sm.status, sm.problem = Status.SINGULAR, f"the excitation at {om / 2 / np.pi:g} Hz is at resonance"
+                return sm
+        # modal form of [[0, I], [-M^-1 K_S, -M^-1 C]]
+        Minv = np.linalg.inv(model.M)
+        first = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ KS, -Minv @ model.C]])
+        lam, Phi = np.linalg.eig(first)
+        if np.linalg.cond(Phi) > 1e10:
+            sm.status, sm.problem = Status.SINGULAR, "the first-order matrix is defective (repeated undamped modes)"
+            return sm
+        sm.lam, sm.Phi, sm.Phi_inv = lam, Phi, np.linalg.inv(Phi)
+        sm._margins(model)
+        scale = max(np.abs(lam).max(initial=0.0), model.omega.max(initial=0.0), 1e-300)
+        sm.h = SAMPLE_FACTOR / scale
+        sm._tolerances(model, scale)
+        return sm
+
+    def _margins(self, model: Model) -> None:
+        """The margins of the state table as rows over (q, qdot, w) (module docstring)."""
+        rows = []  # (kind, owner, {q row: coef}, {qdot row: coef}, {direction: coef})
+        st = self.state
+        for c in range(model.nc):
+            d0, nr, mk = model.first[c], model.nrow[c], model.mk[c]
+            if st[d0] == LIFT:
+                rows.append((K_LIFT, c, {nr: -1.0}, {}, {}))
+                continue
+            rows.append((K_CONTACT, c, {nr: 1.0}, {}, {}))
+            for d in range(d0, d0 + model.ndir[c]):
+                tr, kt = model.trow[d], model.kt[d]
+                if st[d] == STICK:
+                    rows.append((K_STICK_POS, d, {nr: mk, tr: -kt}, {}, {d: kt}))
+                    rows.append((K_STICK_NEG, d, {nr: mk, tr: kt}, {}, {d: -kt}))
+                elif st[d] == SLIP_POS:
+                    rows.append((K_SLIP_POS, d, {}, {tr: kt, nr: -mk}, {}))
+                else:
+                    rows.append((K_SLIP_NEG, d, {}, {tr: -kt, nr: -mk}, {}))
+        nm = len(rows)
+        self.kinds = np.array([r[0] for r in rows], np.int64)
+        self.owners = np.array([r[1] for r in rows], np.int64)
+        self.Lq, self.Ld, self.Ew = np.zeros((nm, model.nq)), np.zeros((nm, model.nq)), np.zeros((nm, model.nd))
+        for j, (_, _, lq, ld, ew) in enumerate(rows):
+            for k, v in lq.items():
+                self.Lq[j, k] += v
+            for k, v in ld.items():
+                self.Ld[j, k] += v
+            for k, v in ew.items():
+                self.Ew[j, k] += v
+        n, A = model.n, model.A
+        self.E = np.ascontiguousarray(self.Lq @ A @ self.Phi[:n] + self.Ld @ A @ self.Phi[n:])
+        qh = self.X @ A.T - model.P @ model.B.T  # (H, nq): harmonic amplitudes of q
+        self.bh = np.ascontiguousarray((qh @ self.Lq.T + (1j * model.omega)[:, None] * (qh @ self.Ld.T)).T)
+
+    def _tolerances(self, model: Model, scale: float) -> None:
+        L, tol = model.length, np.empty(self.kinds.size)
+        for j, (kind, owner) in enumerate(zip(self.kinds, self.owners)):
+            if kind in (K_CONTACT, K_LIFT):
+                tol[j] = MARGIN_RTOL * L
+            else:
+                force = (model.mk[model.owner[owner]] + model.kt[owner]) * L
+                tol[j] = MARGIN_RTOL * force * (scale if kind in (K_SLIP_POS, K_SLIP_NEG) else 1.0)
+        self.tol = tol
+
+    def x_const(self, w: np.ndarray) -> np.ndarray:
+        return self.xc0 + self.Xw @ w
+
+    def particular(self, model: Model, t: np.ndarray, xc: np.ndarray, order: int = 0) -> np.ndarray:
+        """d^order x_p / dt^order at the times t, shape (len(t), n)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        out = np.zeros((t.size, model.n)) + (xc if order == 0 else 0.0)
+        if model.omega.size:
+            out += ((np.exp(1j * np.outer(t, model.omega)) * (1j * model.omega) ** order) @ self.X).real
+        return out
+
+
+def _rcond(Kmat: np.ndarray, lu) -> float:
+    """1 / cond_1 estimate of a factorised matrix (LAPACK gecon)."""
+    anorm = np.abs(Kmat).sum(axis=0).max()
+    if anorm == 0.0:
+        return 0.0
+    gecon = sla.get_lapack_funcs("gecon", (lu[0],))
+    rcond, _ = gecon(lu[0], anorm, norm="1")
+    return float(rcond)
+
+
+# ---------------------------------------------------------------------------------------
+# phases and the march
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Phase:
+    """One linear phase: the state model, its start t0 and end t1 [s], the sliders w of the
+    phase, the constant particular solution x_c and the modal initial condition eta0."""
+
+    sm: StateModel
+    t0: float
+    t1: float
+    w: np.ndarray
+    xc: np.ndarray
+    eta0: np.ndarray
+
+    @classmethod
+    def start(cls, model: Model, sm: StateModel, t0: float, x0, v0, w) -> "Phase":
+        xc = sm.x_const(w)
+        t = np.array([t0])
+        zp = np.concatenate([sm.particular(model, t, xc, 0)[0], sm.particular(model, t, xc, 1)[0]])
+        eta0 = sm.Phi_inv @ (np.concatenate([x0, v0]) - zp)
+        return cls(sm, float(t0), math.inf, np.array(w, float), xc, eta0)
+
+    def dofs(self, model: Model, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, v, a) at the times t (each (len(t), n)): the exact solution of the phase."""
+        t = np.atleast_1d(np.asarray(t, float))
+        n, sm = model.n, self.sm
+        e = np.exp(np.outer(t - self.t0, sm.lam)) * self.eta0
+        x = (e @ sm.Phi[:n].T).real + sm.particular(model, t, self.xc, 0)
+        v = (e @ sm.Phi[n:].T).real + sm.particular(model, t, self.xc, 1)
+        a = ((e * sm.lam) @ sm.Phi[n:].T).real + sm.particular(model, t, self.xc, 2)
+        return x, v, a
+
+    def margin_coefficients(self, model: Model):
+        """(a, c0): the margins' modal coefficients and constants for this phase's start."""
+        sm = self.sm
+        q_c = model.A @ self.xc + model.g - model.B @ model.p_const
+        c0 = sm.Lq @ q_c + sm.Ew @ self.w
+        return np.ascontiguousarray(sm.E * self.eta0[None, :]), c0
+
+
+def contact_quantities(model: Model, state: np.ndarray, x, v, a, t, w_phase):
+    """(q, qd, qdd, f, w) at the times t of a phase in ``state`` with the stick sliders
+    ``w_phase``: q = A x - B p + g and its rates, the law's forces f = K(S) q + Sw w and the
+    sliders (stick: w_phase; slip: u - T / k_t; lift-off: u)."""
+    A, B = model.A, model.B
+    q = x @ A.T - model.motion(t, 0) @ B.T + model.g
+    qd = v @ A.T - model.motion(t, 1) @ B.T
+    qdd = a @ A.T - model.motion(t, 2) @ B.T
+    KS, Sw = model.law_matrix(state)
+    f = q @ KS.T + (Sw @ w_phase)[None, :]
+    u = q[:, model.trow]
+    T = f[:, model.trow]
+    w = np.where(state == STICK, w_phase[None, :], u - T / model.kt)
+    return q, qd, qdd, f, w
+
+
+@dataclass
+class Trajectory:
+    """The exact march: its phases (each valid on [t0, t1]), the event times and the contact
+    of each event, status and message, and :meth:`evaluate` at any times."""
+
+    model: Model
+    phases: list = field(default_factory=list)
+    event_times: list = field(default_factory=list)
+    event_contacts: list = field(default_factory=list)
+    status: Status = Status.OK
+    message: str = ""
+    t_end: float = 0.0
+    wall_time_s: float = 0.0
+
+    @property
+    def events(self) -> int:
+        return len(self.event_times)
+
+    def evaluate(self, t) -> dict:
+        """x, v, a, q, f, w, state at the times t (sorted, within the march): the phase
+        holding each time evaluated exactly there."""
+        t = np.atleast_1d(np.asarray(t, float))
+        model = self.model
+        starts = np.array([p.t0 for p in self.phases])
+        which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.phases) - 1)
+        n, nq, nd = model.n, model.nq, model.nd
+        out = {
+            "x": np.empty((t.size, n)),
+            "v": np.empty((t.size, n)),
+            "a": np.empty((t.size, n)),
+            "q": np.empty((t.size, nq)),
+            "qd": np.empty((t.size, nq)),
+            "f": np.empty((t.size, nq)),
+            "w": np.empty((t.size, nd)),
+            "state": np.empty((t.size, nd), np.int8),
+        }
+        for k in np.unique(which):
+            idx = np.nonzero(which == k)[0]
+            ph = self.phases[k]
+            x, v, a = ph.dofs(model, t[idx])
+            q, qd, _, f, w = contact_quantities(model, ph.sm.state, x, v, a, t[idx], ph.w)
+            for key, val in (("x", x), ("v", v), ("a", a), ("q", q), ("qd", qd), ("f", f), ("w", w)):
+                out[key][idx] = val
+            out["state"][idx] = ph.sm.state
+        return out
+
+
+def select_states(model: Model, state, q, qd, qdd, w, contacts, directions, delta) -> np.ndarray:
+    """The new states of the listed contacts (normal and every direction) and directions at an
+    event: by the sign of the gap and of the trial force against the limit a probe time
+    ``delta`` ahead, from their second-order Taylor expansions (q, qd, qdd: state-independent at
+    a switch). Stick wins when it can hold; a contact that closes starts with w = u (T* = 0)."""
+    new = np.array(state, np.int8)
+    ahead = q + qd * delta + 0.5 * qdd * delta**2
+    chosen = {int(d) for d in directions}
+    for c in contacts:
+        d0, nd = model.first[c], model.ndir[c]
+        closed = ahead[model.nrow[c]] > 0.0
+        if not closed:
+            new[d0 : d0 + nd] = LIFT
+            continue
+        if state[d0] == LIFT:
+            new[d0 : d0 + nd] = STICK
+        chosen.update(range(d0, d0 + nd))
+    for d in sorted(chosen):
+        c = model.owner[d]
+        if new[d] == LIFT:
+            continue
+        limit = model.mk[c] * ahead[model.nrow[c]]
+        trial = model.kt[d] * (ahead[model.trow[d]] - w[d])
+        new[d] = SLIP_POS if trial > limit else (SLIP_NEG if trial < -limit else STICK)
+    return new
+
+
+def march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events: int) -> Trajectory:
+    """The exact march from (x0, v0, w0) at t0 to t_end (module docstring)."""
+    start = time.perf_counter()
+    traj = Trajectory(model, t_end=float(t_end))
+    x, v, w = np.array(x0, float), np.array(v0, float), np.array(w0, float)
+    state = np.array(state0, np.int8)
+    # the state at the start: every contact chosen as at an event
+    sm = model.state_model(state)
+    h = sm.h if sm.status == Status.OK else 1.0 / max(model.omega.max(initial=1.0), 1.0)
+    a = _acceleration(model, state, x, v, w, t0)
+    q, qd, qdd = _local(model, x, v, a, t0)
+    w = np.where(state == LIFT, q[model.trow], w)
+    state = select_states(model, state, q, qd, qdd, w, range(model.nc), range(model.nd), PROBE_FACTOR * h)
+    t, flips = float(t0), 0
+    roots = np.empty(2 * model.nd + model.nc)
+    while True:
+        sm = model.state_model(state)
+        if sm.status != Status.OK:
+            traj.status = sm.status
+            traj.message = f"{sm.problem} in the contact state {_state_text(model, state)} at t = {t:.9g} s"
+            break
+        phase = Phase.start(model, sm, t, x, v, w)
+        traj.phases.append(phase)
+        a_m, c0 = phase.margin_coefficients(model)
+        together = TOGETHER_FACTOR * sm.h
+        status, tau, j = KE.first_crossing(
+            sm.lam, a_m, c0, model.omega, sm.bh, t, t_end - t, sm.h, sm.tol, together, roots[: c0.size]
+        )
+        if status == KE.NO_CROSSING:
+            phase.t1 = float(t_end)
+            break
+        t_new = t + tau
+        phase.t1 = t_new
+        xs, vs, as_ = phase.dofs(model, [t_new])
+        x, v, a = xs[0], vs[0], as_[0]
+        q, qd, qdd = _local(model, x, v, a, t_new)
+        u, T = q[model.trow], _tangential_force(model, state, q, phase.w)
+        w = np.where(state == STICK, phase.w, u - T / model.kt)  # sliders at the event (lift-off: T = 0, w = u)
+        hit = np.nonzero(roots[: c0.size] >= 0.0)[0]
+        contacts = sorted({int(sm.owners[i]) for i in hit if sm.kinds[i] in (K_CONTACT, K_LIFT)})
+        directions = sorted({int(sm.owners[i]) for i in hit if sm.kinds[i] not in (K_CONTACT, K_LIFT)})
+        new = select_states(model, state, q, qd, qdd, w, contacts, directions, PROBE_FACTOR * sm.h)
+        if np.array_equal(new, state):  # the probe saw no change: the margin that crossed decides
+            new = _switched(model, state, int(sm.kinds[j]), int(sm.owners[j]), q, qd, w)
+        who = contacts[0] if contacts else int(model.owner[directions[0]])
+        traj.event_times.append(t_new)
+        traj.event_contacts.append(who)
+        flips = flips + 1 if tau <= together or np.array_equal(new, state) else 0
+        if flips > MAX_FLIPS or len(traj.event_times) > max_events:
+            traj.status = Status.EVENT_CAP
+            why = f"{MAX_FLIPS} state changes at one instant" if flips > MAX_FLIPS else f"{max_events} events"
+            traj.message = (
+                f"{why} (chattering or an accumulation of events) at t = {t_new:.12g} s, contact "
+                f"{model.contact_names[who] if model.contact_names else who}"
+            )
+            break
+        state, t = new, t_new
+    traj.wall_time_s = time.perf_counter() - start
+    return traj
+
+
+def _switched(model: Model, state, kind: int, owner: int, q, qd, w) -> np.ndarray:
+    """``state`` with the owner of the crossed margin switched as its kind says (stick -> slip
+    of that sign, slip -> stick, contact -> lift-off, lift-off -> contact in stick)."""
+    new = np.array(state, np.int8)
+    if kind in (K_CONTACT, K_LIFT):
+        d0, nd = model.first[owner], model.ndir[owner]
+        new[d0 : d0 + nd] = LIFT if kind == K_CONTACT else STICK
+    else:
+        new[owner] = {K_STICK_POS: SLIP_POS, K_STICK_NEG: SLIP_NEG}.get(kind, STICK)
+    return new
+
+
+def _local(model: Model, x, v, a, t):
+    t = np.array([t])
+    q = model.A @ x - model.B @ model.motion(t, 0)[0] + model.g
+    qd = model.A @ v - model.B @ model.motion(t, 1)[0]
+    qdd = model.A @ a - model.B @ model.motion(t, 2)[0]
+    return q, qd, qdd
+
+
+def _tangential_force(model: Model, state, q, w):
+    KS, Sw = model.law_matrix(state)
+    return (KS @ q + Sw @ w)[model.trow]
+
+
+def _acceleration(model: Model, state, x, v, w, t) -> np.ndarray:
+    """a = M^-1 (f_e(t) - C v - K x - A^T f) with the law's force in ``state``."""
+    KS, Sw = model.law_matrix(state)
+    q, _, _ = _local(model, x, v, np.zeros_like(x), t)
+    f = KS @ q + Sw @ w
+    rhs = model.force(np.array([t]))[0] - model.C @ v - model.K @ x - model.A.T @ f
+    return np.linalg.solve(model.M, rhs)
+
+
+def _state_text(model: Model, state) -> str:
+    names = getattr(model, "direction_names", None) or [f"d{d}" for d in range(model.nd)]
+    return "(" + ", ".join(f"{nm}={STATE_NAMES[s]}" for nm, s in zip(names, state)) + ")"
+
+
+# ---------------------------------------------------------------------------------------
+# the run: plan, start, march, Dataset
+# ---------------------------------------------------------------------------------------
+def event_plan(system: System, **options) -> RunPlan:
+    """plan_run of method ``events`` (refusals: plan.check_event_case, the banded backend) with
+    its settings (the preload's ramp needs them); the output step is the plan's step."""
+    options.setdefault("error_estimate", False)
+    plan = plan_run(system, "events", **options)
+    return plan if plan.settings is not None else plan.with_step(plan.dt)
+
+
+def default_max_events(plan: RunPlan) -> int:
+    """EVENTS_PER_PERIOD per excitation period of the run (per millisecond without a period)."""
+    unit = plan.period if plan.period else 1e-3
+    return int(EVENTS_PER_PERIOD * max(plan.t_end / unit, 1.0))
+
+
+class ExactEventRun:
+    """One system marched by the exact event-driven method (module docstring): the plan
+    (:func:`event_plan`), the static preload (methods/start.py, as every method), the march
+    (:func:`march`) and the result Dataset of slipstep.output.results on the output grid (the
+    save plan's ``times``, else every plan.dt from 0 to t_end; ``every`` and ``last_periods``
+    thin it). ``max_events``: the cap of state changes in the run (default
+    :func:`default_max_events`)."""
+
+    def __init__(self, system: System, method: str = "events", max_events: int | None = None, **options):
+        from slipstep.methods.start import static_equilibrium
+
+        if method not in ("events",):
+            raise InputError("method", f"is {method!r}", "ExactEventRun runs method 'events'")
+        self.plan = event_plan(system, **options)
+        self.system = system
+        self.model = Model(self.plan.compiled, system)
+        self.start = static_equilibrium(self.plan)
+        self.max_events = default_max_events(self.plan) if max_events is None else int(max_events)
+        self.trajectory: Trajectory | None = None
+
+    @property
+    def status(self) -> Status | None:
+        return None if self.trajectory is None else self.trajectory.status
+
+    def march(self) -> Status:
+        s = self.start
+        self.trajectory = march(self.model, s.t, s.x, s.v, s.w, s.contact_state, s.t + self.plan.t_end, self.max_events)
+        return self.trajectory.status
+
+    def output_times(self) -> np.ndarray:
+        """The output grid (class docstring), cut at the time the march reached."""
+        plan, save = self.plan, self.plan.save_plan
+        if save.times is not None:
+            grid = np.asarray(save.times, float)
+        else:
+            step = plan.dt * save.every
+            k = int(math.floor(plan.t_end / step + 1e-9))
+            grid = np.arange(k + 1) * step
+            if plan.t_end - grid[-1] > 1e-9 * step:
+                grid = np.append(grid, plan.t_end)
+            if math.isfinite(save.t_from):
+                grid = grid[grid >= save.t_from - 1e-9 * step]
+        reached = self.trajectory.phases[-1].t1 if self.trajectory.phases else 0.0
+        return grid[grid <= min(reached, plan.t_end) * (1 + 1e-15) + 1e-300]
+
+    def dataset(self):
+        from types import SimpleNamespace
+
+        from slipstep.methods.accuracy import no_estimate
+        from slipstep.model.excitation import evaluate_compiled, motion_signal
+        from slipstep.output.results import build_dataset
+
+        traj, plan, save = self.trajectory, self.plan, self.plan.save_plan
+        if traj is None:
+            raise RuntimeError("call march() first")
+        t = self.output_times()
+        if t.size == 0:
+            t = np.zeros(1)
+        rows = traj.evaluate(t)
+        steps = np.diff(t, prepend=t[0])
+        out = SimpleNamespace(
+            t=t,
+            x=rows["x"][:, save.dofs],
+            v=rows["v"][:, save.dofs],
+            a=rows["a"][:, save.dofs],
+            q=rows["q"][:, save.rows],
+            f=rows["f"][:, save.rows],
+            w=rows["w"][:, save.directions],
+            state=rows["state"][:, save.directions],
+            solves=np.zeros(t.size, np.int64),
+            dt=steps,
+            step=np.arange(t.size),
+            dirs=save.directions,
+            rows=save.rows,
+        )
+        message = Status.OK.message if traj.status == Status.OK else f"{traj.status.name}: {traj.message}"
+        attrs = {
+            "title": f"slipstep result: {self.system.name}, events",
+            "case": self.system.name,
+            "method": "events",
+            "paper_method": plan.method.paper_label,
+            "solver": "exact-events",
+            "adaptive_step": False,
+            "quasi_static": False,
+            "scheme": "exact",
+            "status": traj.status.name,
+            "status_message": message,
+            "steps": len(traj.phases),
+            "solves": 0,
+            "iterations": 0,
+            "mean_solves_per_step": 0.0,
+            "factorisations": len(self.model.states),
+            "law_calls": 0,
+            "redone_steps": 0,
+            "state_changes": traj.events,
+            "events": traj.events,
+            "dt_s": plan.dt,
+            "t_min_s": plan.t_min_stick,
+            "t_end_s": plan.t_end,
+            "period_s": plan.period,
+            "step_ratio": plan.options.step_ratio,
+            "max_step_s": plan.max_step,
+            "kernel_time_s": traj.wall_time_s,
+            "length_scale_m": plan.compiled.length_scale,
+            "tolerance": MARGIN_RTOL,
+            "state_tolerance": plan.options.state_tolerance,
+            "linear_solver": "direct",
+            "step_rule": "none (exact between events)",
+            **no_estimate("none: exact between events (no time discretisation)"),
+            **save.attrs(),
+        }
+        if traj.status != Status.OK and traj.event_times:
+            attrs["failed_at_time_s"] = traj.event_times[-1]
+        motion = evaluate_compiled(motion_signal(plan.compiled), t)
+        return build_dataset(
+            self.system, out, t.size - 1, motion, attrs, dynamic=True, compiled=plan.compiled, plan=save
+        )
+
+    def run(self, raise_on_failure: bool = False):
+        """march() + dataset() (attr wall_time_s); SolverError on failure when asked."""
+        start = time.perf_counter()
+        self.march()
+        ds = self.dataset()
+        ds.attrs["wall_time_s"] = time.perf_counter() - start
+        if raise_on_failure and self.status != Status.OK:
+            raise SolverError(ds.attrs["status_message"], ds)
+        return ds
+
+
+def run(system: System, *, raise_on_failure: bool = False, max_events: int | None = None, **options):
+    """``ss.run(system, "events", ...)``: :class:`ExactEventRun` (options: RunOptions)."""
+    return ExactEventRun(system, max_events=max_events, **options).run(raise_on_failure=raise_on_failure)
