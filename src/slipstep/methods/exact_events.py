@@ -393,6 +393,61 @@ class Trajectory:
         return out
 
 
+def energy_balance(traj: Trajectory, nodes: int = 16) -> dict:
+    """The energy balance of a march, every term integrated on the exact solution by
+    Gauss-Legendre quadrature (``nodes`` points per sub-interval of at most 2 h of each phase):
+
+        E(t_end) - E(t_0) = W_in - D_visc - D_fric,
+        E = v^T M v / 2 + x^T K x / 2 + sum k_n v_n^2 / 2 (closed contacts) + sum T^2 / (2 k_t),
+        W_in = int f_e . v - f . B dp/dt,   D_visc = int v^T C v,   D_fric = int sum T dw/dt
+
+    (dot the equation of motion with v; the contact power f . dq/dt splits into the springs'
+    stored power and the sliders' T dw/dt). Returns the terms [J] and ``residual``, the
+    left side minus the right, which an exact solution makes zero to round-off."""
+    model = traj.model
+    xg, wg = np.polynomial.legendre.leggauss(nodes)
+    w_in = d_visc = d_fric = 0.0
+    for ph in traj.phases:
+        t1 = min(ph.t1, traj.t_end)
+        m = max(int(math.ceil((t1 - ph.t0) / (2 * ph.sm.h))), 1)
+        edges = np.linspace(ph.t0, t1, m + 1)
+        half = 0.5 * np.diff(edges)
+        t = (0.5 * (edges[:-1] + edges[1:])[:, None] + half[:, None] * xg[None, :]).ravel()
+        wt = (half[:, None] * wg[None, :]).ravel()
+        x, v, a = ph.dofs(model, t)
+        q, qd, _, f, _ = contact_quantities(model, ph.sm.state, x, v, a, t, ph.w)
+        p_in = np.einsum("ij,ij->i", model.force(t), v) - np.einsum("ij,ij->i", f, model.motion(t, 1) @ model.B.T)
+        p_visc = np.einsum("ij,jk,ik->i", v, model.C, v)
+        wdot = np.zeros((t.size, model.nd))
+        for d in range(model.nd):
+            c, st = model.owner[d], ph.sm.state[d]
+            if st in (SLIP_POS, SLIP_NEG):
+                sign = 1.0 if st == SLIP_POS else -1.0
+                wdot[:, d] = qd[:, model.trow[d]] - sign * model.mk[c] * qd[:, model.nrow[c]] / model.kt[d]
+        p_fric = np.einsum("ij,ij->i", f[:, model.trow], wdot)
+        w_in += wt @ p_in
+        d_visc += wt @ p_visc
+        d_fric += wt @ p_fric
+    e0, e1 = (stored_energy(traj, t) for t in (traj.phases[0].t0, min(traj.phases[-1].t1, traj.t_end)))
+    return {
+        "input_work": w_in,
+        "viscous_dissipation": d_visc,
+        "friction_dissipation": d_fric,
+        "stored_energy_change": e1 - e0,
+        "residual": (e1 - e0) - (w_in - d_visc - d_fric),
+    }
+
+
+def stored_energy(traj: Trajectory, t: float) -> float:
+    """E(t) of :func:`energy_balance`: kinetic, structural strain and contact springs [J]."""
+    model = traj.model
+    r = traj.evaluate([t])
+    x, v, q, f = r["x"][0], r["v"][0], r["q"][0], r["f"][0]
+    closed = r["state"][0][model.first] != LIFT
+    normal = 0.5 * np.sum(np.where(closed, model.kn * q[model.nrow] ** 2, 0.0))
+    return float(0.5 * v @ model.M @ v + 0.5 * x @ model.K @ x + normal + 0.5 * np.sum(f[model.trow] ** 2 / model.kt))
+
+
 def select_states(model: Model, state, q, qd, qdd, w, contacts, directions, delta) -> np.ndarray:
     """The new states of the listed contacts (normal and every direction) and directions at an
     event: by the sign of the gap and of the trial force against the limit a probe time
