@@ -856,6 +856,9 @@ METHOD_ADVICE: dict[str, str] = {
     "quasi-static-events": "the same conditions as Method 4 with harmonic excitation and piecewise-linear laws: "
     "exact transition instants, a few solves per state change instead of per step (the paper case: 32 solves "
     "in 3 periods against Method 4's 922)",
+    "events": "you want the reference without a time step (harmonic excitation, piecewise-linear laws): each "
+    "linear phase exact, the state changes located to round-off; the fastest method when states change rarely "
+    "(docs/exact_events.md)",
     "newmark-adaptive-stick": "you reproduce the paper's Method 2 exactly (the full-stick tangent in every "
     "state); slower than `newmark-adaptive`",
     "quasi-static-dofs": "a structure (blades) carries light dampers whose internal modes are far above the "

@@ -18,6 +18,7 @@ import numpy as np
 
 from slipstep.errors import Interrupted, SolverError, Status
 from slipstep.kernels import march as K
+from slipstep.kernels.codes import EXACT_EVENTS
 from slipstep.methods import accuracy
 from slipstep.methods.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
@@ -72,6 +73,7 @@ SOLVER_NAMES = {
     K.PIECEWISE_LINEAR: "piecewise-linear",
     K.MODIFIED_NEWTON_STATE: "modified-newton-state",
     K.EVENTS: "events",
+    EXACT_EVENTS: "exact-events",
 }
 
 
@@ -389,7 +391,6 @@ def run(system: System, method: str = "newmark", *, raise_on_failure: bool = Fal
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
     result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`
     (method ``events``: methods/exact_events.py, which also takes ``max_events``)."""
-    from slipstep.kernels.codes import EXACT_EVENTS
     from slipstep.methods.registry import get_method
 
     if get_method(method).solver == EXACT_EVENTS:
