@@ -215,3 +215,23 @@ def test_methods_1_and_3_converge_at_second_order(case, periods, steps):
             errors.append(np.abs(ds.displacement.values - ref).max() / np.abs(ref).max())
         order = np.log2(errors[0] / errors[1])
         assert 1.8 <= order <= 2.3, (method, errors)
+
+
+# -- steady state: shooting on the exact period map ------------------------------------------
+@pytest.mark.parametrize("frequency", [300.0, 350.0, 450.0])
+def test_exact_steady_state_against_the_independent_reference(frequency):
+    """The Jenkins oscillator's periodic orbit by Newton on the exact period map, against the
+    reference of tests/jenkins_reference.py (DOP853 with event-located stick/slip, fsolve on its
+    own period map, started from this orbit): energies per cycle to 1e-9."""
+    from jenkins_reference import periodic_orbit_energies
+
+    from slipstep.methods.exact_events import periodic_orbit
+
+    orbit = periodic_orbit(ss.load_system(JENKINS), frequency)
+    assert orbit.converged and orbit.residual <= 1e-12
+    assert np.all(np.abs(orbit.multipliers) < 1.0)
+    mode = int(orbit.trajectory.phases[0].sm.state[0])
+    ref = periodic_orbit_energies(M, C, K, KT, FS, F, frequency, orbit.x0[0], orbit.v0[0], orbit.w0[0], mode)
+    assert orbit.friction_energy == pytest.approx(ref["friction_energy"], rel=1e-9)
+    assert orbit.excitation_work == pytest.approx(ref["excitation_work"], rel=1e-9)
+    assert orbit.amplitude[0] == pytest.approx(ref["amplitude"], rel=1e-6)  # both sampled
