@@ -42,9 +42,8 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 
-from slipstep.errors import InputError, SolverError, Status
+from slipstep.errors import SolverError, Status
 from slipstep.kernels import exact_events as KE
 from slipstep.kernels.codes import LIFT, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
 from slipstep.methods.plan import RunPlan, plan_run
@@ -105,6 +104,8 @@ class Model:
                 h = int(np.argmin(np.abs(self.omega - 2 * np.pi * f)))
                 getattr(self, what)[h] += cos_c[:, k] - 1j * sin_c[:, k]
         self.length = float(cs.length_scale) if cs.length_scale > 0 else 1.0
+        self.PB = self.P @ self.B.T  # (H, nq): the motions' harmonic amplitudes in q
+        self.q_const = self.g - self.B @ self.p_const
         self.states: dict[bytes, StateModel] = {}
 
     def motion(self, t: np.ndarray, order: int = 0) -> np.ndarray:
@@ -164,6 +165,8 @@ class StateModel:
     status: Status
     KS: np.ndarray
     Sw: np.ndarray
+    KS_loc: np.ndarray = None
+    QX: np.ndarray = None  # (H, nq) complex: A X_h
     lam: np.ndarray = None
     Phi: np.ndarray = None
     Phi_inv: np.ndarray = None
@@ -186,18 +189,14 @@ class StateModel:
         KS_loc, Sw = model.law_matrix(state)
         A, n = model.A, model.n
         KS = model.K + A.T @ KS_loc @ A
-        sm = cls(state, Status.OK, KS, Sw)
+        sm = cls(state, Status.OK, KS, Sw, KS_loc)
         # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
-        try:
-            lu = sla.lu_factor(KS, check_finite=True)
-        except (ValueError, sla.LinAlgError):
-            lu = None
-        if lu is None or _rcond(KS, lu) < 1e-13:
+        if not np.all(np.isfinite(KS)) or np.linalg.cond(KS) > 1e13:
             sm.status, sm.problem = Status.SINGULAR, "K + A^T K(S) A is singular (a free rigid mode)"
             return sm
         rhs0 = model.f_const - A.T @ (KS_loc @ (model.g - model.B @ model.p_const))
-        sm.xc0 = sla.lu_solve(lu, rhs0)
-        sm.Xw = sla.lu_solve(lu, -A.T @ Sw)
+        both = np.linalg.solve(KS, np.column_stack([rhs0, -A.T @ Sw]))
+        sm.xc0, sm.Xw = both[:, 0], both[:, 1:]
         H = model.omega.size
         sm.X = np.zeros((H, n), complex)
         for h, om in enumerate(model.omega):
@@ -216,6 +215,7 @@ class StateModel:
             sm.status, sm.problem = Status.SINGULAR, "the first-order matrix is defective (repeated undamped modes)"
             return sm
         sm.lam, sm.Phi, sm.Phi_inv = lam, Phi, np.linalg.inv(Phi)
+        sm.QX = sm.X @ A.T
         sm._margins(model)
         scale = max(np.abs(lam).max(initial=0.0), model.omega.max(initial=0.0), 1e-300)
         sm.h = SAMPLE_FACTOR / scale
@@ -279,16 +279,6 @@ class StateModel:
         return out
 
 
-def _rcond(Kmat: np.ndarray, lu) -> float:
-    """1 / cond_1 estimate of a factorised matrix (LAPACK gecon)."""
-    anorm = np.abs(Kmat).sum(axis=0).max()
-    if anorm == 0.0:
-        return 0.0
-    gecon = sla.get_lapack_funcs("gecon", (lu[0],))
-    rcond, _ = gecon(lu[0], anorm, norm="1")
-    return float(rcond)
-
-
 # ---------------------------------------------------------------------------------------
 # phases and the march
 # ---------------------------------------------------------------------------------------
@@ -307,10 +297,26 @@ class Phase:
     @classmethod
     def start(cls, model: Model, sm: StateModel, t0: float, x0, v0, w) -> "Phase":
         xc = sm.x_const(w)
-        t = np.array([t0])
-        zp = np.concatenate([sm.particular(model, t, xc, 0)[0], sm.particular(model, t, xc, 1)[0]])
+        eh = np.exp(1j * model.omega * t0)
+        zp = np.concatenate([xc + (eh @ sm.X).real, ((eh * 1j * model.omega) @ sm.X).real])
         eta0 = sm.Phi_inv @ (np.concatenate([x0, v0]) - zp)
         return cls(sm, float(t0), math.inf, np.array(w, float), xc, eta0)
+
+    def point(self, model: Model, t: float) -> tuple:
+        """(x, v, a, q, qd, qdd) at one time t: the DOFs and q = A x - B p + g with its rates."""
+        sm, n, om = self.sm, model.n, model.omega
+        ek = np.exp(sm.lam * (t - self.t0)) * self.eta0
+        y = sm.Phi @ ek
+        e0 = np.exp(1j * om * t)
+        e1, e2 = e0 * (1j * om), e0 * (-(om**2))
+        x = y[:n].real + self.xc + (e0 @ sm.X).real
+        v = y[n:].real + (e1 @ sm.X).real
+        a = (sm.Phi[n:] @ (ek * sm.lam)).real + (e2 @ sm.X).real
+        A = model.A
+        q = A @ y[:n].real + A @ self.xc + (e0 @ (sm.QX - model.PB)).real + model.q_const
+        qd = A @ v - (e1 @ model.PB).real
+        qdd = A @ a - (e2 @ model.PB).real
+        return x, v, a, q, qd, qdd
 
     def dofs(self, model: Model, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, v, a) at the times t (each (len(t), n)): the exact solution of the phase."""
@@ -393,7 +399,7 @@ class Trajectory:
         return out
 
 
-def energy_balance(traj: Trajectory, nodes: int = 16) -> dict:
+def energy_balance(traj: Trajectory, nodes: int = 16, t_from: float | None = None, t_to: float | None = None) -> dict:
     """The energy balance of a march, every term integrated on the exact solution by
     Gauss-Legendre quadrature (``nodes`` points per sub-interval of at most 2 h of each phase):
 
@@ -403,14 +409,19 @@ def energy_balance(traj: Trajectory, nodes: int = 16) -> dict:
 
     (dot the equation of motion with v; the contact power f . dq/dt splits into the springs'
     stored power and the sliders' T dw/dt). Returns the terms [J] and ``residual``, the
-    left side minus the right, which an exact solution makes zero to round-off."""
+    left side minus the right, which an exact solution makes zero to round-off. ``t_from``,
+    ``t_to``: the window [s] (default the whole march)."""
     model = traj.model
+    lo = traj.phases[0].t0 if t_from is None else float(t_from)
+    hi = min(traj.phases[-1].t1, traj.t_end) if t_to is None else float(t_to)
     xg, wg = np.polynomial.legendre.leggauss(nodes)
     w_in = d_visc = d_fric = 0.0
     for ph in traj.phases:
-        t1 = min(ph.t1, traj.t_end)
-        m = max(int(math.ceil((t1 - ph.t0) / (2 * ph.sm.h))), 1)
-        edges = np.linspace(ph.t0, t1, m + 1)
+        t0, t1 = max(ph.t0, lo), min(ph.t1, traj.t_end, hi)
+        if t1 <= t0:
+            continue
+        m = max(int(math.ceil((t1 - t0) / (2 * ph.sm.h))), 1)
+        edges = np.linspace(t0, t1, m + 1)
         half = 0.5 * np.diff(edges)
         t = (0.5 * (edges[:-1] + edges[1:])[:, None] + half[:, None] * xg[None, :]).ravel()
         wt = (half[:, None] * wg[None, :]).ravel()
@@ -428,7 +439,7 @@ def energy_balance(traj: Trajectory, nodes: int = 16) -> dict:
         w_in += wt @ p_in
         d_visc += wt @ p_visc
         d_fric += wt @ p_fric
-    e0, e1 = (stored_energy(traj, t) for t in (traj.phases[0].t0, min(traj.phases[-1].t1, traj.t_end)))
+    e0, e1 = stored_energy(traj, lo), stored_energy(traj, hi)
     return {
         "input_work": w_in,
         "viscous_dissipation": d_visc,
@@ -508,10 +519,8 @@ def march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events:
             break
         t_new = t + tau
         phase.t1 = t_new
-        xs, vs, as_ = phase.dofs(model, [t_new])
-        x, v, a = xs[0], vs[0], as_[0]
-        q, qd, qdd = _local(model, x, v, a, t_new)
-        u, T = q[model.trow], _tangential_force(model, state, q, phase.w)
+        x, v, a, q, qd, qdd = phase.point(model, t_new)
+        u, T = q[model.trow], (sm.KS_loc @ q + sm.Sw @ phase.w)[model.trow]
         w = np.where(state == STICK, phase.w, u - T / model.kt)  # sliders at the event (lift-off: T = 0, w = u)
         hit = np.nonzero(roots[: c0.size] >= 0.0)[0]
         contacts = sorted({int(sm.owners[i]) for i in hit if sm.kinds[i] in (K_CONTACT, K_LIFT)})
@@ -556,11 +565,6 @@ def _local(model: Model, x, v, a, t):
     return q, qd, qdd
 
 
-def _tangential_force(model: Model, state, q, w):
-    KS, Sw = model.law_matrix(state)
-    return (KS @ q + Sw @ w)[model.trow]
-
-
 def _acceleration(model: Model, state, x, v, w, t) -> np.ndarray:
     """a = M^-1 (f_e(t) - C v - K x - A^T f) with the law's force in ``state``."""
     KS, Sw = model.law_matrix(state)
@@ -600,11 +604,12 @@ class ExactEventRun:
     thin it). ``max_events``: the cap of state changes in the run (default
     :func:`default_max_events`)."""
 
-    def __init__(self, system: System, method: str = "events", max_events: int | None = None, **options):
+    progress = False  # (the CLI sets these for the step marches; a march of events has no bar and no Ctrl-C stop)
+    keep_interrupted = True
+
+    def __init__(self, system: System, max_events: int | None = None, **options):
         from slipstep.methods.start import static_equilibrium
 
-        if method not in ("events",):
-            raise InputError("method", f"is {method!r}", "ExactEventRun runs method 'events'")
         self.plan = event_plan(system, **options)
         self.system = system
         self.model = Model(self.plan.compiled, system)
@@ -700,7 +705,7 @@ class ExactEventRun:
             "state_tolerance": plan.options.state_tolerance,
             "linear_solver": "direct",
             "step_rule": "none (exact between events)",
-            **no_estimate("none: exact between events (no time discretisation)"),
+            **no_estimate("exact between events (no time discretisation)"),
             **save.attrs(),
         }
         if traj.status != Status.OK and traj.event_times:

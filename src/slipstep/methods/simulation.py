@@ -222,6 +222,15 @@ class Simulation(Runner):
     equilibrium; :meth:`start_from` sets another start. The plan's fields (dt, t_end, settings,
     save_plan, ...) and the marcher's buffers (ws, out) read as attributes."""
 
+    def __new__(cls, system: System | None = None, method: str | Method = "newmark", **options):
+        """Method ``events`` is not a march of steps: its runner is
+        methods/exact_events.ExactEventRun (the same run(), march() and dataset())."""
+        if cls is Simulation and _exact_events(method):
+            from slipstep.methods.exact_events import ExactEventRun
+
+            return ExactEventRun(system, **options)
+        return super().__new__(cls)
+
     def __init__(self, system: System, method: str | Method = "newmark", **options):
         plan = plan_run(system, method, **options)
         if plan.pilot_allowed:
@@ -391,13 +400,14 @@ def run(system: System, method: str = "newmark", *, raise_on_failure: bool = Fal
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
     result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`
     (method ``events``: methods/exact_events.py, which also takes ``max_events``)."""
+    return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
+
+
+def _exact_events(method) -> bool:
+    """Is ``method`` (a name, a paper number or a Method) the exact event-driven one?"""
     from slipstep.methods.registry import get_method
 
-    if get_method(method).solver == EXACT_EVENTS:
-        from slipstep.methods import exact_events
-
-        return exact_events.run(system, raise_on_failure=raise_on_failure, **options)
-    return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
+    return (method if isinstance(method, Method) else get_method(method)).solver == EXACT_EVENTS
 
 
 #: a run taking more than this many times the steps of its planned step warns (issue 29)
