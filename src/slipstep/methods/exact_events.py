@@ -373,7 +373,10 @@ class Trajectory:
     def evaluate(self, t) -> dict:
         """x, v, a, q, f, w, state at the times t (sorted, within the march): the phase
         holding each time evaluated exactly there."""
-        t = np.atleast_1d(np.asarray(t, float))
+        with one_blas_thread():
+            return self._evaluate(np.atleast_1d(np.asarray(t, float)))
+
+    def _evaluate(self, t: np.ndarray) -> dict:
         model = self.model
         starts = np.array([p.t0 for p in self.phases])
         which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.phases) - 1)
@@ -486,8 +489,28 @@ def select_states(model: Model, state, q, qd, qdd, w, contacts, directions, delt
     return new
 
 
+_THREADPOOLS = None
+
+
+def one_blas_thread():
+    """A context limiting BLAS to one thread: the eigenproblems and small products of a march
+    are 10-20x slower with multi-threaded BLAS on a loaded machine (measured on the `ring` case:
+    14 s against 0.8 s). The same rule as slipstep.hbm.residual.blas_threads."""
+    global _THREADPOOLS
+    if _THREADPOOLS is None:
+        from threadpoolctl import ThreadpoolController
+
+        _THREADPOOLS = ThreadpoolController()
+    return _THREADPOOLS.limit(limits=1, user_api="blas")
+
+
 def march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events: int) -> Trajectory:
-    """The exact march from (x0, v0, w0) at t0 to t_end (module docstring)."""
+    """The exact march from (x0, v0, w0) at t0 to t_end (module docstring), BLAS on one thread."""
+    with one_blas_thread():
+        return _march(model, t0, x0, v0, w0, state0, t_end, max_events)
+
+
+def _march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events: int) -> Trajectory:
     start = time.perf_counter()
     traj = Trajectory(model, t_end=float(t_end))
     x, v, w = np.array(x0, float), np.array(v0, float), np.array(w0, float)

@@ -1,0 +1,145 @@
+"""The exact event-driven method ``events`` against Method 3 (piecewise-linear) at equal
+accuracy (issue 28, item 5): the friction energy dissipated over the last excitation period of
+a run from the static preload, within ``--accuracy`` (default 1e-6) relative to the exact one.
+
+Per case: the exact run's time, its events and contact states; then Method 3 at fixed steps
+T / N, N doubling from ``--n0`` until its energy per cycle (the trapezoid sum of T dw over the
+last period, slipstep.post.energy) is within the accuracy: that N, its time, the ratio
+Method 3 / events. Times are the whole ``ss.run`` (preload, march, Dataset), the best of
+``--repeats`` after a warm-up, so every kernel is compiled. The cases: the Jenkins oscillator
+of issue 24 at 350 Hz (20 periods: a few events per period, long stick and slip phases), the
+paper case (3 periods: about 50 events per period, 3 contacts, undamped ringing at 8-12 kHz),
+and the `ring` case (36 DOFs, 2 periods: many distinct contact states, each an
+eigendecomposition of a 72 x 72 first-order matrix) at the accuracy ``--ring-accuracy``.
+
+Usage:  python benchmarks/bench_exact_events.py [--accuracy 1e-6] [--quick] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import slipstep as ss
+from slipstep.methods.exact_events import ExactEventRun, energy_balance
+from slipstep.post.energy import friction_energy_per_period
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def best_time(fn, repeats: int):
+    best, value = np.inf, None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        value = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, value
+
+
+def exact(system, periods: float, repeats: int) -> dict:
+    def once():
+        run = ExactEventRun(system, periods=periods)
+        run.march()
+        run.dataset()
+        return run
+
+    seconds, run = best_time(once, repeats)
+    T, t_end = run.plan.period, run.plan.t_end
+    energy = energy_balance(run.trajectory, t_from=t_end - T, t_to=t_end)["friction_dissipation"]
+    return {
+        "time_s": seconds,
+        "events": run.trajectory.events,
+        "states": len(run.model.states),
+        "energy_J": energy,
+        "status": run.trajectory.status.name,
+    }
+
+
+def method3(system, periods: float, reference: float, accuracy: float, n0: int, n_max: int, repeats: int) -> dict:
+    period = system.period
+    n, rows = n0, []
+    while n <= n_max:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+
+            def once(n=n):
+                return ss.run(system, "piecewise-linear", periods=periods, dt=period / n, error_estimate=False)
+
+            ds = once()  # warm-up (compile or cache load)
+            seconds, ds = best_time(once, repeats)
+        energy = float(friction_energy_per_period(ds).sum())
+        error = abs(energy - reference) / abs(reference)
+        rows.append({"steps_per_period": n, "time_s": seconds, "error": error})
+        if error <= accuracy:
+            break
+        n *= 2
+    return {"rows": rows, "reached": rows[-1]["error"] <= accuracy}
+
+
+def case(name: str, system, periods: float, accuracy: float, n0: int, n_max: int, repeats: int) -> dict:
+    exact(system, periods, 1)  # warm-up
+    ev = exact(system, periods, repeats)
+    m3 = method3(system, periods, ev["energy_J"], accuracy, n0, n_max, repeats)
+    last = m3["rows"][-1]
+    return {
+        "case": name,
+        "periods": periods,
+        "accuracy": accuracy,
+        "events": ev,
+        "method3": m3,
+        "ratio": last["time_s"] / ev["time_s"] if m3["reached"] else None,
+    }
+
+
+def text(results) -> str:
+    lines = [
+        f"{'case':8} {'periods':>7} {'accuracy':>8} {'events':>6} {'states':>6} {'events [s]':>10} "
+        f"{'M3 N/period':>11} {'M3 error':>9} {'M3 [s]':>8} {'M3 / events':>11}"
+    ]
+    for r in results:
+        ev, last = r["events"], r["method3"]["rows"][-1]
+        ratio = f"{r['ratio']:.1f}" if r["ratio"] is not None else f"> {last['time_s'] / ev['time_s']:.1f}"
+        lines.append(
+            f"{r['case']:8} {r['periods']:7g} {r['accuracy']:8.0e} {ev['events']:6d} {ev['states']:6d} "
+            f"{ev['time_s']:10.3f} {last['steps_per_period']:11d} {last['error']:9.1e} {last['time_s']:8.3f} {ratio:>11}"
+        )
+    lines.append("")
+    lines.append("Method 3's path to the accuracy (steps per period: error, time):")
+    for r in results:
+        path = ", ".join(
+            f"{x['steps_per_period']}: {x['error']:.1e}, {x['time_s']:.3f} s" for x in r["method3"]["rows"]
+        )
+        lines.append(f"  {r['case']}: {path}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--accuracy", type=float, default=1e-6, help="relative error of the energy per cycle")
+    parser.add_argument("--ring-accuracy", type=float, default=1e-3, help="the same for the ring case")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="Jenkins and paper only, one repeat")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    repeats = 1 if args.quick else args.repeats
+    results = [
+        case("jenkins", ss.load_system(ROOT / "examples" / "jenkins.toml"), 20, args.accuracy, 50, 2**17, repeats),
+        case("paper", ss.load_system("paper"), 3, args.accuracy, 200, 2**18, repeats),
+    ]
+    if not args.quick:
+        results.append(case("ring", ss.load_system("ring"), 2, args.ring_accuracy, 50, 2**12, 1))
+    if args.json:
+        print(json.dumps(results, default=float))
+        return 0
+    print("events against Method 3 (piecewise-linear, fixed step) at equal accuracy of the friction energy per cycle")
+    print(text(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
