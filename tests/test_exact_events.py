@@ -235,3 +235,39 @@ def test_exact_steady_state_against_the_independent_reference(frequency):
     assert orbit.friction_energy == pytest.approx(ref["friction_energy"], rel=1e-9)
     assert orbit.excitation_work == pytest.approx(ref["excitation_work"], rel=1e-9)
     assert orbit.amplitude[0] == pytest.approx(ref["amplitude"], rel=1e-6)  # both sampled
+
+
+# -- states without a modal form: the augmented exponential (Van Loan) ------------------------
+def free_body():
+    """A 2-DOF body without structural stiffness or damping on a 2D contact with friction: in
+    slip its tangential motion, in lift-off all of it, is a free rigid mode (K_S singular)."""
+    structure = ss.Structure(np.diag([0.1, 0.1]), dof_names=("x", "y"))
+    contact = ss.ContactElement("floor", [[1.0, 0.0], [0.0, -1.0]], 2e6, 3e6, 0.4)
+    force = ss.Signal(("x", "y"), (ss.Harmonic(50.0, [8.0, 30.0], [0.0, 0.7]),))
+    return ss.System(structure, (contact,), ss.Excitation(constant_force=[0.0, -10.0], force=force), name="free")
+
+
+def test_free_flight_against_the_closed_form():
+    """Flights (lift-off: a free body, K_S = 0) are marched by the augmented exponential; the
+    flight is x'' = f_e(t) / m in closed form from the lift-off state; the energy balance closes."""
+    run, ds = exact_run(free_body(), periods=3)
+    traj = run.trajectory
+    assert ds.attrs["status"] == "OK" and ds.attrs["events"] >= 3
+    flights = [p for p in traj.phases if np.all(p.sm.state == LIFT) and p.t1 < traj.t_end]
+    assert flights and not flights[0].sm.modal
+    m, c = 0.1, np.array([0.0, -10.0])
+    amp, phase, om = np.array([8.0, 30.0]), np.array([0.0, 0.7]), 2 * np.pi * 50.0
+    for p in flights:
+        x0, v0, _ = (r[0] for r in p.dofs(run.model, [p.t0]))
+        t = np.linspace(p.t0, p.t1, 7)
+        tau = (t - p.t0)[:, None]
+        s0, c0 = np.sin(om * p.t0 + phase), np.cos(om * p.t0 + phase)
+        s1, c1 = np.sin(om * t[:, None] + phase), np.cos(om * t[:, None] + phase)
+        v_ref = v0 + (c * tau - amp / om * (c1 - c0)) / m
+        x_ref = x0 + v0 * tau + (c * tau**2 / 2 - amp / om * ((s1 - s0) / om - tau * c0)) / m
+        x, v, _ = p.dofs(run.model, t)
+        assert np.abs(x - x_ref).max() <= 1e-10 * np.abs(x_ref).max()
+        assert np.abs(v - v_ref).max() <= 1e-10 * np.abs(v_ref).max()
+    balance = energy_balance(traj)
+    assert abs(balance["residual"]) <= 1e-11 * abs(balance["input_work"])
+    assert ds.normal_force.values.min() >= 0.0

@@ -29,10 +29,14 @@ continuous at a switch), the rate-independent rule "stick when stick can hold". 
 more than MAX_FLIPS switches at one instant, or more than ``max_events`` in the run, stops
 with status EVENT_CAP naming the time and the contact.
 
+A contact state whose K_S is singular (a free rigid mode: a damper in lift-off, a body with
+no structural stiffness in slip), whose first-order matrix is defective or whose dynamic
+stiffness is singular at an excitation frequency (resonance) has no such modal form: its
+phases are marched by the exponential of the augmented autonomous system (Van Loan,
+:class:`AugmentedPhase`), exact as well, with the same margins and root finding in Python.
+
 Refused (InputError): the friction circle ('3d-circle'), tabulated loads or motions, ramps,
-the banded backend, a singular mass matrix. A contact state whose K_S is singular (a free
-rigid mode, e.g. a damper in full lift-off) or whose modal matrix is defective stops with
-status SINGULAR (not built: the Van Loan fallback).
+the banded backend, a singular mass matrix.
 """
 
 from __future__ import annotations
@@ -184,45 +188,84 @@ class StateModel:
     h: float = math.nan
     problem: str = ""
 
+    modal: bool = True  # False: the augmented exponential of :class:`AugmentedPhase` (Van Loan)
+    G: np.ndarray = None  # (N, N) the augmented generator without the sliders' part (N = 2n + 1 + 2H)
+    Gw: np.ndarray = None  # (n, nd) the sliders' part of its constant column (the v rows)
+    Qz: np.ndarray = None  # (nq, N): q = Qz zeta
+    Qdz: np.ndarray = None  # (nq, N): dq/dt = Qdz zeta
+    Lz: np.ndarray = None  # (nm, N): the margins over zeta without the sliders' part (Ew w)
+
     @classmethod
     def build(cls, model: Model, state: np.ndarray) -> "StateModel":
         KS_loc, Sw = model.law_matrix(state)
         A, n = model.A, model.n
         KS = model.K + A.T @ KS_loc @ A
         sm = cls(state, Status.OK, KS, Sw, KS_loc)
-        # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
-        if not np.all(np.isfinite(KS)) or np.linalg.cond(KS) > 1e13:
-            sm.status, sm.problem = Status.SINGULAR, "K + A^T K(S) A is singular (a free rigid mode)"
+        if not np.all(np.isfinite(KS)):
+            sm.status, sm.problem = Status.NON_FINITE, "K + A^T K(S) A is not finite"
             return sm
-        rhs0 = model.f_const - A.T @ (KS_loc @ (model.g - model.B @ model.p_const))
-        both = np.linalg.solve(KS, np.column_stack([rhs0, -A.T @ Sw]))
-        sm.xc0, sm.Xw = both[:, 0], both[:, 1:]
-        H = model.omega.size
-        sm.X = np.zeros((H, n), complex)
-        for h, om in enumerate(model.omega):
-            D = KS - om**2 * model.M + 1j * om * model.C
-            amp = model.F[h] + A.T @ (KS_loc @ (model.B @ model.P[h]))
-            try:
-                sm.X[h] = np.linalg.solve(D, amp)
-            except np.linalg.LinAlgError:
-                sm.status, sm.problem = Status.SINGULAR, f"the excitation at {om / 2 / np.pi:g} Hz is at resonance"
-                return sm
-        # modal form of [[0, I], [-M^-1 K_S, -M^-1 C]]
+        sm._margin_rows(model)
         Minv = np.linalg.inv(model.M)
         first = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ KS, -Minv @ model.C]])
-        lam, Phi = np.linalg.eig(first)
-        if np.linalg.cond(Phi) > 1e10:
-            sm.status, sm.problem = Status.SINGULAR, "the first-order matrix is defective (repeated undamped modes)"
-            return sm
-        sm.lam, sm.Phi, sm.Phi_inv = lam, Phi, np.linalg.inv(Phi)
-        sm.QX = sm.X @ A.T
-        sm._margins(model)
+        why = sm._modal(model, first)
+        if why:  # a free rigid mode, a defective matrix or a resonance: the augmented exponential
+            sm.modal, sm.problem = False, why
+            sm._augmented(model, Minv)
+            lam = np.linalg.eigvals(first)
+        else:
+            lam = sm.lam
         scale = max(np.abs(lam).max(initial=0.0), model.omega.max(initial=0.0), 1e-300)
         sm.h = SAMPLE_FACTOR / scale
         sm._tolerances(model, scale)
         return sm
 
-    def _margins(self, model: Model) -> None:
+    def _modal(self, model: Model, first: np.ndarray) -> str:
+        """The modal form (module docstring); '' when it holds, else why not."""
+        A, n, KS, KS_loc = model.A, model.n, self.KS, self.KS_loc
+        if np.linalg.cond(KS) > 1e13:  # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
+            return "K + A^T K(S) A is singular (a free rigid mode)"
+        rhs0 = model.f_const - A.T @ (KS_loc @ model.q_const)
+        both = np.linalg.solve(KS, np.column_stack([rhs0, -A.T @ self.Sw]))
+        self.xc0, self.Xw = both[:, 0], both[:, 1:]
+        self.X = np.zeros((model.omega.size, n), complex)
+        for h, om in enumerate(model.omega):
+            D = KS - om**2 * model.M + 1j * om * model.C
+            if np.linalg.cond(D) > 1e13:
+                return f"the excitation at {om / 2 / np.pi:g} Hz is at a resonance of the state"
+            self.X[h] = np.linalg.solve(D, model.F[h] + A.T @ (KS_loc @ (model.B @ model.P[h])))
+        lam, Phi = np.linalg.eig(first)
+        if np.linalg.cond(Phi) > 1e10:
+            return "the first-order matrix is defective"
+        self.lam, self.Phi, self.Phi_inv = lam, Phi, np.linalg.inv(Phi)
+        self.QX = self.X @ A.T
+        self.E = np.ascontiguousarray(self.Lq @ A @ Phi[:n] + self.Ld @ A @ Phi[n:])
+        qh = self.QX - model.PB  # (H, nq): harmonic amplitudes of q
+        self.bh = np.ascontiguousarray((qh @ self.Lq.T + (1j * model.omega)[:, None] * (qh @ self.Ld.T)).T)
+        return ""
+
+    def _augmented(self, model: Model, Minv: np.ndarray) -> None:
+        """The autonomous augmented system zeta = (x, v, 1, cos W_h t, sin W_h t, ...),
+        d zeta/dt = G zeta (Van Loan), exact for any K_S, C (rigid modes, defective matrices,
+        resonance); q = Qz zeta, dq/dt = Qdz zeta, the margins Lz zeta + Ew w."""
+        A, B, n, H = model.A, model.B, model.n, model.omega.size
+        N = 2 * n + 1 + 2 * H
+        G, Qz, Qdz = np.zeros((N, N)), np.zeros((model.nq, N)), np.zeros((model.nq, N))
+        G[:n, n : 2 * n] = np.eye(n)
+        G[n : 2 * n, :n], G[n : 2 * n, n : 2 * n] = -Minv @ self.KS, -Minv @ model.C
+        G[n : 2 * n, 2 * n] = Minv @ (model.f_const - A.T @ (self.KS_loc @ model.q_const))
+        Qz[:, :n], Qz[:, 2 * n], Qdz[:, n : 2 * n] = A, model.q_const, A
+        for h, om in enumerate(model.omega):
+            ic, js = 2 * n + 1 + 2 * h, 2 * n + 2 + 2 * h
+            amp = model.F[h] + A.T @ (self.KS_loc @ (B @ model.P[h]))  # Re[amp e^{iWt}] = Re amp cos - Im amp sin
+            G[n : 2 * n, ic], G[n : 2 * n, js] = Minv @ amp.real, -Minv @ amp.imag
+            G[ic, js], G[js, ic] = -om, om
+            P = model.P[h]
+            Qz[:, ic], Qz[:, js] = -B @ P.real, B @ P.imag
+            Qdz[:, ic], Qdz[:, js] = om * (B @ P.imag), om * (B @ P.real)
+        self.G, self.Gw, self.Qz, self.Qdz = G, Minv @ (-A.T @ self.Sw), Qz, Qdz
+        self.Lz = self.Lq @ Qz + self.Ld @ Qdz
+
+    def _margin_rows(self, model: Model) -> None:
         """The margins of the state table as rows over (q, qdot, w) (module docstring)."""
         rows = []  # (kind, owner, {q row: coef}, {qdot row: coef}, {direction: coef})
         st = self.state
@@ -252,10 +295,6 @@ class StateModel:
                 self.Ld[j, k] += v
             for k, v in ew.items():
                 self.Ew[j, k] += v
-        n, A = model.n, model.A
-        self.E = np.ascontiguousarray(self.Lq @ A @ self.Phi[:n] + self.Ld @ A @ self.Phi[n:])
-        qh = self.X @ A.T - model.P @ model.B.T  # (H, nq): harmonic amplitudes of q
-        self.bh = np.ascontiguousarray((qh @ self.Lq.T + (1j * model.omega)[:, None] * (qh @ self.Ld.T)).T)
 
     def _tolerances(self, model: Model, scale: float) -> None:
         L, tol = model.length, np.empty(self.kinds.size)
@@ -331,9 +370,112 @@ class Phase:
     def margin_coefficients(self, model: Model):
         """(a, c0): the margins' modal coefficients and constants for this phase's start."""
         sm = self.sm
-        q_c = model.A @ self.xc + model.g - model.B @ model.p_const
-        c0 = sm.Lq @ q_c + sm.Ew @ self.w
+        c0 = sm.Lq @ (model.A @ self.xc + model.q_const) + sm.Ew @ self.w
         return np.ascontiguousarray(sm.E * self.eta0[None, :]), c0
+
+    def first_crossing(self, model: Model, tau_max: float, together: float, roots: np.ndarray) -> tuple:
+        """(status, tau, j) of kernels.exact_events.first_crossing over (0, tau_max]."""
+        a, c0 = self.margin_coefficients(model)
+        sm = self.sm
+        return KE.first_crossing(sm.lam, a, c0, model.omega, sm.bh, self.t0, tau_max, sm.h, sm.tol, together, roots)
+
+
+@dataclass
+class AugmentedPhase:
+    """A phase whose state has no modal form (a free rigid mode, a defective matrix, a
+    resonance): zeta(t) = expm(G (t - t0)) zeta0 on the augmented system of
+    :meth:`StateModel._augmented` (Van Loan), exact for any K_S and C. Its margins are
+    L zeta(t) (L = Lz with the sliders' part); their first crossing is found as in
+    kernels/exact_events.py (sampling at h by the one-step propagator expm(G h), a crossing
+    below -tol or a dip, the root by Brent's method on L expm(G tau) zeta0), in Python: a
+    fallback for the few phases that need it."""
+
+    sm: StateModel
+    t0: float
+    t1: float
+    w: np.ndarray
+    G: np.ndarray
+    L: np.ndarray
+    zeta0: np.ndarray
+
+    @classmethod
+    def start(cls, model: Model, sm: StateModel, t0: float, x0, v0, w) -> "AugmentedPhase":
+        n = model.n
+        G, L = sm.G.copy(), sm.Lz.copy()
+        G[n : 2 * n, 2 * n] += sm.Gw @ w
+        L[:, 2 * n] += sm.Ew @ w
+        harmonics = np.ravel(np.column_stack([np.cos(model.omega * t0), np.sin(model.omega * t0)]))
+        zeta0 = np.concatenate([x0, v0, [1.0], harmonics])
+        return cls(sm, float(t0), math.inf, np.array(w, float), G, L, zeta0)
+
+    def zeta(self, t: float) -> np.ndarray:
+        from scipy.linalg import expm
+
+        return expm(self.G * (t - self.t0)) @ self.zeta0
+
+    def point(self, model: Model, t: float) -> tuple:
+        """(x, v, a, q, qd, qdd) at one time t."""
+        n, sm = model.n, self.sm
+        z = self.zeta(t)
+        dz = self.G @ z
+        return z[:n], z[n : 2 * n], dz[n : 2 * n], sm.Qz @ z, sm.Qdz @ z, sm.Qdz @ dz
+
+    def dofs(self, model: Model, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, v, a) at the times t (each (len(t), n))."""
+        n = model.n
+        z = np.array([self.zeta(tk) for tk in np.atleast_1d(np.asarray(t, float))])
+        dz = z @ self.G.T
+        return z[:, :n], z[:, n : 2 * n], dz[:, n : 2 * n]
+
+    def first_crossing(self, model: Model, tau_max: float, together: float, roots: np.ndarray) -> tuple:
+        """(status, tau, j) as kernels.exact_events.first_crossing (class docstring)."""
+        from scipy.linalg import expm
+
+        sm, G, L = self.sm, self.G, self.L
+        roots[:] = -1.0
+        if roots.size == 0:
+            return KE.NO_CROSSING, tau_max, -1
+        step = expm(G * sm.h)
+        z = self.zeta0
+        m0, d0 = L @ z, L @ (G @ z)
+        lo, n_int = 0.0, max(int(math.ceil(tau_max / sm.h)), 1)
+        for i in range(1, n_int + 1):
+            hi = tau_max if i == n_int else i * sm.h
+            z = step @ z if i < n_int else expm(G * hi) @ self.zeta0
+            m1, d1 = L @ z, L @ (G @ z)
+            for j in range(roots.size):
+                roots[j] = self._root(j, lo, m0[j], d0[j], hi, m1[j], d1[j], sm.tol[j])
+            if np.any(roots >= 0.0):
+                first = roots[roots >= 0.0].min()
+                roots[roots > first + together] = -1.0
+                return KE.CROSSING, float(first), int(np.argmin(np.where(roots >= 0.0, roots, np.inf)))
+            m0, d0, lo = m1, d1, hi
+        return KE.NO_CROSSING, tau_max, -1
+
+    def _root(self, j, lo, m_lo, d_lo, hi, m_hi, d_hi, tol) -> float:
+        """The first root of margin j in [lo, hi] below -tol, or -1 (kernels/exact_events._root_in)."""
+        from scipy.linalg import expm
+        from scipy.optimize import brentq
+
+        def m(tau, shift=0.0):
+            return float(self.L[j] @ (expm(self.G * tau) @ self.zeta0)) - shift
+
+        def d(tau):
+            return float(self.L[j] @ (self.G @ (expm(self.G * tau) @ self.zeta0)))
+
+        xtol = 4 * np.finfo(float).eps * (abs(self.t0) + abs(hi)) + 1e-300
+        rtol = 4 * np.finfo(float).eps
+        if m_hi < -tol:
+            if m_lo > 0.0:
+                return brentq(m, lo, hi, xtol=xtol, rtol=rtol)
+            if m_lo + tol > 0.0:
+                return brentq(m, lo, hi, args=(-tol,), xtol=xtol, rtol=rtol)
+            return lo
+        if d_lo < 0.0 < d_hi and m_lo > 0.0:
+            t_min = brentq(d, lo, hi, xtol=xtol, rtol=rtol)
+            if m(t_min) < -tol:
+                return brentq(m, lo, t_min, xtol=xtol, rtol=rtol)
+        return -1.0
 
 
 def contact_quantities(model: Model, state: np.ndarray, x, v, a, t, w_phase):
@@ -530,13 +672,10 @@ def _march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events
             traj.status = sm.status
             traj.message = f"{sm.problem} in the contact state {_state_text(model, state)} at t = {t:.9g} s"
             break
-        phase = Phase.start(model, sm, t, x, v, w)
+        phase = (Phase if sm.modal else AugmentedPhase).start(model, sm, t, x, v, w)
         traj.phases.append(phase)
-        a_m, c0 = phase.margin_coefficients(model)
         together = TOGETHER_FACTOR * sm.h
-        status, tau, j = KE.first_crossing(
-            sm.lam, a_m, c0, model.omega, sm.bh, t, t_end - t, sm.h, sm.tol, together, roots[: c0.size]
-        )
+        status, tau, j = phase.first_crossing(model, t_end - t, together, roots[: sm.kinds.size])
         if status == KE.NO_CROSSING:
             phase.t1 = float(t_end)
             break
@@ -545,7 +684,7 @@ def _march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events
         x, v, a, q, qd, qdd = phase.point(model, t_new)
         u, T = q[model.trow], (sm.KS_loc @ q + sm.Sw @ phase.w)[model.trow]
         w = np.where(state == STICK, phase.w, u - T / model.kt)  # sliders at the event (lift-off: T = 0, w = u)
-        hit = np.nonzero(roots[: c0.size] >= 0.0)[0]
+        hit = np.nonzero(roots[: sm.kinds.size] >= 0.0)[0]
         contacts = sorted({int(sm.owners[i]) for i in hit if sm.kinds[i] in (K_CONTACT, K_LIFT)})
         directions = sorted({int(sm.owners[i]) for i in hit if sm.kinds[i] not in (K_CONTACT, K_LIFT)})
         new = select_states(model, state, q, qd, qdd, w, contacts, directions, PROBE_FACTOR * sm.h)
