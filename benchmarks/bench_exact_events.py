@@ -13,7 +13,12 @@ paper case (3 periods: about 50 events per period, 3 contacts, undamped ringing 
 and the `ring` case (36 DOFs, 2 periods: many distinct contact states, each an
 eigendecomposition of a 72 x 72 first-order matrix).
 
-Usage:  python benchmarks/bench_exact_events.py [--accuracies 1e-6,1e-3] [--quick] [--json]
+``--frf``: instead, the exact steady state of the Jenkins oscillator at the 11 frequencies of
+tests/frf_accuracy.py (250-500 Hz; methods/exact_orbit.exact_frf) against the independent
+reference of tests/jenkins_reference.py (DOP853 + fsolve, started from the exact orbit): the
+relative differences of the friction energy and excitation work per cycle, the time per point.
+
+Usage:  python benchmarks/bench_exact_events.py [--accuracies 1e-6,1e-3] [--quick] [--frf] [--json]
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
+import sys
 
 import slipstep as ss
 from slipstep.methods.exact_events import ExactEventRun, energy_balance
@@ -117,13 +124,74 @@ def text(results) -> str:
     return "\n".join(lines)
 
 
+def frf_check() -> list[dict]:
+    """The exact Jenkins FRF against the independent reference (module docstring)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    import frf_accuracy as FA
+    from jenkins_reference import periodic_orbit_energies
+
+    from slipstep.methods.exact_orbit import exact_frf
+
+    system = FA.system()
+    exact_frf(system, FA.FREQUENCIES[:1])  # warm-up
+    rows, guess = [], None
+    for f in FA.FREQUENCIES:
+        start = time.perf_counter()
+        (orbit,) = exact_frf(system, [f]) if guess is None else [_orbit_from(system, f, guess)]
+        seconds = time.perf_counter() - start
+        guess = (orbit.x0, orbit.v0, orbit.w0)
+        mode = int(orbit.trajectory.phases[0].sm.state[0])
+        ref = periodic_orbit_energies(*FA.PARAMETERS, f, orbit.x0[0], orbit.v0[0], orbit.w0[0], mode)
+        rows.append(
+            {
+                "frequency_Hz": f,
+                "friction_energy_J": orbit.friction_energy,
+                "friction_rel_diff": abs(orbit.friction_energy / ref["friction_energy"] - 1),
+                "work_rel_diff": abs(orbit.excitation_work / ref["excitation_work"] - 1),
+                "amplitude_m": float(orbit.amplitude[0]),
+                "amplitude_rel_diff": abs(orbit.amplitude[0] / ref["amplitude"] - 1),
+                "newton_iterations": orbit.iterations,
+                "max_multiplier": float(np.abs(orbit.multipliers).max()),
+                "time_s": seconds,
+            }
+        )
+    return rows
+
+
+def _orbit_from(system, f, guess):
+    from slipstep.methods.exact_orbit import periodic_orbit
+
+    return periodic_orbit(system, f, guess=guess)
+
+
+def frf_text(rows) -> str:
+    lines = [
+        "exact Jenkins steady state (Newton on the exact period map, each point from the previous orbit) "
+        "against tests/jenkins_reference.py",
+        f"{'f [Hz]':>7} {'E [mJ]':>9} {'dE/E':>8} {'dW/W':>8} {'amp [um]':>9} {'damp/amp':>8} {'Newton':>6} "
+        f"{'|mult|max':>9} {'time [s]':>8}",
+    ]
+    for r in rows:
+        lines.append(
+            f"{r['frequency_Hz']:7.1f} {r['friction_energy_J'] * 1e3:9.5f} {r['friction_rel_diff']:8.1e} "
+            f"{r['work_rel_diff']:8.1e} {r['amplitude_m'] * 1e6:9.4f} {r['amplitude_rel_diff']:8.1e} "
+            f"{r['newton_iterations']:6d} {r['max_multiplier']:9.3f} {r['time_s']:8.3f}"
+        )
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--accuracies", default="1e-6,1e-3", help="relative errors of the energy per cycle")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="Jenkins and paper only, one repeat")
+    parser.add_argument("--frf", action="store_true", help="the exact Jenkins FRF against the reference instead")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
+    if args.frf:
+        rows = frf_check()
+        print(json.dumps(rows) if args.json else frf_text(rows))
+        return 0
     accuracies = sorted((float(a) for a in args.accuracies.split(",")), reverse=True)
     repeats = 1 if args.quick else args.repeats
     results = [
