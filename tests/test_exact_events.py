@@ -273,3 +273,27 @@ def test_free_flight_against_the_closed_form():
     balance = energy_balance(traj)
     assert abs(balance["residual"]) <= 1e-11 * abs(balance["input_work"])
     assert ds.normal_force.values.min() >= 0.0
+
+
+def test_reference_frf_is_frf_with_method_events():
+    """frf(..., solver="shoot", method="events"): the FRF layout, every point the exact orbit."""
+    from jenkins_reference import periodic_orbit_energies
+
+    from slipstep.frequency import frf
+    from slipstep.frequency.schema import FRF_SCHEMA
+
+    ds = frf(ss.load_system(JENKINS), [300.0, 400.0], solver="shoot", method="events", direction="both")
+    assert set(FRF_SCHEMA) <= set(ds.data_vars) and list(ds.sweep.values) == ["up", "down"]
+    assert np.all(ds.status.values == "OK") and np.all(ds.error_estimate.values == 0.0)
+    assert np.abs(ds.energy_balance_residual.values).max() < 1e-11
+    up = ds.sel(sweep="up")
+    for k, f in enumerate(up.frequency.values):
+        from slipstep.methods.exact_events import periodic_orbit
+
+        orbit = periodic_orbit(ss.load_system(JENKINS), float(f))
+        mode = int(orbit.trajectory.phases[0].sm.state[0])
+        ref = periodic_orbit_energies(M, C, K, KT, FS, F, float(f), orbit.x0[0], orbit.v0[0], orbit.w0[0], mode)
+        assert float(up.energy_per_cycle.values[k].sum()) == pytest.approx(ref["friction_energy"], rel=1e-9)
+        assert float(up.excitation_work.values[k]) == pytest.approx(ref["excitation_work"], rel=1e-9)
+    with pytest.raises(InputError):
+        frf(ss.load_system(JENKINS), [300.0], solver="march", method="events")

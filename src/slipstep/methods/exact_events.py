@@ -553,14 +553,16 @@ def energy_balance(traj: Trajectory, nodes: int = 16, t_from: float | None = Non
         W_in = int f_e . v - f . B dp/dt,   D_visc = int v^T C v,   D_fric = int sum T dw/dt
 
     (dot the equation of motion with v; the contact power f . dq/dt splits into the springs'
-    stored power and the sliders' T dw/dt). Returns the terms [J] and ``residual``, the
+    stored power and the sliders' T dw/dt). Returns the terms [J] (``friction_per_direction``:
+    D_fric per tangential direction) and ``residual``, the
     left side minus the right, which an exact solution makes zero to round-off. ``t_from``,
     ``t_to``: the window [s] (default the whole march)."""
     model = traj.model
     lo = traj.phases[0].t0 if t_from is None else float(t_from)
     hi = min(traj.phases[-1].t1, traj.t_end) if t_to is None else float(t_to)
     xg, wg = np.polynomial.legendre.leggauss(nodes)
-    w_in = d_visc = d_fric = 0.0
+    w_in = d_visc = 0.0
+    d_fric = np.zeros(model.nd)
     for ph in traj.phases:
         t0, t1 = max(ph.t0, lo), min(ph.t1, traj.t_end, hi)
         if t1 <= t0:
@@ -580,17 +582,17 @@ def energy_balance(traj: Trajectory, nodes: int = 16, t_from: float | None = Non
             if st in (SLIP_POS, SLIP_NEG):
                 sign = 1.0 if st == SLIP_POS else -1.0
                 wdot[:, d] = qd[:, model.trow[d]] - sign * model.mk[c] * qd[:, model.nrow[c]] / model.kt[d]
-        p_fric = np.einsum("ij,ij->i", f[:, model.trow], wdot)
         w_in += wt @ p_in
         d_visc += wt @ p_visc
-        d_fric += wt @ p_fric
+        d_fric += wt @ (f[:, model.trow] * wdot)
     e0, e1 = stored_energy(traj, lo), stored_energy(traj, hi)
     return {
         "input_work": w_in,
         "viscous_dissipation": d_visc,
-        "friction_dissipation": d_fric,
+        "friction_dissipation": float(d_fric.sum()),
+        "friction_per_direction": d_fric,
         "stored_energy_change": e1 - e0,
-        "residual": (e1 - e0) - (w_in - d_visc - d_fric),
+        "residual": (e1 - e0) - (w_in - d_visc - float(d_fric.sum())),
     }
 
 

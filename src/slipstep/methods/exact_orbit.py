@@ -16,9 +16,10 @@ sensitivities (issue 28, item 3) is not built. The Newton step is a least-square
 a slider stuck over the whole period (a neutral direction of the map: its multiplier is 1)
 does not stop it. The multipliers reported are the eigenvalues of that Jacobian of P.
 
-The steady solvers of slipstep.steady and frequency.frf march through the Simulation
-facade and its Marcher; this map has neither, so ``frf(..., solver="shoot", method="events")``
-is not wired: :func:`exact_frf` is the reference FRF.
+``frf(system, frequencies, solver="shoot", method="events")`` is the reference FRF built on
+these orbits (slipstep.frequency.exact); :func:`exact_frf` returns the orbits themselves.
+``steady_state(..., method="events")`` of slipstep.steady is not wired (its solvers march
+through the Simulation facade and its Marcher, which this map has not).
 """
 
 from __future__ import annotations
@@ -42,9 +43,9 @@ class ExactOrbit:
     """A periodic orbit of the exact march (module docstring). frequency_hz; x0, v0, w0 (the
     state at t = 0); trajectory (one period from it); residual (the scaled |P(z) - z|, max
     norm); iterations (Newton); converged; amplitude (n,) half the peak-to-peak of each DOF
-    [DOF units]; friction_energy, excitation_work, viscous_energy [J per cycle] (the energy
+    [DOF units]; friction_per_direction (nd,) [J per cycle]; friction_energy, excitation_work, viscous_energy [J per cycle] (the energy
     balance over the period: methods/exact_events.energy_balance); multipliers (the eigenvalues
-    of the period map's Jacobian at the orbit)."""
+    of the period map's Jacobian at the orbit); periods (the exact periods marched in all)."""
 
     frequency_hz: float
     x0: np.ndarray
@@ -55,15 +56,19 @@ class ExactOrbit:
     iterations: int
     converged: bool
     amplitude: np.ndarray
+    friction_per_direction: np.ndarray
     friction_energy: float
     excitation_work: float
     viscous_energy: float
     multipliers: np.ndarray
+    periods: int = 0  # exact periods marched in all (settling, Newton, the Jacobians)
 
 
 def period_map(run: ExactEventRun, z: np.ndarray, period: float) -> tuple[np.ndarray, Trajectory]:
-    """P(z) and the trajectory of one period from z = (x, v, w) at t = 0."""
+    """P(z) and the trajectory of one period from z = (x, v, w) at t = 0 (counted in
+    ``run.periods_marched``)."""
     model = run.model
+    run.periods_marched = getattr(run, "periods_marched", 0) + 1
     n = model.n
     x, v, w = z[:n], z[n : 2 * n], z[2 * n :]
     traj = march(model, 0.0, x, v, w, np.full(model.nd, STICK, np.int8), period, run.max_events)
@@ -131,10 +136,12 @@ def periodic_orbit(
         iterations,
         bool(residual <= tolerance),
         0.5 * (x.max(axis=0) - x.min(axis=0)),
+        np.asarray(balance["friction_per_direction"]),
         float(balance["friction_dissipation"]),
         float(balance["input_work"]),
         float(balance["viscous_dissipation"]),
         np.linalg.eigvals(J) if J is not None else np.array([]),
+        run.periods_marched,
     )
 
 
