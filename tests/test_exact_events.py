@@ -297,3 +297,16 @@ def test_reference_frf_is_frf_with_method_events():
         assert float(up.excitation_work.values[k]) == pytest.approx(ref["excitation_work"], rel=1e-9)
     with pytest.raises(InputError):
         frf(ss.load_system(JENKINS), [300.0], solver="march", method="events")
+
+
+def test_shoot_with_method_events_is_the_exact_orbit():
+    from slipstep.output.results import schema_problem
+    from slipstep.steady import shoot
+
+    steady = shoot(ss.load_system(JENKINS), method="events")
+    assert steady.status == "OK" and steady.method == "events" and steady.change <= 1e-12
+    assert schema_problem(steady.period) == ""
+    x = steady.period.displacement.values[:, 0]
+    assert abs(steady.final_state.x[0] - x[0]) <= 1e-10 * np.abs(x).max()  # periodic: x(T) = x(0)
+    again = shoot(ss.load_system(JENKINS), method="events", initial=steady)
+    assert again.newton_iterations == 1 and again.final_state.x[0] == pytest.approx(steady.final_state.x[0], rel=1e-10)

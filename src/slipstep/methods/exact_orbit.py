@@ -18,14 +18,14 @@ does not stop it. The multipliers reported are the eigenvalues of that Jacobian 
 
 ``frf(system, frequencies, solver="shoot", method="events")`` is the reference FRF built on
 these orbits (slipstep.frequency.exact); :func:`exact_frf` returns the orbits themselves.
-``steady_state(..., method="events")`` of slipstep.steady is not wired (its solvers march
-through the Simulation facade and its Marcher, which this map has not).
+``slipstep.steady.shoot(system, method="events")`` returns it as a SteadyState
+(:func:`steady_state`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,6 +62,12 @@ class ExactOrbit:
     viscous_energy: float
     multipliers: np.ndarray
     periods: int = 0  # exact periods marched in all (settling, Newton, the Jacobians)
+    run: ExactEventRun | None = field(default=None, repr=False)  # the run of the retuned system
+
+    def dataset(self):
+        """The orbit's period [0, T] as a result Dataset (the time-domain schema, every plan.dt)."""
+        self.run.trajectory = self.trajectory
+        return self.run.dataset()
 
 
 def period_map(run: ExactEventRun, z: np.ndarray, period: float) -> tuple[np.ndarray, Trajectory]:
@@ -142,6 +148,7 @@ def periodic_orbit(
         float(balance["viscous_dissipation"]),
         np.linalg.eigvals(J) if J is not None else np.array([]),
         run.periods_marched,
+        run,
     )
 
 
@@ -173,3 +180,49 @@ def _jacobian(run: ExactEventRun, z, Pz, period: float, scale) -> np.ndarray:
         dz[i] = FD_STEP * scale[i]
         J[:, i] = (period_map(run, z + dz, period)[0] - Pz) / scale / FD_STEP
     return J
+
+
+def steady_state(system: System, tolerance: float = 1e-12, initial=None, max_iterations: int = 30):
+    """The exact periodic orbit of ``system`` at its own excitation frequency as a
+    slipstep.steady.SteadyState (what ``shoot(system, method="events")`` returns): ``period``
+    the Dataset of the orbit's period, ``final_state`` the state at T, ``change`` the orbit's
+    residual, ``floquet_multipliers`` those of the finite-difference Jacobian. ``initial``: a
+    State, a SteadyState or a mapping of x, v, w (slipstep.steady.state.as_state)."""
+    import time
+
+    from slipstep.methods.state import State
+    from slipstep.steady.state import SteadyState, as_state
+
+    start = time.perf_counter()
+    if system.period is None:
+        raise InputError("excitation", "has no period", "give a harmonic excitation")
+    guess = None
+    if initial is not None:
+        cs = system.compile("dense")
+        s = as_state(initial, cs.M.shape[0], cs.kt.shape[0])
+        guess = (s.x, s.v if s.v is not None else np.zeros_like(s.x), s.w if s.w is not None else np.zeros(cs.kt.size))
+    orbit = periodic_orbit(system, 1.0 / system.period, guess=guess, tolerance=tolerance, max_iterations=max_iterations)
+    ds = orbit.dataset()
+    T = 1.0 / orbit.frequency_hz
+    end = orbit.trajectory.evaluate([T])
+    final = State(T, end["x"][0], end["v"][0], end["a"][0], end["w"][0], end["state"][0])
+    status = "OK" if orbit.converged else "NOT_CONVERGED"
+    message = (
+        f"exact periodic orbit after {orbit.iterations} Newton iteration(s): residual {orbit.residual:.2e}"
+        if orbit.converged
+        else f"Newton on the exact period map did not converge: residual {orbit.residual:.2e}"
+    )
+    ds.attrs.update(steady_status=status, steady_change=orbit.residual, periods_to_steady=orbit.periods)
+    return SteadyState(
+        period=ds,
+        periods=orbit.periods,
+        status=status,
+        message=message,
+        final_state=final,
+        change=orbit.residual,
+        solver="shoot",
+        method="events",
+        floquet_multipliers=orbit.multipliers,
+        newton_iterations=orbit.iterations,
+        wall_time_s=time.perf_counter() - start,
+    )
