@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from slipstep.errors import Interrupted, SolverError, Status
+from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.kernels import march as K
 from slipstep.kernels.codes import EXACT_EVENTS
 from slipstep.methods import accuracy
@@ -222,16 +222,14 @@ class Simulation(Runner):
     equilibrium; :meth:`start_from` sets another start. The plan's fields (dt, t_end, settings,
     save_plan, ...) and the marcher's buffers (ws, out) read as attributes."""
 
-    def __new__(cls, system: System | None = None, method: str | Method = "newmark", **options):
-        """Method ``events`` is not a march of steps: its runner is
-        methods/exact_events.ExactEventRun (the same run(), march() and dataset())."""
-        if cls is Simulation and _exact_events(method):
-            from slipstep.methods.exact_events import ExactEventRun
-
-            return ExactEventRun(system, **options)
-        return super().__new__(cls)
-
     def __init__(self, system: System, method: str | Method = "newmark", **options):
+        if _exact_events(method):
+            raise InputError(
+                "method",
+                "'events' marches no time steps: it has no Simulation (marcher, workspace, start_from)",
+                "use slipstep.run(system, 'events') (runner: slipstep.methods.exact_events.ExactEventRun), "
+                "and slipstep.steady.shoot(system, method='events') for the steady state",
+            )
         plan = plan_run(system, method, **options)
         if plan.pilot_allowed:
             plan = accuracy.pilot_plan(plan)
@@ -400,6 +398,10 @@ def run(system: System, method: str = "newmark", *, raise_on_failure: bool = Fal
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
     result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`
     (method ``events``: methods/exact_events.py, which also takes ``max_events``)."""
+    if _exact_events(method):
+        from slipstep.methods.exact_events import ExactEventRun
+
+        return ExactEventRun(system, **options).run(raise_on_failure=raise_on_failure)
     return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
 
 
