@@ -222,7 +222,7 @@ class StateModel:
     def _modal(self, model: Model, first: np.ndarray) -> str:
         """The modal form (module docstring); '' when it holds, else why not."""
         A, n, KS, KS_loc = model.A, model.n, self.KS, self.KS_loc
-        if np.linalg.cond(KS) > 1e13:  # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
+        if np.linalg.cond(KS) > 1e11:  # particular solution: K_S x_c = f_c - A^T (K(S)(g - B p_c) + Sw w)
             return "K + A^T K(S) A is singular (a free rigid mode)"
         rhs0 = model.f_const - A.T @ (KS_loc @ model.q_const)
         both = np.linalg.solve(KS, np.column_stack([rhs0, -A.T @ self.Sw]))
@@ -233,10 +233,16 @@ class StateModel:
             if np.linalg.cond(D) > 1e13:
                 return f"the excitation at {om / 2 / np.pi:g} Hz is at a resonance of the state"
             self.X[h] = np.linalg.solve(D, model.F[h] + A.T @ (KS_loc @ (model.B @ model.P[h])))
-        lam, Phi = np.linalg.eig(first)
-        if np.linalg.cond(Phi) > 1e10:
+        # eigenvectors of the balanced matrix D^-1 Q_S D, D = diag(I, omega_s I): x and v / omega_s
+        # of one size, so that cond(Phi_s) measures defectiveness, not the units of v
+        n2 = first.shape[0] // 2
+        omega_s = max(math.sqrt(np.abs(first[n2:, :n2]).sum(axis=1).max(initial=0.0)), 1e-300)
+        d = np.concatenate([np.ones(n2), np.full(n2, omega_s)])
+        lam, Phi_s = np.linalg.eig(first * d[None, :] / d[:, None])
+        if np.linalg.cond(Phi_s) > 1e8:
             return "the first-order matrix is defective"
-        self.lam, self.Phi, self.Phi_inv = lam, Phi, np.linalg.inv(Phi)
+        Phi = Phi_s * d[:, None]
+        self.lam, self.Phi, self.Phi_inv = lam, Phi, np.linalg.inv(Phi_s) / d[None, :]
         self.QX = self.X @ A.T
         self.E = np.ascontiguousarray(self.Lq @ A @ Phi[:n] + self.Ld @ A @ Phi[n:])
         qh = self.QX - model.PB  # (H, nq): harmonic amplitudes of q
