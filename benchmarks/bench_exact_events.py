@@ -18,7 +18,10 @@ tests/frf_accuracy.py (250-500 Hz; methods/exact_orbit.exact_frf) against the in
 reference of tests/jenkins_reference.py (DOP853 + fsolve, started from the exact orbit): the
 relative differences of the friction energy and excitation work per cycle, the time per point.
 
-Usage:  python benchmarks/bench_exact_events.py [--accuracies 1e-6,1e-3] [--quick] [--frf] [--json]
+``--recontact``: instead, Method 3's displacement error against the exact solution before and
+after the first re-contact on the random systems of tests/test_exact_events.py (seeds 1-3).
+
+Usage:  python benchmarks/bench_exact_events.py [--accuracies 1e-6,1e-3] [--quick] [--frf] [--recontact] [--json]
 """
 
 from __future__ import annotations
@@ -180,14 +183,66 @@ def frf_text(rows) -> str:
     return "\n".join(lines)
 
 
+def recontact_check(steps=(4000, 16000, 64000, 256000)) -> list[dict]:
+    """Method 3 against the exact solution before / after the first re-contact (module docstring)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_exact_events import random_system
+
+    from slipstep.kernels.codes import LIFT
+
+    rows = []
+    for seed in (1, 2, 3):
+        system = random_system(np.random.default_rng(seed))
+        run = ExactEventRun(system, periods=1)
+        run.march()
+        phases, period = run.trajectory.phases, run.plan.period
+        t_rc = next(
+            (b.t0 for a, b in zip(phases, phases[1:]) if np.any((a.sm.state == LIFT) & (b.sm.state != LIFT))), None
+        )
+        for n in steps:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                ds = ss.run(system, "piecewise-linear", periods=1, dt=period / n, error_estimate=False)
+            ref = run.trajectory.evaluate(ds.time.values)["x"]
+            err = np.abs(ds.displacement.values - ref).max(axis=1) / np.abs(ref).max()
+            t = ds.time.values
+            before = float(err[t < t_rc].max()) if t_rc is not None else float(err.max())
+            after = float(err[t > t_rc].max()) if t_rc is not None else float("nan")
+            rows.append(
+                {
+                    "seed": seed,
+                    "recontact_t_over_T": (t_rc or np.nan) / period,
+                    "steps_per_period": n,
+                    "before": before,
+                    "after": after,
+                }
+            )
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--accuracies", default="1e-6,1e-3", help="relative errors of the energy per cycle")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="Jenkins and paper only, one repeat")
     parser.add_argument("--frf", action="store_true", help="the exact Jenkins FRF against the reference instead")
+    parser.add_argument("--recontact", action="store_true", help="Method 3's error around re-contacts instead")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
+    if args.recontact:
+        rows = recontact_check()
+        if args.json:
+            print(json.dumps(rows))
+        else:
+            print(
+                "Method 3 against the exact solution: largest relative displacement error before / after the first re-contact"
+            )
+            for r in rows:
+                print(
+                    f"seed {r['seed']} (re-contact at t/T = {r['recontact_t_over_T']:.4f}) N = {r['steps_per_period']:6d}: "
+                    f"before {r['before']:.1e}, after {r['after']:.1e}"
+                )
+        return 0
     if args.frf:
         rows = frf_check()
         print(json.dumps(rows) if args.json else frf_text(rows))
