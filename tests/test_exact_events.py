@@ -3,6 +3,7 @@ kernels/exact_events.py) against closed forms, an independent event-located inte
 the energy balance and the contact law's bounds; the cases it refuses."""
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -212,7 +213,9 @@ def test_methods_1_and_3_converge_at_second_order(case, periods, steps):
     for method in ("newmark", "piecewise-linear"):
         errors = []
         for n in steps:
-            ds = ss.run(system, method, periods=periods, dt=period / n, error_estimate=False)
+            with warnings.catch_warnings():  # Method 1's balance-residual notes at these steps (issue 29)
+                warnings.simplefilter("ignore", RuntimeWarning)
+                ds = ss.run(system, method, periods=periods, dt=period / n, error_estimate=False)
             ref = run.trajectory.evaluate(ds.time.values)["x"]
             errors.append(np.abs(ds.displacement.values - ref).max() / np.abs(ref).max())
         order = np.log2(errors[0] / errors[1])
@@ -337,9 +340,7 @@ def random_system(rng):
 def test_random_systems_with_lift_off(seed):
     """Random 3-DOF systems with a quasi-3D and a 2D contact visiting every state: the energy
     balance, the law's bounds, and Method 3 at T / 8000 within 1e-4 (Method 3's slider carries an
-    O(dt) error at each re-contact, docs/exact_events.md, so no order is asserted here)."""
-    import warnings
-
+    O(dt) error at a re-contact in some cases, docs/exact_events.md, so no order is asserted here)."""
     system = random_system(np.random.default_rng(seed))
     run, ds = exact_run(system, periods=3)
     assert ds.attrs["status"] == "OK"

@@ -29,6 +29,10 @@ from slipstep.model.system import System
 SAMPLES = 4096
 #: the orbit's residual asked by default (the steady tolerance of frf is at most this)
 TOLERANCE = 1e-12
+#: options of methods/exact_orbit.periodic_orbit that frf passes on
+ORBIT_OPTIONS = ("settle_periods", "max_iterations")
+#: options of the time-stepping steady solvers that have no meaning without a step (the CLI sets them)
+STEP_ONLY_OPTIONS = ("max_periods", "min_steps_per_period", "steps_per_period", "max_step", "dt", "step_ratio")
 
 
 def exact_frf_dataset(
@@ -44,7 +48,14 @@ def exact_frf_dataset(
 ) -> xr.Dataset:
     """The FRF Dataset of the exact periodic orbits at ``frequencies`` [Hz] (module docstring);
     ``direction`` 'up', 'down' or 'both' (the down sweep from the up sweep's last orbit);
-    ``options``: those of methods/exact_orbit.periodic_orbit (settle_periods, max_iterations)."""
+    ``options``: those of methods/exact_orbit.periodic_orbit (ORBIT_OPTIONS); the step options of
+    the time-stepping solvers (STEP_ONLY_OPTIONS) have no meaning here and are dropped."""
+    unknown = sorted(set(options) - set(ORBIT_OPTIONS) - set(STEP_ONLY_OPTIONS))
+    if unknown:
+        raise InputError(
+            unknown[0], "is not an option of the exact steady state (method 'events')", f"use only {ORBIT_OPTIONS}"
+        )
+    options = {k: v for k, v in options.items() if k in ORBIT_OPTIONS}
     names = list(system.structure.dof_names)
     responses = names if responses is None else list(responses)
     unknown = [r for r in responses if r not in names]
