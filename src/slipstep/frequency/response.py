@@ -266,6 +266,8 @@ def frf(
     estimate for hbm; None: march and shoot points as solved, no step doubling, no estimate); a point above it keeps its status, gets a status_message, and one
     FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
     frequency, steady) is called after every point (hbm: every continuation step, steady None).
+    method "events" (solver "shoot" only): the reference FRF of exact periodic orbits
+    (slipstep.frequency.exact; options of methods/exact_orbit.periodic_orbit).
     Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep
     and descending per down sweep. Ctrl-C during a point keeps the points done (the others get
     status INTERRUPTED, attribute interrupted = 1)."""
@@ -276,6 +278,13 @@ def frf(
     check_accuracy_options(DEFAULT_RTOL if rtol is None and solver != "hbm" else rtol, max_refinements)
     f = np.sort(check_frequencies(frequencies))
     reason = ""
+    if method == "events":  # the reference FRF: exact periodic orbits (slipstep.frequency.exact)
+        if solver not in ("shoot", "auto"):
+            raise InputError("method", f"'events' is a method of solver 'shoot', not {solver!r}", "use solver='shoot'")
+        from slipstep.frequency.exact import TOLERANCE, exact_frf_dataset
+
+        steady = min(tolerance, TOLERANCE)
+        return exact_frf_dataset(system, f, direction, responses, harmonics, steady, linear, progress, **options)
     if solver == "auto":
         choice = choose(system, method)
         solver, method, reason = choice.solver, choice.method, choice.reason

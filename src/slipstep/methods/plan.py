@@ -30,6 +30,7 @@ import numpy as np
 
 from slipstep.errors import InputError
 from slipstep.kernels import march as K
+from slipstep.kernels.codes import EXACT_EVENTS
 from slipstep.kernels.contact import STICK
 from slipstep.methods import massless as ML
 from slipstep.methods import memory
@@ -178,8 +179,8 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
     cs = system.compile(compile_backend(opt.linear_solver))
     if cs.banded:
         check_banded_method(method)
-    if method.solver == K.EVENTS:
-        check_event_case(system, cs)
+    if method.solver in (K.EVENTS, EXACT_EVENTS):
+        check_event_case(system, cs, method.name)
     stick = np.full(cs.kt.shape[0], STICK, np.int8)
     massless = ML.select_massless(system, opt.massless_dofs) if method.massless else None
     if massless is not None:  # those DOFs without inertia; T_min of the dynamic part
@@ -395,7 +396,7 @@ def _kernel_step_factor(plan: RunPlan) -> float:
 def check_banded_method(method: Method) -> None:
     """The banded backend (sparse structures) runs the implicit march's methods; the
     event-driven march and the partly quasi-static method need the dense matrices."""
-    if method.solver == K.EVENTS or method.massless:
+    if method.solver in (K.EVENTS, EXACT_EVENTS) or method.massless:
         raise InputError(
             "method",
             f"{method.name} needs the dense backend; this sparse structure compiles to the banded one",
@@ -404,27 +405,35 @@ def check_banded_method(method: Method) -> None:
         )
 
 
-def check_event_case(system: System, cs: CompiledSystem) -> None:
-    """The event-driven method needs phases that are linear in known harmonic functions of time."""
+def check_event_case(system: System, cs: CompiledSystem, name: str = "quasi-static-events") -> None:
+    """The event-driven methods (``name``: quasi-static-events, events) need phases that are
+    linear in known harmonic functions of time; the dynamic one a mass on every DOF."""
+    other = "quasi-static" if name == "quasi-static-events" else "piecewise-linear"
     if cs.force_table_time.size or cs.motion_table_time.size:
         raise InputError(
             "method",
-            "quasi-static-events needs harmonic loads and motions, the case has tables",
-            "use method 'quasi-static' for tabulated signals",
+            f"{name} needs harmonic loads and motions, the case has tables",
+            f"use method '{other}' for tabulated signals",
         )
     if cs.force_ramp > 0 or cs.motion_ramp > 0:
         raise InputError(
             "ramp_time",
-            "is set: quasi-static-events needs unramped harmonic signals",
-            "remove ramp_time or use method 'quasi-static'",
+            f"is set: {name} needs unramped harmonic signals",
+            f"remove ramp_time or use method '{other}'",
         )
     circles = without_piecewise_linear_form(system.contacts)
     if circles:
         laws = sorted({c.law for c in system.contacts if c.name in circles})
         raise InputError(
             "method",
-            f"quasi-static-events needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
-            "use method 'quasi-static' for friction-circle contacts",
+            f"{name} needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
+            f"use method '{other}' for friction-circle contacts",
+        )
+    if name != "quasi-static-events" and not cs.banded and np.linalg.matrix_rank(cs.M) < cs.M.shape[0]:
+        raise InputError(
+            "method",
+            f"{name} needs a mass on every DOF (the mass matrix is singular)",
+            "use method 'quasi-static-dofs' or 'piecewise-linear' for DOFs without inertia",
         )
 
 

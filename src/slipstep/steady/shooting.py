@@ -305,9 +305,14 @@ def shoot(
     (:func:`predicted_start`; the previous orbit if the predicted period fails). When Newton
     from a given start has not converged after half of ``max_iterations``, the search starts
     afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
-    frequency can be a worse start than the preload."""
+    frequency can be a worse start than the preload. method "events": the exact periodic orbit
+    (methods/exact_orbit.steady_state; the step and march options do not apply)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
+    if method == "events":  # Newton on the exact period map (methods/exact_orbit.py)
+        from slipstep.methods.exact_orbit import steady_state
+
+        return steady_state(system, min(tolerance, 1e-12), initial, max_iterations)
     for name, value, low in (
         ("max_iterations", max_iterations, 1),
         ("settle_periods", settle_periods, 0),
