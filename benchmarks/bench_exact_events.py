@@ -14,7 +14,7 @@ and the `ring` case (36 DOFs, 2 periods: many distinct contact states, each an
 eigendecomposition of a 72 x 72 first-order matrix).
 
 ``--frf``: instead, the exact steady state of the Jenkins oscillator at the 11 frequencies of
-tests/frf_accuracy.py (250-500 Hz; methods/exact_orbit.exact_frf) against the independent
+tests/frf_accuracy.py (250-500 Hz; steady/exact_orbit.exact_frf) against the independent
 reference of tests/jenkins_reference.py (DOP853 + fsolve, started from the exact orbit): the
 relative differences of the friction energy and excitation work per cycle, the time per point.
 
@@ -133,7 +133,7 @@ def frf_check() -> list[dict]:
     import frf_accuracy as FA
     from jenkins_reference import periodic_orbit_energies
 
-    from slipstep.methods.exact_orbit import exact_frf
+    from slipstep.steady.exact_orbit import exact_frf
 
     system = FA.system()
     exact_frf(system, FA.FREQUENCIES[:1])  # warm-up
@@ -162,7 +162,7 @@ def frf_check() -> list[dict]:
 
 
 def _orbit_from(system, f, guess):
-    from slipstep.methods.exact_orbit import periodic_orbit
+    from slipstep.steady.exact_orbit import periodic_orbit
 
     return periodic_orbit(system, f, guess=guess)
 

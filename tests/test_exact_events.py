@@ -230,7 +230,7 @@ def test_exact_steady_state_against_the_independent_reference(frequency):
     own period map, started from this orbit): energies per cycle to 1e-9."""
     from jenkins_reference import periodic_orbit_energies
 
-    from slipstep.methods.exact_events import periodic_orbit
+    from slipstep.steady.exact_orbit import periodic_orbit
 
     orbit = periodic_orbit(ss.load_system(JENKINS), frequency)
     assert orbit.converged and orbit.residual <= 1e-12
@@ -291,7 +291,7 @@ def test_reference_frf_is_frf_with_method_events():
     assert np.abs(ds.energy_balance_residual.values).max() < 1e-11
     up = ds.sel(sweep="up")
     for k, f in enumerate(up.frequency.values):
-        from slipstep.methods.exact_events import periodic_orbit
+        from slipstep.steady.exact_orbit import periodic_orbit
 
         orbit = periodic_orbit(ss.load_system(JENKINS), float(f))
         mode = int(orbit.trajectory.phases[0].sm.state[0])

@@ -1,5 +1,5 @@
 """The reference FRF: ``frf(system, frequencies, solver="shoot", method="events")``, each
-point the exact periodic orbit of the event-driven march (methods/exact_orbit.py: Newton on
+point the exact periodic orbit of the event-driven march (steady/exact_orbit.py: Newton on
 the exact period map), in the layout of slipstep.output.frf_schema.
 
 Per point: the amplitudes (half the peak-to-peak over ``SAMPLES`` uniform samples of the
@@ -29,7 +29,7 @@ from slipstep.model.system import System
 SAMPLES = 4096
 #: the orbit's residual asked by default (the steady tolerance of frf is at most this)
 TOLERANCE = 1e-12
-#: options of methods/exact_orbit.periodic_orbit that frf passes on
+#: options of steady/exact_orbit.periodic_orbit that frf passes on
 ORBIT_OPTIONS = ("settle_periods", "max_iterations")
 #: options of the time-stepping steady solvers that have no meaning without a step (the CLI sets them)
 STEP_ONLY_OPTIONS = ("max_periods", "min_steps_per_period", "steps_per_period", "max_step", "dt", "step_ratio")
@@ -48,7 +48,7 @@ def exact_frf_dataset(
 ) -> xr.Dataset:
     """The FRF Dataset of the exact periodic orbits at ``frequencies`` [Hz] (module docstring);
     ``direction`` 'up', 'down' or 'both' (the down sweep from the up sweep's last orbit);
-    ``options``: those of methods/exact_orbit.periodic_orbit (ORBIT_OPTIONS); the step options of
+    ``options``: those of steady/exact_orbit.periodic_orbit (ORBIT_OPTIONS); the step options of
     the time-stepping solvers (STEP_ONLY_OPTIONS) have no meaning here and are dropped."""
     unknown = sorted(set(options) - set(ORBIT_OPTIONS) - set(STEP_ONLY_OPTIONS))
     if unknown:
@@ -86,7 +86,7 @@ def exact_frf_dataset(
 
 
 def _sweep(system, grid, responses, n_harmonics, tolerance, guess, progress, options):
-    from slipstep.methods.exact_orbit import periodic_orbit
+    from slipstep.steady.exact_orbit import periodic_orbit
 
     names = list(system.structure.dof_names)
     cols = [names.index(r) for r in responses]

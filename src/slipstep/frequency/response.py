@@ -267,7 +267,7 @@ def frf(
     FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
     frequency, steady) is called after every point (hbm: every continuation step, steady None).
     method "events" (solver "shoot" only): the reference FRF of exact periodic orbits
-    (slipstep.frequency.exact; options of methods/exact_orbit.periodic_orbit).
+    (slipstep.frequency.exact; options of steady/exact_orbit.periodic_orbit).
     Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep
     and descending per down sweep. Ctrl-C during a point keeps the points done (the others get
     status INTERRUPTED, attribute interrupted = 1)."""

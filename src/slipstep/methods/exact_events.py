@@ -899,10 +899,3 @@ class ExactEventRun:
 def run(system: System, *, raise_on_failure: bool = False, max_events: int | None = None, **options):
     """``ss.run(system, "events", ...)``: :class:`ExactEventRun` (options: RunOptions)."""
     return ExactEventRun(system, max_events=max_events, **options).run(raise_on_failure=raise_on_failure)
-
-
-def periodic_orbit(system: System, frequency_hz: float, **options):
-    """The exact steady state at ``frequency_hz``: :func:`slipstep.methods.exact_orbit.periodic_orbit`."""
-    from slipstep.methods.exact_orbit import periodic_orbit as orbit
-
-    return orbit(system, frequency_hz, **options)

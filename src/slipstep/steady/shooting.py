@@ -306,11 +306,11 @@ def shoot(
     from a given start has not converged after half of ``max_iterations``, the search starts
     afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
     frequency can be a worse start than the preload. method "events": the exact periodic orbit
-    (methods/exact_orbit.steady_state; the step and march options do not apply)."""
+    (steady/exact_orbit.steady_state; the step and march options do not apply)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
-    if method == "events":  # Newton on the exact period map (methods/exact_orbit.py)
-        from slipstep.methods.exact_orbit import steady_state
+    if method == "events":  # Newton on the exact period map (steady/exact_orbit.py)
+        from slipstep.steady.exact_orbit import steady_state
 
         return steady_state(system, min(tolerance, 1e-12), initial, max_iterations)
     for name, value, low in (
