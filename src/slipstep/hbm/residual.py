@@ -199,7 +199,7 @@ class HarmonicBalance:
         LY = b.phasors(Y) @ L.T
         U = b.phasors(F) - lin.Kc * LY
         LtU = U @ L
-        Xe = lin.solve(lin.external(level))
+        Xe = lin.external_response(level)
         R = b.phasors(Y) - self.gather.of_dofs(Xe, cs.A) + np.einsum("hrs,hs->hr", lin.S, LtU)
         Rr = b.coefficients(R).ravel()
         if not jacobian:
@@ -211,7 +211,7 @@ class HarmonicBalance:
         J[np.diag_indices_from(J)] += 1.0
         X = Xe - lin.solve_gathered(LtU)
         dR_dw = self.gather.of_dofs(lin.solve(lin.dD_times(X)), cs.A)
-        dR_dl = -self.gather.of_dofs(lin.solve(lin.Fe), cs.A)
+        dR_dl = -self.gather.of_dofs(lin.Xf, cs.A)
         if cs.B.shape[1] and np.any(lin.P != 0):
             V = b.coefficients(-(lin.P @ cs.B.T))
             dF = (self.aft.jacobian() @ V.ravel()).reshape(V.shape) if self.gather.mode == "contacts" else None
