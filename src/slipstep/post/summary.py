@@ -323,7 +323,7 @@ def _contacts_record(rec: Record, lp) -> dict:
         c = contacts.index(rec.direction_contact[j])
         limit = rec.mu[c] * N[:, c]
         loaded = limit > 0
-        ratio = np.abs(T[loaded, j]) / limit[loaded]
+        ratio = np.abs(T[:, j][loaded]) / limit[loaded]
         states = S[1:, j]
         share = {s: dt[states == s].sum() / total for s in (STICK, SLIP_POS, SLIP_NEG, LIFT)}
         out[f"direction_peak_T_over_muN[{d}]"] = float(ratio.max()) if ratio.size else math.nan
@@ -341,7 +341,10 @@ def _full_slip(lp) -> float:
     from slipstep.post.timeline import SLIP_STATES
 
     t, S = lp[0], lp[4]
-    all_slip = np.all(np.isin(S[1:], SLIP_STATES), axis=1)
+    slip = np.zeros(S[1:].shape, bool)
+    for state in SLIP_STATES:  # np.isin(S[1:], SLIP_STATES), without its set-up
+        slip |= S[1:] == state
+    all_slip = np.all(slip, axis=1)
     total = t[-1] - t[0]
     return float(np.diff(t)[all_slip].sum() / total) if total > 0 else 0.0
 
