@@ -173,3 +173,34 @@ def test_a_wrong_patch_is_caught_by_the_self_check(monkeypatch):
     )
     assert runner.patching is False
     assert "differs from the case format" in runner.reason
+
+
+def test_one_runner_per_thread_and_payload_content():
+    """A worker receives the same payload as separate objects (the warm-up, each task): one
+    runner for them; another payload or another thread gets its own (a marcher is not shared)."""
+    import pickle
+    import threading
+
+    from slipstep.sweep.execute import run_batch
+    from slipstep.sweep.runner import case_runner
+
+    spec = SweepSpec(base="paper", run=QUASI, parameters=(Parameter("motion.1.amplitude", values=(5.0, 20.0)),))
+    plan = make_plan(spec)
+    payload = payload_of(plan)
+    run_batch(payload, [(i, plan.hashes[i], plan.values[i].tolist()) for i in range(plan.n_cases)])
+    runner = case_runner(payload)
+    assert runner.patching is True
+    assert case_runner(pickle.loads(pickle.dumps(payload))) is runner
+    again = payload_of(
+        make_plan(SweepSpec(base="paper", run=QUASI, parameters=(Parameter("motion.1.amplitude", values=(7.0,)),)))
+    )
+    assert case_runner(again) is runner  # the values are not in the payload: the same runner serves
+    other = payload_of(
+        make_plan(SweepSpec(base="paper", run=QUASI, parameters=(Parameter("damper.mass_kg", values=(0.02,)),)))
+    )
+    assert case_runner(other) is not runner
+    seen = []
+    thread = threading.Thread(target=lambda: seen.append(case_runner(payload)))
+    thread.start()
+    thread.join()
+    assert seen[0] is not runner
