@@ -177,13 +177,15 @@ class CaseRunner:
 
     def plan_for(self, values: list):
         """The base plan on the patched system: planned again (T_min, step limits, step) when a
-        patched number sets them, else with its kernel settings recomputed."""
+        patched number sets them, else with its kernel settings recomputed when they depend on it."""
         from slipstep.methods.plan import kernel_settings, replanned
 
         cs = self.compiled_for(values)
         if self.replans:
             return replanned(self.base, cs)
         plan = self.base.replace(compiled=cs)
+        if plan.settings.err_scale == 0.0:  # the one number kernel_settings takes from the compiled
+            return plan  # system: rtol's error scale (0 without rtol)
         return plan.replace(settings=kernel_settings(plan, plan.dt, plan.max_step, plan.low_rank))
 
     # -- building ------------------------------------------------------------------------------
