@@ -204,3 +204,36 @@ def test_one_runner_per_thread_and_payload_content():
     thread.start()
     thread.join()
     assert seen[0] is not runner
+
+
+def test_the_patched_system_is_the_compiled_case_array_for_array():
+    """CaseRunner.compiled_for against System.compile of the case built from its dictionary:
+    every array and scalar of the CompiledSystem equal to the last bit."""
+    import numpy as np
+
+    from slipstep.methods.plan import compile_backend
+    from slipstep.sweep.cases import build_case
+
+    spec = SweepSpec(
+        base=STRUCTURE,
+        parameters=(
+            Parameter("structure.constant_force_N.2", values=(2.0, 6.0)),
+            Parameter("contacts.B.normal_offset_m", values=(5e-8, 3e-7)),
+            Parameter("force.1.amplitude", values=(0.2, 0.9)),
+            Parameter("contacts.A.normal_stiffness_N_per_m", values=(3e7, 2e8)),
+            Parameter("contacts.*.friction_coefficient", values=(0.2, 0.6)),
+        ),
+    )
+    plan = make_plan(spec)
+    runner = CaseRunner(payload_of(plan))
+    runner.run(plan.values[0])
+    for i in range(plan.n_cases):
+        patched = runner.compiled_for([float(v) for v in plan.values[i]])
+        system, _ = build_case(plan.case_dict(i), plan.base_dir)
+        built = system.compile(compile_backend(runner.base.options.linear_solver))
+        for name, value in built._asdict().items():
+            got = getattr(patched, name)
+            if isinstance(value, np.ndarray):
+                assert got.dtype == value.dtype and np.array_equal(got, value), name
+            else:
+                assert got == value, name
