@@ -237,3 +237,16 @@ def test_the_patched_system_is_the_compiled_case_array_for_array():
                 assert got.dtype == value.dtype and np.array_equal(got, value), name
             else:
                 assert got == value, name
+
+
+def test_an_assembly_case_is_left_to_the_case_format_at_once():
+    plan = make_plan(
+        SweepSpec(
+            base="blades",
+            run={"method": "piecewise-linear", "periods": 2},
+            parameters=(Parameter("dampers.damper.centrifugal_force_N", values=(100.0, 300.0)),),
+        )
+    )
+    runner = CaseRunner(payload_of(plan))
+    runner._build([float(v) for v in plan.values[0]])
+    assert runner.patching is False and "assembly" in runner.reason

@@ -193,9 +193,8 @@ class CaseRunner:
         """Build the runner from the case ``values`` by the case format; a case that is not
         valid leaves it unbuilt (the next case tries again)."""
         from slipstep.casefile.case import build_system, parse_case
-        from slipstep.methods.marcher import Marcher
+        from slipstep.errors import InputError, SolverError
         from slipstep.methods.plan import plan_run
-        from slipstep.post.loops import interfaces_from_system
         from slipstep.sweep.cases import apply_values, case_kind
         from slipstep.sweep.execute import _fast, _run_options
 
@@ -203,28 +202,44 @@ class CaseRunner:
         why = _unsupported_payload(p)
         if why:
             return self._stop(why)
-        data = apply_values(p.base, p.parameters, values)
         try:
+            data = apply_values(p.base, p.parameters, values)
+            kind = case_kind(data)
+            if kind not in ("damper", "structure"):
+                return self._stop(f"an {kind} case")
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 spec = parse_case(data, source="the swept case")
                 system = build_system(spec)
                 options = _run_options(spec.run, p.extra_run)
                 plan = plan_run(system, spec.run.method or "newmark", **options)
-        except Exception:  # noqa: BLE001 - not a valid case: the case-format path records why
+        except (InputError, SolverError):  # not a valid case: the case-format path records why
             return None
+        except Exception as exc:  # noqa: BLE001 - the case-format path records it as the case's ERROR
+            return self._stop(f"building the first case raised {type(exc).__name__}: {exc}")
         if not _fast(p, options):
             return self._stop("the sweep stores more than the summary (histories, FRF or [run.save])")
         if plan.pilot_allowed or plan.massless is not None or plan.compiled.banded:
             return self._stop("the run refines its step by a pilot, has massless DOFs or a banded structure")
         try:
-            self.patches = [patches_of(q, case_kind(data), spec, system, plan.compiled) for q in p.parameters]
+            self._set_up(values, data, spec, system, plan, [w.message for w in caught])
         except Unpatchable as exc:
             return self._stop(str(exc))
+        except Exception as exc:  # noqa: BLE001 - a runner that cannot be set up leaves the cases to run_case
+            return self._stop(f"setting up the runner raised {type(exc).__name__}: {exc}")
+        self.patching = True
+        return None
+
+    def _set_up(self, values: list, data: dict, spec, system, plan, plan_warnings: list) -> None:
+        from slipstep.methods.marcher import Marcher
+        from slipstep.post.loops import interfaces_from_system
+        from slipstep.sweep.cases import case_kind
+
+        self.patches = [patches_of(q, case_kind(data), spec, system, plan.compiled) for q in self.payload.parameters]
         self.base, self.values0 = plan, values
         self.marcher = Marcher(plan)
         self.interfaces = interfaces_from_system(system)
-        self.plan_warnings = [w.message for w in caught]
+        self.plan_warnings = plan_warnings
         self.k_diagonal = system.structure.diagonal("stiffness")
         self.harmonics = {
             what: [(h.amplitude, h.phase) for h in (sig.harmonics if sig is not None else ())]
@@ -233,8 +248,6 @@ class CaseRunner:
         stability = not plan.method.quasi_static and math.isfinite(plan.options.scheme.omega_crit)
         fields = {q.field for ps in self.patches for q in ps}
         self.replans = bool(fields & {"kn", "kt"}) or ("mu" in fields and stability)
-        self.patching = True
-        return None
 
     def _stop(self, why: str) -> None:
         if self.patching:
