@@ -290,6 +290,18 @@ def _timed_plan(
     return plan.with_step(dt)
 
 
+def replanned(plan: RunPlan, compiled: CompiledSystem) -> RunPlan:
+    """``plan``'s run on ``compiled``, a compiled system of the same layout whose numbers differ
+    (contact stiffnesses or friction patched by a sweep, slipstep.sweep.runner): T_min of full
+    stick, the step limits and the timed part planned again, as :func:`plan_run` plans them.
+    For plans without massless DOFs and without the pilot refinement (the runner's own)."""
+    if plan.massless is not None or plan.pilot_allowed:
+        raise ValueError("replanned: a plan with massless DOFs or a pilot refinement is planned by plan_run")
+    t_min_stick = state_t_min(compiled, plan.stick)
+    dt_limit, dt_stability = _step_limits(compiled, plan.method, plan.options, t_min_stick)
+    return _timed_plan(plan.system, plan.method, plan.options, compiled, None, t_min_stick, dt_limit, dt_stability)
+
+
 def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = None, **option_changes) -> RunPlan:
     """:meth:`RunPlan.retuned` (see there)."""
     from slipstep.model.retune import retune

@@ -54,14 +54,14 @@ def payload_of(plan, reference=()) -> Payload:
 
 
 def run_case(payload: Payload, values) -> dict:
-    """Build and run one case; returns {"status", "message", "warning", "summary",
-    "histories", "timing"}. Deterministic except "timing"."""
-    from slipstep.methods.simulation import Simulation
-    from slipstep.post.summary import summarise, timings
-    from slipstep.sweep.cases import apply_values, build_case
+    """Build and run one case through the case format (apply_values, build_case, Simulation);
+    returns {"status", "message", "warning", "summary", "histories", "frf", "timing"}.
+    Deterministic except "timing"."""
+    return guarded(lambda result: _case_format(payload, values, result))
 
-    start, cpu = time.perf_counter(), time.thread_time()
-    result = {
+
+def empty_result() -> dict:
+    return {
         "status": "",
         "message": "",
         "warning": "",
@@ -70,30 +70,18 @@ def run_case(payload: Payload, values) -> dict:
         "frf": {},
         "timing": {"kernel_time_s": math.nan, "wall_time_s": math.nan},
     }
+
+
+def guarded(body) -> dict:
+    """The result of one case whose entries ``body(result)`` fills in: its warnings recorded,
+    an exception turned into the case's status and message (a case never raises), its time
+    and CPU time added."""
+    start, cpu = time.perf_counter(), time.thread_time()
+    result = empty_result()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            data = apply_values(payload.base, payload.parameters, values)
-            system, run = build_case(data, payload.base_dir)
-            options = _run_options(run, payload.extra_run)
-            method = run.method or "newmark"
-            if payload.outputs.get("time_summary", True) is False:
-                result.update(_run_frf_only(payload, data, values, system, run))
-                return _finish(result, caught, start, cpu)
-            sim = Simulation(system, method, **options)
-            if _fast(payload, options):
-                result.update(_run_fast(sim, system))
-                return _finish(result, caught, start, cpu)
-            ds = sim.run()
-            result["status"] = ds.attrs["status"]
-            result["message"] = ds.attrs["status_message"]
-            result["summary"] = summarise(ds, system)
-            result["timing"] = timings(ds)
-            if payload.outputs.get("histories"):
-                result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
-            if payload.outputs.get("frf"):
-                result["frf"] = frf_values(system, run, payload.outputs["frf"])
-                result["summary"].update(_mistuning_summary(payload, data, values, result["frf"]))
+            body(result)
         except InputError as exc:
             result.update(status=STATUS_INPUT, message=str(exc))
         except SolverError as exc:
@@ -101,6 +89,34 @@ def run_case(payload: Payload, values) -> dict:
         except Exception as exc:  # noqa: BLE001 - a case never aborts the sweep; the message names it
             result.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}")
     return _finish(result, caught, start, cpu)
+
+
+def _case_format(payload: Payload, values, result: dict) -> None:
+    from slipstep.methods.simulation import Simulation
+    from slipstep.post.summary import summarise, timings
+    from slipstep.sweep.cases import apply_values, build_case
+
+    data = apply_values(payload.base, payload.parameters, values)
+    system, run = build_case(data, payload.base_dir)
+    options = _run_options(run, payload.extra_run)
+    method = run.method or "newmark"
+    if payload.outputs.get("time_summary", True) is False:
+        result.update(_run_frf_only(payload, data, values, system, run))
+        return
+    sim = Simulation(system, method, **options)
+    if _fast(payload, options):
+        result.update(_run_fast(sim, system))
+        return
+    ds = sim.run()
+    result["status"] = ds.attrs["status"]
+    result["message"] = ds.attrs["status_message"]
+    result["summary"] = summarise(ds, system)
+    result["timing"] = timings(ds)
+    if payload.outputs.get("histories"):
+        result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
+    if payload.outputs.get("frf"):
+        result["frf"] = frf_values(system, run, payload.outputs["frf"])
+        result["summary"].update(_mistuning_summary(payload, data, values, result["frf"]))
 
 
 def _finish(result: dict, caught: list, start: float, cpu: float) -> dict:
@@ -118,10 +134,11 @@ def _fast(payload: Payload, options: dict) -> bool:
     return not outputs.get("histories") and not outputs.get("frf") and "save" not in options
 
 
-def _run_fast(sim, system) -> dict:
+def _run_fast(sim, interfaces) -> dict:
     """March ``sim`` and summarise it from the kernel's arrays (post.summary.record_of and
     summarise_record: the numbers of summarise(Simulation.run()), without the Dataset and
-    without the step-doubling accuracy estimate, which the summary does not hold)."""
+    without the step-doubling accuracy estimate, which the summary does not hold).
+    ``interfaces``: the System, or its interfaces (post.loops.interfaces_from_system)."""
     from types import SimpleNamespace
 
     from slipstep.methods.simulation import collapsed_step_warning
@@ -134,7 +151,7 @@ def _run_fast(sim, system) -> dict:
     return {
         "status": rec.attrs["status"],
         "message": rec.attrs["status_message"],
-        "summary": summarise_record(rec, system),
+        "summary": summarise_record(rec, interfaces),
         "timing": {"kernel_time_s": float(sim.kernel_time), "wall_time_s": time.perf_counter() - wall},
     }
 
@@ -225,24 +242,30 @@ def frf_values(system, run, cfg: dict) -> dict:
 
 
 def run_batch(payload: Payload, rows) -> list[dict]:
-    """Run the cases ``rows`` = [(index, hash, values), ...]; each result carries its index,
-    hash, the worker's identity and the slipstep version."""
+    """Run the cases ``rows`` = [(index, hash, values), ...] on this thread's runner of the
+    payload (slipstep.sweep.runner: the compiled system patched per case, or run_case); each
+    result carries its index, hash, the worker's identity and the slipstep version."""
     from slipstep import __version__
+    from slipstep.sweep.runner import case_runner
 
     worker = f"{socket.gethostname()}:{os.getpid()}"
+    runner = case_runner(payload)
     out = []
     for index, digest, values in rows:
-        r = run_case(payload, values)
+        r = runner.run(values)
         r.update(index=int(index), hash=digest, worker=worker, version=__version__)
         out.append(r)
     return out
 
 
 def warm_up(payload: Payload, values) -> float:
-    """Run one case and forget it: imports slipstep and loads (or compiles) the kernels of the
-    sweep's method, so the timed cases do not pay for it. Returns seconds."""
+    """Run one case and forget it: imports slipstep, loads (or compiles) the kernels of the
+    sweep's method and builds this worker's runner (slipstep.sweep.runner), so the timed cases
+    do not pay for it. Returns seconds."""
+    from slipstep.sweep.runner import case_runner
+
     start = time.perf_counter()
-    run_case(payload, values)
+    case_runner(payload).run(values)
     return time.perf_counter() - start
 
 
