@@ -158,6 +158,8 @@ def sweep(
             if steady.status != "OK" and retry_steps is not None:
                 retry = steady_solver(system_f, initial=prev, **{**options, "steps_per_period": retry_steps})
                 steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
+            if steady.status != "OK":
+                steady = dataclasses.replace(steady, message=steady.message + turning_point_hint(prev))
             values = _point(steady_solver, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
         except KeyboardInterrupt:  # keep the points done; the rest are marked
             columns["status"][i:] = "INTERRUPTED"
@@ -175,6 +177,21 @@ def sweep(
         ds[name].values = values
     ds.attrs.update(method=last.method if last is not None else "", solver=solver)
     return ds, last
+
+
+def turning_point_hint(previous) -> str:
+    """A sentence for a point that did not converge after a point whose orbit was unstable
+    (largest Floquet multiplier modulus above 1): the branch of the previous point may end at a
+    turning point before this frequency, which a solver stepping in frequency cannot pass and a
+    continuation in arc length (harmonic balance) can; "" otherwise."""
+    multipliers = getattr(previous, "floquet_multipliers", None)
+    if multipliers is None or not len(multipliers) or not np.abs(multipliers).max() > 1.0:
+        return ""
+    return (
+        f"; the previous point's orbit was unstable (largest |Floquet multiplier| {np.abs(multipliers).max():.3g}): "
+        "its branch may end at a turning point before this frequency, which stepping in frequency cannot pass "
+        "(solver='hbm' follows the response through turning points)"
+    )
 
 
 def _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements) -> dict:
