@@ -25,16 +25,15 @@ seen by the contacts, |L R| <= tol x (displacement scale), the same number in bo
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 from slipstep.errors import InputError
 from slipstep.hbm.aft import AFT
 from slipstep.hbm.fourier import Basis, harmonic_set
 from slipstep.hbm.linear import LinearPart, choose_gather
+from slipstep.methods.blas import one_blas_thread
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
 from slipstep.model.contact import without_piecewise_linear_form
@@ -49,21 +48,6 @@ def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:
     plan = plan_run(system, "piecewise-linear", periods=1, error_estimate=False, dt=system.period / 4)
     start = static_equilibrium(plan)
     return start.x.copy(), start.w.copy()
-
-
-_THREADPOOLS = None
-
-
-def blas_threads(size: int = 0):
-    """A context limiting BLAS to one thread for the small dense systems of a harmonic balance
-    (size unknowns < 2000): multi-threaded BLAS on matrices of a few hundred rows is 10-30x
-    slower on a loaded machine than one thread. (The library scan is done once.)"""
-    global _THREADPOOLS
-    if size >= 2000:
-        return contextlib.nullcontext()
-    if _THREADPOOLS is None:
-        _THREADPOOLS = ThreadpoolController()
-    return _THREADPOOLS.limit(limits=1, user_api="blas")
 
 
 def default_samples(h_max: int) -> int:
@@ -253,7 +237,7 @@ class HarmonicBalance:
         max_iterations: int = 50,
     ) -> Point:
         """Newton on R(Y) = 0 at fixed (omega, level), exact Jacobian, backtracking on |R|."""
-        with blas_threads(self.size):
+        with one_blas_thread(self.size):
             return self._solve(omega, level, Y0, tol, max_iterations)
 
     @property

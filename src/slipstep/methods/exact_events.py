@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from slipstep.methods.blas import one_blas_thread
 from slipstep.errors import SolverError, Status
 from slipstep.kernels import exact_events as KE
 from slipstep.kernels.codes import LIFT, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK
@@ -637,21 +638,6 @@ def select_states(model: Model, state, q, qd, qdd, w, contacts, directions, delt
         trial = model.kt[d] * (ahead[model.trow[d]] - w[d])
         new[d] = SLIP_POS if trial > limit else (SLIP_NEG if trial < -limit else STICK)
     return new
-
-
-_THREADPOOLS = None
-
-
-def one_blas_thread():
-    """A context limiting BLAS to one thread: the eigenproblems and small products of a march
-    are 10-20x slower with multi-threaded BLAS on a loaded machine (measured on the `ring` case:
-    14 s against 0.8 s). The same rule as slipstep.hbm.residual.blas_threads."""
-    global _THREADPOOLS
-    if _THREADPOOLS is None:
-        from threadpoolctl import ThreadpoolController
-
-        _THREADPOOLS = ThreadpoolController()
-    return _THREADPOOLS.limit(limits=1, user_api="blas")
 
 
 def march(model: Model, t0: float, x0, v0, w0, state0, t_end: float, max_events: int) -> Trajectory:
