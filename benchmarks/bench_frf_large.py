@@ -35,9 +35,10 @@ def model(name: str):
     return bp.pair(full, 100, f1), 0.95 * f1
 
 
-def timed(fn):
+def timed(fn, *args, **kwargs):
+    """(fn(*args, **kwargs), wall [s], CPU [s])."""
     t0, c0 = time.perf_counter(), time.process_time()
-    out = fn()
+    out = fn(*args, **kwargs)
     return out, time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -51,8 +52,8 @@ def main() -> None:
         solver, why = choose_solver(system)
         print(f"{name}: {system.n_dofs} DOFs, {len(system.contacts)} contact points; auto: {solver} ({why[:90]}...)")
         frf(system, [f], linear=False)  # compile and warm
-        ds, wall, cpu = timed(lambda: frf(system, [f], linear=False))
-        _, base_wall, base_cpu = timed(lambda: linear_limits(system, [f]))
+        ds, wall, cpu = timed(frf, system, [f], linear=False)
+        _, base_wall, _ = timed(linear_limits, system, [f])
         est = float(ds["error_estimate"].values.ravel()[0])
         status = [str(s) for s in ds["status"].values.ravel()]
         print(
