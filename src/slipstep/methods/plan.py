@@ -196,10 +196,11 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             "use method quasi-static-dofs or drop the option",
         )
     if is_sparse(cs) and not SB.t_min_needed(cs, method, opt):
-        t_min_stick = math.nan  # not computed: the step rule does not use it (methods/sparse.py)
+        t_min_stick = math.nan  # not computed: neither the step rule nor the given dt uses it (methods/sparse.py)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf)
     else:
         t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
-    dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
     plan = _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
     if is_sparse(cs):
         SB.check_adaptive(plan)

@@ -91,8 +91,7 @@ def factorise(cs, settings: K.MarchSettings, dt: float, inertia: bool) -> KS.Spa
     n = lin.shape[0]
     A = gather_matrix(cs)
     bset = np.unique(A.indices)
-    inner = np.setdiff1d(np.arange(n), bset)
-    perm = np.concatenate([inner[_interior_order(lin, inner)], bset]).astype(np.int64)
+    perm = _elimination_order(cs, lin, bset)
     lu = sla.splu(
         lin[perm][:, perm].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
     )
@@ -156,6 +155,23 @@ def _trailing_block(X: sp.csc_matrix, off: int) -> np.ndarray:
     return out
 
 
+_ORDERS: dict = {}
+
+
+def _elimination_order(cs, lin: sp.csc_matrix, bset: np.ndarray) -> np.ndarray:
+    """The elimination order of Lin0 (module docstring): the DOFs outside B in the order of
+    :func:`_interior_order`, then B. Computed once per structure and contacts (every step size
+    and the preload's K share the pattern of M, C, K and A^T A)."""
+    held = (cs.matrices, cs.A_val)
+    hit = _ORDERS.get("order")
+    if hit is not None and all(a is b for a, b in zip(hit[0], held)):
+        return hit[1]
+    inner = np.setdiff1d(np.arange(lin.shape[0]), bset)
+    perm = np.concatenate([inner[_interior_order(lin, inner)], bset]).astype(np.int64)
+    _ORDERS["order"] = (held, perm)
+    return perm
+
+
 def _interior_order(lin: sp.csc_matrix, inner: np.ndarray) -> np.ndarray:
     """A fill-reducing order of the block of the DOFs the contacts do not see: SuperLU's own
     (minimum degree on A^T + A) from a factorisation of that block. SuperLU's perm_c sends
@@ -190,8 +206,13 @@ def factor_of(cs, settings: K.MarchSettings, dt: float, inertia: bool) -> KS.Spa
 
 
 def forget_factors() -> None:
-    """Drop every kept factorisation (benchmarks: a set-up measured from scratch)."""
+    """Drop every kept factorisation, order and mass factor and zero TIMING (benchmarks: a
+    set-up measured from scratch)."""
     _FACTORS.clear()
+    _ORDERS.clear()
+    _MASS.clear()
+    TIMING.factorise_s = TIMING.blocks_s = 0.0
+    TIMING.factorisations = 0
 
 
 # ---- the workspace -----------------------------------------------------------------------------
@@ -342,11 +363,14 @@ def structure_bandwidth(structure) -> int:
 
 def t_min_needed(cs, method, opt) -> bool:
     """Does the plan need T_min of full stick? Always up to DENSE_EIGEN_MAX_N DOFs (cheap, and
-    the dense backend's value); beyond, only under the 't-min' step rule (the 'accuracy' rule's
-    step does not use it, and the eigen-solve of a large mesh costs more than its march)."""
+    the dense backend's value); beyond, only under the 't-min' step rule without a given dt
+    (the 'accuracy' rule's step and a given dt do not use it, and the eigen-solve of a large
+    mesh costs more than its march)."""
     from slipstep.methods.plan import step_rule_of
 
-    return cs.M.shape[0] <= DENSE_EIGEN_MAX_N or step_rule_of(method, opt) != "accuracy"
+    if cs.M.shape[0] <= DENSE_EIGEN_MAX_N:
+        return True
+    return step_rule_of(method, opt) != "accuracy" and opt.dt is None
 
 
 def effective_stiffness(cs, state) -> sp.csr_matrix:
