@@ -114,3 +114,24 @@ def test_fe_mesh_sparse_equals_dense():
     sparse = ss.run(system, "piecewise-linear", linear_solver="sparse", raise_on_failure=True, **options)
     assert _slipped(dense) and sparse.attrs["linear_solver"] == "sparse"
     _agree(dense, sparse)
+
+
+def test_pilot_adaptive_and_steady_marching_equal_dense():
+    """The whole default pipeline (the step-doubling pilot twins pick the same step), Method
+    2+3 under the 'accuracy' rule (its step the cap), and the steady-state search that reuses
+    one marcher period after period: sparse = direct."""
+    from slipstep.steady.marching import march_to_steady
+
+    system = _chain()
+    runs = {b: ss.run(system, "piecewise-linear", linear_solver=b, periods=1) for b in ("direct", "sparse")}
+    assert runs["direct"].attrs["dt_s"] == runs["sparse"].attrs["dt_s"]
+    _agree(runs["direct"], runs["sparse"])
+    runs = {
+        b: ss.run(system, "piecewise-linear-adaptive", linear_solver=b, periods=1, step_rule="accuracy")
+        for b in ("direct", "sparse")
+    }
+    _agree(runs["direct"], runs["sparse"])
+    options = {"dt": 1 / 40 / 100, "error_estimate": False, "max_periods": 4}
+    steady = {b: march_to_steady(system, "piecewise-linear", linear_solver=b, **options) for b in ("direct", "sparse")}
+    x, y = steady["direct"].final_state.x, steady["sparse"].final_state.x
+    assert np.abs(x - y).max() <= 1e-9 * np.ptp(x)

@@ -475,6 +475,14 @@ def _same_key(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def nominal_step(st):
+    """The nominal step of a march: st.dt, or for the adaptive step (Method 2+3, whose factor
+    the sparse backend takes infinite: methods/sparse.py check_adaptive) its cap st.dt_max, as
+    kernels/march.py's min(step_factor T_min(S), dt_max)."""
+    return st.dt_max if st.adaptive else st.dt
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def sparse_march(sys, st, ws, out, q0, f0):
     """kernels/march.py's march (fixed step, piecewise-linear solver; preload mode st.preload
     = N > 0: N quasi-static increments of the constant loads) with the condensed sparse
@@ -522,7 +530,7 @@ def sparse_march(sys, st, ws, out, q0, f0):
         if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:
             status = CAPACITY
             break
-        dt_nominal = 1.0 if n_preload > 0 else st.dt
+        dt_nominal = 1.0 if n_preload > 0 else nominal_step(st)
         dt = dt_nominal
         if n_preload == 0 and t + dt > t_end - tiny:
             dt = t_end - t

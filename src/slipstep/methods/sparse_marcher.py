@@ -25,7 +25,7 @@ class SparseMarcher(Marcher):
     def __init__(self, plan: RunPlan):
         cs = plan.compiled
         self.plan = plan
-        self.ws = SB.allocate_workspace(plan, SB.factor_of(cs, plan.settings, plan.settings.dt, True))
+        self.ws = SB.allocate_workspace(plan, SB.factor_of(cs, plan.settings, KS.nominal_step(plan.settings), True))
         self.out = allocate_outputs(cs, plan.capacity, plan.options.max_memory, plan.save_plan, plan.t_end)
         nq = cs.A.shape[0]
         self.q0, self.f0 = np.zeros(nq), np.zeros(nq)
@@ -44,9 +44,10 @@ class SparseMarcher(Marcher):
         """Hold the factorisations of the nominal step and of the last step of a march from
         t_start to t_end (the nominal one when the last step is nominal: kernels.sparse.last_step)."""
         cs, st = self.plan.compiled, self.settings
-        main = SB.factor_of(cs, st, st.dt, True)
-        dt_last = SB.last_step(t_start, t_end, st.dt)
-        last = main if abs(dt_last - st.dt) <= 1e-12 * st.dt else SB.factor_of(cs, st, dt_last, True)
+        dt = KS.nominal_step(st)
+        main = SB.factor_of(cs, st, dt, True)
+        dt_last = SB.last_step(t_start, t_end, dt)
+        last = main if abs(dt_last - dt) <= 1e-12 * dt else SB.factor_of(cs, st, dt_last, True)
         if self.ws.main is not main or self.ws.last is not last:
             self.ws = self.ws._replace(main=main, last=last)
 
