@@ -279,10 +279,10 @@ def shoot(
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
     sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
-    if sim.compiled.banded:  # the period Jacobian is dense in 2 n + nd unknowns
+    if sim.compiled.banded or sim.plan.backend == "sparse":  # the period Jacobian is dense in 2 n + nd unknowns
         raise InputError(
             "structure",
-            "is a sparse structure on the banded backend: shooting's period Jacobian needs the dense one",
+            f"is a sparse structure on the {sim.plan.backend} backend: shooting's period Jacobian needs the dense one",
             "use march_to_steady (or slipstep.frf with solver='march'), or linear_solver='direct' for a small model",
         )
     scheme = sim.options.scheme
