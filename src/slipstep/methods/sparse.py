@@ -81,7 +81,26 @@ def lin_matrix(cs, settings: K.MarchSettings, dt: float, inertia: bool) -> sp.cs
         kfac = 1.0 - af
     else:
         lin, kfac = Kst, 1.0
-    return (lin + kfac * stick_stiffness(cs)).tocsc(), kfac
+    return _pruned((lin + kfac * stick_stiffness(cs)).tocsr()).tocsc(), kfac
+
+
+#: an entry a_ij of Lin0 below PRUNE_RTOL sqrt(|a_ii a_jj|) is round-off (see :func:`_pruned`)
+PRUNE_RTOL = 1e-14
+
+
+def _pruned(X: sp.csr_matrix) -> sp.csr_matrix:
+    """X without the entries that are zero but for round-off, |a_ij| < PRUNE_RTOL sqrt(|a_ii
+    a_jj|) (couplings that cancel in an FE assembly come out as 0 or 1e-19 by the order of the
+    sums): the fill-reducing order depends on the pattern alone, and one such entry in a row
+    can double the fill of the LU. The change to the matrix is below its round-off."""
+    X = X.copy()
+    d = np.sqrt(np.abs(X.diagonal()))
+    rows = np.repeat(np.arange(X.shape[0]), np.diff(X.indptr))
+    small = np.abs(X.data) < PRUNE_RTOL * d[rows] * d[X.indices]
+    if small.any():
+        X.data[small] = 0.0
+        X.eliminate_zeros()
+    return X
 
 
 def factorise(cs, settings: K.MarchSettings, dt: float, inertia: bool) -> KS.SparseFactor:
