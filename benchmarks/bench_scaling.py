@@ -28,7 +28,9 @@ node), marched by Method 3 on the condensed sparse backend: first the coarse bea
 against dense (the largest difference over the range; the time per period of both: the
 baseline ratio), then the full beam (``--elements``, default 360 x 6 x 3: 30,240 DOFs,
 203 contact points): set-up (model build, plan, factorisation, preload), time per period
-(the kernel's, best of two), steps per period, peak memory (tracemalloc and max RSS).
+(the kernel's, best of two), steps per period, peak memory (tracemalloc and max RSS); then
+(unless ``--no-pilot``) the step the 'accuracy' step rule's pilot picks, with its one-period
+time and loop-energy error estimate.
 
 Usage:  python benchmarks/bench_scaling.py [--family chain|grid|strip] [--sizes 100,200,400]
             [--contacts 20] [--contact-sizes 10,20,40] [--contact-n 200] [--methods 1,3,2+3,4]
@@ -222,9 +224,10 @@ def _best_period(sim) -> float:
     return min(first, sim.kernel_time)
 
 
-def mesh_family(elements: tuple[int, int, int], steps: int) -> dict:
+def mesh_family(elements: tuple[int, int, int], steps: int, pilot: bool = True) -> dict:
     """The 3D mesh family (module docstring): the coarse beam's sparse-dense equality and
-    baseline ratio, then the full beam's set-up, period and memory."""
+    baseline ratio, then the full beam's set-up, period and memory; ``pilot``: then the step
+    the 'accuracy' rule's pilot picks, its period and error estimate."""
     from slipstep.methods import sparse as SB
     from slipstep.model.fe_mesh import BeamSpec, bolted_beam, coarse_spec
 
@@ -284,6 +287,24 @@ def mesh_family(elements: tuple[int, int, int], steps: int) -> dict:
         f"  peak memory: set-up {row['peak_setup_MB']:.0f} MB (tracemalloc), max RSS {row['rss_MB']:.0f} MB",
         flush=True,
     )
+    del sim, result
+    if pilot:  # the step the default accuracy rule picks, and its estimate (the fixed step's check)
+        start = time.perf_counter()
+        auto = slipstep.Simulation(model.system, "piecewise-linear", periods=1, step_rule="accuracy")
+        chosen = time.perf_counter() - start
+        ds = auto.run()
+        row.update(
+            pilot_steps=int(round(model.system.period / auto.dt)),
+            pilot_setup_s=chosen,
+            pilot_period_s=auto.kernel_time,
+            pilot_energy_error=ds.attrs["energy_error_estimate"],
+        )
+        print(
+            f"  step_rule='accuracy' with its step-doubling pilot: {row['pilot_steps']} steps per period "
+            f"(set-up with the pilot twins {chosen:.1f} s), one period {auto.kernel_time:.3f} s, loop-energy error "
+            f"estimate {100 * row['pilot_energy_error']:.2f} %",
+            flush=True,
+        )
     return row
 
 
@@ -310,9 +331,10 @@ def main() -> None:
     ap.add_argument("--mesh", action="store_true", help="the 3D mesh family (the bolted beam, sparse backend)")
     ap.add_argument("--elements", default="360,6,3", help="hexahedra along x, y, z of the --mesh beam")
     ap.add_argument("--steps-per-period", type=int, default=50, help="fixed steps per period of --mesh")
+    ap.add_argument("--no-pilot", action="store_true", help="--mesh: skip the run with the accuracy rule's pilot")
     args = ap.parse_args()
     if args.mesh:
-        row = mesh_family(tuple(int(e) for e in args.elements.split(",")), args.steps_per_period)
+        row = mesh_family(tuple(int(e) for e in args.elements.split(",")), args.steps_per_period, not args.no_pilot)
         if args.json:
             from slipstep.output.io import atomic_path
 
