@@ -342,6 +342,9 @@ SPARSE_MIN_N = 2000
 #: ... when the band after reverse Cuthill-McKee is at least this wide (the banded LU per state
 #: costs n b^2: above it a new contact state costs more than the sparse backend's step)
 SPARSE_MIN_BAND = 40
+#: ... and at most this many contact coordinates (G0 and a state's LU are nq x nq dense: 72 MB
+#: each at 3,000, a state's factorisation up to nq^3 / 3 = 9e9 multiply-adds)
+SPARSE_MAX_NQ = 3000
 #: T_min by a dense eigen-solve up to this many DOFs (as the dense backend, the same value)
 DENSE_EIGEN_MAX_N = 2000
 
@@ -359,10 +362,12 @@ def serves(system, method, opt) -> bool:
 
 def auto_chooses(system, method, opt) -> bool:
     """linear_solver 'auto': the sparse backend for a sparse structure of at least SPARSE_MIN_N
-    DOFs whose band (reverse Cuthill-McKee of M + C + K) is at least SPARSE_MIN_BAND wide,
-    marched by a method it serves."""
+    DOFs whose band (reverse Cuthill-McKee of M + C + K) is at least SPARSE_MIN_BAND wide, with
+    at most SPARSE_MAX_NQ contact coordinates, marched by a method it serves."""
     s = system.structure
     if not s.sparse or s.n_dofs < SPARSE_MIN_N or not system.contacts or not serves(system, method, opt):
+        return False
+    if sum(c.dof_gather.shape[0] for c in system.contacts) > SPARSE_MAX_NQ:
         return False
     return structure_bandwidth(s) >= SPARSE_MIN_BAND
 
