@@ -135,6 +135,14 @@ class Marcher:
 
     progress = False
 
+    def __new__(cls, plan: RunPlan | None = None):
+        """A plan on the condensed sparse backend gets its own marcher (methods/sparse_marcher.py)."""
+        if cls is Marcher and plan is not None and plan.backend == "sparse":
+            from slipstep.methods.sparse_marcher import SparseMarcher
+
+            return super().__new__(SparseMarcher)
+        return super().__new__(cls)
+
     def __init__(self, plan: RunPlan):
         cs = plan.compiled
         self.plan = plan

@@ -35,13 +35,14 @@ from slipstep.kernels.contact import STICK
 from slipstep.methods import massless as ML
 from slipstep.methods import memory
 from slipstep.methods import save as SV
+from slipstep.methods import sparse as SB
 from slipstep.methods import step_control as SC
 from slipstep.methods.buffers import workspace_bytes
 from slipstep.methods.options import RunOptions
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.step_control import default_max_step, state_t_min
 from slipstep.model.contact import without_piecewise_linear_form
-from slipstep.model.system import CompiledSystem, System
+from slipstep.model.system import CompiledSystem, System, is_sparse
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
@@ -86,7 +87,9 @@ class RunPlan:
 
     @property
     def backend(self) -> str:
-        """The structure backend of the march: 'banded', 'low-rank' or 'dense'."""
+        """The structure backend of the march: 'sparse', 'banded', 'low-rank' or 'dense'."""
+        if is_sparse(self.compiled):
+            return "sparse"
         return "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "dense")
 
     @property
@@ -176,9 +179,12 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
         )
     method = method if isinstance(method, Method) else get_method(method)
     opt = RunOptions(**options).validated()
-    cs = system.compile(compile_backend(opt.linear_solver))
+    cs = system.compile(_backend_of(system, method, opt))
     if cs.banded:
         check_banded_method(method)
+    if is_sparse(cs):
+        SB.check_method(method, opt)
+        SB.check_contacts(system)
     if method.solver in (K.EVENTS, EXACT_EVENTS):
         check_event_case(system, cs, method.name)
     stick = np.full(cs.kt.shape[0], STICK, np.int8)
@@ -191,9 +197,25 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             f"is only used by the quasi-static-dofs method, not {method.name}",
             "use method quasi-static-dofs or drop the option",
         )
-    t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
-    dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
-    return _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
+    if is_sparse(cs) and not SB.t_min_needed(cs, method, opt):
+        t_min_stick = math.nan  # not computed: neither the step rule nor the given dt uses it (methods/sparse.py)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf)
+    else:
+        t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
+        dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
+    plan = _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
+    if is_sparse(cs):
+        SB.check_adaptive(plan)
+    return plan
+
+
+def _backend_of(system: System, method: Method, opt: RunOptions) -> str:
+    """The System.compile backend of the linear_solver option: 'auto' takes the sparse backend
+    where methods.sparse.auto_chooses says so (a large sparse structure with a wide band marched
+    by a method it serves), else the rule of System.compile."""
+    if opt.linear_solver == "auto" and SB.auto_chooses(system, method, opt):
+        return "sparse"
+    return compile_backend(opt.linear_solver)
 
 
 #: the rule when step_rule is not given. Issue 26 asks for 'accuracy' as the default of the
@@ -390,7 +412,7 @@ def kernel_settings(plan: RunPlan, dt: float, max_step: float, low_rank: bool) -
         fallback=opt.fallback,
         signals=True,
         preload=0,
-        structure=K.BANDED if cs.banded else (K.LOW_RANK if low_rank else K.DENSE),
+        structure=K.BANDED if cs.banded else (K.LOW_RANK if low_rank else K.DENSE),  # (sparse: its own kernel)
     )
 
 
@@ -466,14 +488,14 @@ def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunO
 
 def compile_backend(linear_solver: str) -> str:
     """The System.compile backend a linear_solver option asks for."""
-    return {"banded": "banded", "direct": "dense", "low-rank": "dense"}.get(linear_solver, "auto")
+    return {"banded": "banded", "direct": "dense", "low-rank": "dense", "sparse": "sparse"}.get(linear_solver, "auto")
 
 
 def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     """The low-rank (Woodbury) state solve pays when the contact coordinates are few against
     the DOFs (kernels/state_solve.py): 'auto' takes it when 2 nq <= n (never with the banded
-    backend, whose banded LU per state is already O(n b^2))."""
-    if cs.banded:
+    backend, whose banded LU per state is already O(n b^2), nor the sparse one)."""
+    if cs.banded or is_sparse(cs):
         return False
     n, nq = cs.M.shape[0], cs.A.shape[0]
     if linear_solver == "auto":
@@ -495,6 +517,7 @@ def check_memory(
     it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
     field_name = "duration" if opt.duration is not None else "periods"
+    work = SB.workspace_bytes(cs, opt.max_state_iterations) if is_sparse(cs) else None
     fixes = "simulate fewer periods (or a shorter duration)" + (
         ", use fewer steps_per_period" if quasi_static else ", raise the step ratio"
     )
@@ -504,6 +527,6 @@ def check_memory(
         points = SV.rows_needed(plan, capacity, 0.0, t_end)
         fixes = "save less (save: fewer dofs, every k-th step or the last periods; --save-dofs, --save-every), " + fixes
     limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
-    return memory.check(
-        points, n, nq, nd, m, workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
-    )
+    if work is None:
+        work = workspace_bytes(cs, opt.max_state_iterations, low_rank)
+    return memory.check(points, n, nq, nd, m, work, limit, field_name, fixes)

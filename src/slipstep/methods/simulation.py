@@ -386,7 +386,7 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "step_rule": self.plan.step_rule,
-            "linear_solver": "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "direct"),
+            "linear_solver": {"dense": "direct"}.get(self.plan.backend, self.plan.backend),
             "bandwidth": int(self.compiled.kl) if self.compiled.banded else -1,
             **(
                 {}

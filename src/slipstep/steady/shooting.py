@@ -357,10 +357,10 @@ def _shoot(
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
     run_options = dense_backend_options(system, run_options)
     sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
-    if sim.compiled.banded:  # the period Jacobian is dense in 2 n + nd unknowns
+    if sim.compiled.banded or sim.plan.backend == "sparse":  # the period Jacobian is dense in 2 n + nd unknowns
         raise InputError(
             "linear_solver",
-            "is 'banded': shooting's period Jacobian needs the dense matrices",
+            f"is '{sim.plan.backend}': shooting's period Jacobian needs the dense matrices",
             "leave linear_solver unset (shooting then marches a sparse structure of up to "
             f"{DENSE_MAX_N} DOFs densely), use solver='hbm', or march_to_steady",
         )
