@@ -125,6 +125,11 @@ class KernelEntry:
         return Status(status), kernel_time
 
 
+#: backend name -> the Marcher subclass that marches it; a backend's marcher module registers
+#: itself (methods/sparse_marcher.py), and the package's __init__ imports those modules
+BACKEND_MARCHERS: dict[str, type] = {}
+
+
 class Marcher:
     """The buffers and the kernel of one :class:`RunPlan` (module docstring).
 
@@ -136,12 +141,10 @@ class Marcher:
     progress = False
 
     def __new__(cls, plan: RunPlan | None = None):
-        """A plan on the condensed sparse backend gets its own marcher (methods/sparse_marcher.py)."""
-        if cls is Marcher and plan is not None and plan.backend == "sparse":
-            from slipstep.methods.sparse_marcher import SparseMarcher
-
-            return super().__new__(SparseMarcher)
-        return super().__new__(cls)
+        """A plan on a backend with a marcher of its own (BACKEND_MARCHERS: the condensed sparse
+        backend's, methods/sparse_marcher.py) gets that one."""
+        own = BACKEND_MARCHERS.get(plan.backend) if cls is Marcher and plan is not None else None
+        return super().__new__(own or cls)
 
     def __init__(self, plan: RunPlan):
         cs = plan.compiled

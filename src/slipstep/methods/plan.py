@@ -197,7 +197,7 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             f"is only used by the quasi-static-dofs method, not {method.name}",
             "use method quasi-static-dofs or drop the option",
         )
-    if is_sparse(cs) and not SB.t_min_needed(cs, method, opt):
+    if is_sparse(cs) and not sparse_t_min_needed(cs, method, opt):
         t_min_stick = math.nan  # not computed: neither the step rule nor the given dt uses it (methods/sparse.py)
         dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf)
     else:
@@ -222,6 +222,16 @@ def _backend_of(system: System, method: Method, opt: RunOptions) -> str:
 #: piecewise-linear methods; the flip waits for the tests that pin the paper's steps of Methods
 #: 3 and 2+3 to pass step_rule='t-min' and for the no-period case (no cap T / 50) to be settled
 DEFAULT_STEP_RULE = "t-min"
+
+
+def sparse_t_min_needed(cs, method, opt) -> bool:
+    """Does a plan on the sparse backend need T_min of full stick? Always up to DENSE_EIGEN_MAX_N DOFs (cheap, and
+    the dense backend's value); beyond, only under the 't-min' step rule without a given dt
+    (the 'accuracy' rule's step and a given dt do not use it, and the eigen-solve of a large
+    mesh costs more than its march)."""
+    if cs.M.shape[0] <= SB.DENSE_EIGEN_MAX_N:
+        return True
+    return step_rule_of(method, opt) != "accuracy" and opt.dt is None
 
 
 def step_rule_of(method: Method, opt: RunOptions) -> str:

@@ -388,18 +388,6 @@ def structure_bandwidth(structure) -> int:
     return int(np.abs(inverse[coo.row] - inverse[coo.col]).max(initial=0))
 
 
-def t_min_needed(cs, method, opt) -> bool:
-    """Does the plan need T_min of full stick? Always up to DENSE_EIGEN_MAX_N DOFs (cheap, and
-    the dense backend's value); beyond, only under the 't-min' step rule without a given dt
-    (the 'accuracy' rule's step and a given dt do not use it, and the eigen-solve of a large
-    mesh costs more than its march)."""
-    from slipstep.methods.plan import step_rule_of
-
-    if cs.M.shape[0] <= DENSE_EIGEN_MAX_N:
-        return True
-    return step_rule_of(method, opt) != "accuracy" and opt.dt is None
-
-
 def effective_stiffness(cs, state) -> sp.csr_matrix:
     """K + A^T K(S) A, sparse (kernels.contact.contact_stiffness: the stick tangent for a state
     without a constant one)."""

@@ -110,7 +110,7 @@ class CaseRunner:
     def run(self, values) -> dict:
         """The result of the case ``values`` (one value per payload parameter), equal to
         execute.run_case(payload, values) but for the timings."""
-        from slipstep.sweep.execute import guarded, run_case
+        from slipstep.sweep.case_run import guarded, run_case
 
         values = [float(v) for v in values]
         if self.patching is None:
@@ -130,7 +130,7 @@ class CaseRunner:
 
     def _march(self, values: list, result: dict) -> None:
         from slipstep.methods.simulation import Simulation
-        from slipstep.sweep.execute import _run_fast
+        from slipstep.sweep.case_run import _run_fast
 
         plan = self.plan_for(values)
         if not self.replans:
@@ -196,7 +196,7 @@ class CaseRunner:
         from slipstep.errors import InputError, SolverError
         from slipstep.methods.plan import plan_run
         from slipstep.sweep.cases import apply_values, case_kind
-        from slipstep.sweep.execute import _fast, _run_options
+        from slipstep.sweep.case_run import _fast, _run_options
 
         p = self.payload
         why = _unsupported_payload(p)
