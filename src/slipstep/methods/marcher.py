@@ -125,9 +125,20 @@ class KernelEntry:
         return Status(status), kernel_time
 
 
-#: backend name -> the Marcher subclass that marches it; a backend's marcher module registers
-#: itself (methods/sparse_marcher.py), and the package's __init__ imports those modules
-BACKEND_MARCHERS: dict[str, type] = {}
+#: backend name -> the class path of the Marcher subclass that marches it (loaded when a plan of
+#: that backend is marched; the subclass stands on this module)
+BACKEND_MARCHERS: dict[str, str] = {"sparse": "slipstep.methods.sparse_marcher.SparseMarcher"}
+
+
+def backend_marcher(backend: str) -> type | None:
+    """The Marcher subclass of ``backend`` (BACKEND_MARCHERS), None for the base class's own."""
+    path = BACKEND_MARCHERS.get(backend)
+    if path is None:
+        return None
+    import importlib
+
+    module, name = path.rsplit(".", 1)
+    return getattr(importlib.import_module(module), name)
 
 
 class Marcher:
@@ -143,7 +154,7 @@ class Marcher:
     def __new__(cls, plan: RunPlan | None = None):
         """A plan on a backend with a marcher of its own (BACKEND_MARCHERS: the condensed sparse
         backend's, methods/sparse_marcher.py) gets that one."""
-        own = BACKEND_MARCHERS.get(plan.backend) if cls is Marcher and plan is not None else None
+        own = backend_marcher(plan.backend) if cls is Marcher and plan is not None else None
         return super().__new__(own or cls)
 
     def __init__(self, plan: RunPlan):

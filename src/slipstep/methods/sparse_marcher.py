@@ -13,7 +13,7 @@ import numpy as np
 from slipstep.kernels import sparse as KS
 from slipstep.methods import sparse as SB
 from slipstep.methods.buffers import allocate_outputs
-from slipstep.methods.marcher import BACKEND_MARCHERS, KernelEntry, Marcher, Segment, same_layout
+from slipstep.methods.marcher import KernelEntry, Marcher, Segment, same_layout
 from slipstep.methods.plan import RunPlan
 from slipstep.methods.start import consistent_start
 from slipstep.methods.state import State
@@ -70,6 +70,3 @@ class SparseMarcher(Marcher):
             raise ValueError("retarget: the plan has another array layout (build a new Marcher)")
         self.out = allocate_outputs(plan.compiled, plan.capacity, plan.options.max_memory, plan.save_plan, plan.t_end)
         self.plan, self.settings = plan, plan.settings
-
-
-BACKEND_MARCHERS["sparse"] = SparseMarcher
