@@ -87,7 +87,7 @@ def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark
     print("  silent: OK, unflagged, more than rtol of the range off the two agreeing tight references")
     print(
         f"  {'generator':11s} {'systems':>7s} {'decidable':>9s} {'silent':>15s} {'of them sensitive':>17s} "
-        f"{'flagged':>7s} {'non-OK':>6s}  worst silent"
+        f"{'flagged':>7s} {'non-OK':>6s}  worst silent, not sensitive"
     )
     total = np.zeros(6, int)
     for g, generator in enumerate(GENERATORS):
