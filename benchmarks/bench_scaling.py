@@ -22,10 +22,21 @@ the slope of log(time per step) against log N at fixed contacts, and against log
 points) at fixed N. A case whose set-up or period takes longer than ``--budget`` seconds is
 skipped for the larger sizes of that method (printed as '>budget').
 
+``--mesh`` runs the 3D mesh family instead (issue 26): the bolted beam of
+slipstep.model.fe_mesh (scikit-fem hexahedra, a lap joint of one contact point per face
+node), marched by Method 3 on the condensed sparse backend: first the coarse beam, sparse
+against dense (the largest difference over the range; the time per period of both: the
+baseline ratio), then the full beam (``--elements``, default 360 x 6 x 3: 30,240 DOFs,
+203 contact points): set-up (model build, plan, factorisation, preload), time per period
+(the kernel's, best of two), steps per period, peak memory (tracemalloc and max RSS); then
+(unless ``--no-pilot``) the step the 'accuracy' step rule's pilot picks, with its one-period
+time and loop-energy error estimate.
+
 Usage:  python benchmarks/bench_scaling.py [--family chain|grid|strip] [--sizes 100,200,400]
             [--contacts 20] [--contact-sizes 10,20,40] [--contact-n 200] [--methods 1,3,2+3,4]
             [--backend auto|direct|low-rank|banded] [--contact-kind jenkins|2d] [--dense]
             [--width 4] [--periods 1] [--no-error-estimate] [--budget 60] [--json FILE]
+        python benchmarks/bench_scaling.py --mesh [--elements 360,6,3] [--steps-per-period 50]
 """
 
 from __future__ import annotations
@@ -191,6 +202,112 @@ def sweep(build, pairs, methods, budget) -> list[dict]:
     return rows
 
 
+def _mesh_run(system, backend: str, steps: int, periods: float = 1.0, **options):
+    """A Simulation of Method 3 on ``system`` at ``steps`` fixed steps per period (no pilot)."""
+    period = system.period
+    return slipstep.Simulation(
+        system,
+        "piecewise-linear",
+        periods=periods,
+        dt=period / steps,
+        linear_solver=backend,
+        error_estimate=False,
+        **options,
+    )
+
+
+def _best_period(sim) -> float:
+    """The kernel time of one period, best of two marches (the first loads the kernel)."""
+    sim.march()
+    first = sim.kernel_time
+    sim.march()
+    return min(first, sim.kernel_time)
+
+
+def mesh_family(elements: tuple[int, int, int], steps: int, pilot: bool = True) -> dict:
+    """The 3D mesh family (module docstring): the coarse beam's sparse-dense equality and
+    baseline ratio, then the full beam's set-up, period and memory; ``pilot``: then the step
+    the 'accuracy' rule's pilot picks, its period and error estimate."""
+    from slipstep.methods import sparse as SB
+    from slipstep.model.fe_mesh import BeamSpec, bolted_beam, coarse_spec
+
+    coarse = bolted_beam(coarse_spec(force=800.0, pressure=1e6)).system
+    runs = {b: _mesh_run(coarse, b, 200) for b in ("direct", "sparse")}
+    times = {b: _best_period(sim) for b, sim in runs.items()}
+    ds = {b: sim.dataset() for b, sim in runs.items()}
+    worst = 0.0
+    for name in ("displacement", "velocity", "normal_force", "tangential_force", "slider"):
+        x, y = ds["direct"][name].values, ds["sparse"][name].values
+        worst = max(worst, float(np.abs(x - y).max() / max(np.ptp(x), 1e-300)))
+    print(
+        f"coarse beam ({coarse.n_dofs} DOFs, {len(coarse.contacts)} contact points, 200 steps): sparse vs dense "
+        f"max |difference| / range = {worst:.2e}; period dense {times['direct']:.4f} s, sparse "
+        f"{times['sparse']:.4f} s (ratio dense / sparse {times['direct'] / times['sparse']:.2f})",
+        flush=True,
+    )
+    SB.forget_factors()
+    tracemalloc.start()
+    start = time.perf_counter()
+    model = bolted_beam(BeamSpec(elements=elements))
+    built = time.perf_counter() - start
+    sim = _mesh_run(model.system, "auto", steps)  # (the static preload included)
+    setup = time.perf_counter() - start
+    _, peak_setup = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    factor = sim.marcher.ws.main
+    period = _best_period(sim)
+    result = sim.dataset()
+    states = result["contact_state"].values
+    slip = float(np.isin(states, (2, 3)).mean())
+    row = {
+        "n": model.system.n_dofs,
+        "contacts": len(model.system.contacts),
+        "linear_solver": result.attrs["linear_solver"],
+        "build_s": built,
+        "setup_s": setup,
+        "factorise_s": SB.TIMING.factorise_s,
+        "blocks_s": SB.TIMING.blocks_s,
+        "factor_nnz": SB.factor_nnz(factor),
+        "period_s": period,
+        "steps": int(sim.out.counters[0]),
+        "peak_setup_MB": peak_setup / 1e6,
+        "rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
+        "slip_fraction": slip,
+        "coarse_max_diff": worst,
+        "coarse_ratio": times["direct"] / times["sparse"],
+        "status": result.attrs.get("status_message", ""),
+    }
+    print(
+        f"bolted beam: {row['n']} DOFs, {row['contacts']} contact points, {row['linear_solver']} backend "
+        f"(L + U {row['factor_nnz'] / 1e6:.1f} M entries)\n"
+        f"  set-up {setup:.2f} s (model build {built:.2f} s, sparse LU {SB.TIMING.factorise_s:.2f} s, contact-space "
+        f"blocks {SB.TIMING.blocks_s:.2f} s, {SB.TIMING.factorisations} factorisations)\n"
+        f"  Method 3, one period: {period:.3f} s ({row['steps']} steps, {period / row['steps'] * 1e3:.1f} ms/step), "
+        f"slip in {100 * slip:.1f} % of the direction-steps; status {row['status']}\n"
+        f"  peak memory: set-up {row['peak_setup_MB']:.0f} MB (tracemalloc), max RSS {row['rss_MB']:.0f} MB",
+        flush=True,
+    )
+    del sim, result
+    if pilot:  # the step the default accuracy rule picks, and its estimate (the fixed step's check)
+        start = time.perf_counter()
+        auto = slipstep.Simulation(model.system, "piecewise-linear", periods=1, step_rule="accuracy")
+        chosen = time.perf_counter() - start
+        ds = auto.run()
+        row.update(
+            pilot_steps=int(round(model.system.period / auto.dt)),
+            pilot_setup_s=chosen,
+            pilot_period_s=auto.kernel_time,
+            pilot_energy_error=ds.attrs["energy_error_estimate"],
+        )
+        print(
+            f"  step_rule='accuracy' with its step-doubling pilot: {row['pilot_steps']} steps per period "
+            f"(set-up with the pilot twins {chosen:.1f} s), one period {auto.kernel_time:.3f} s, loop-energy error "
+            f"estimate {100 * row['pilot_energy_error']:.2f} %",
+            flush=True,
+        )
+    return row
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--family", choices=("chain", "grid", "strip"), default="chain")
@@ -211,7 +328,19 @@ def main() -> None:
     ap.add_argument("--methods", default="1,3,2+3,4")
     ap.add_argument("--budget", type=float, default=60.0)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--mesh", action="store_true", help="the 3D mesh family (the bolted beam, sparse backend)")
+    ap.add_argument("--elements", default="360,6,3", help="hexahedra along x, y, z of the --mesh beam")
+    ap.add_argument("--steps-per-period", type=int, default=50, help="fixed steps per period of --mesh")
+    ap.add_argument("--no-pilot", action="store_true", help="--mesh: skip the run with the accuracy rule's pilot")
     args = ap.parse_args()
+    if args.mesh:
+        row = mesh_family(tuple(int(e) for e in args.elements.split(",")), args.steps_per_period, not args.no_pilot)
+        if args.json:
+            from slipstep.output.io import atomic_path
+
+            with atomic_path(args.json) as tmp:
+                tmp.write_text(json.dumps({"mesh": row}, indent=2))
+        return
     OPTIONS.update(
         backend=args.backend,
         kind=args.contact_kind,

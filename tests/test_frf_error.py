@@ -323,3 +323,19 @@ def test_stepped_points_are_the_asked_ones(solver):
     """A stepped FRF (march, shoot) solves exactly the asked frequencies: point_kind "asked"."""
     ds = frf(ss.load_system(JENKINS), [340.0, 360.0], solver=solver, linear=False, rtol=None)
     assert list(ds["point_kind"].values) == ["asked", "asked"]
+
+
+def test_a_point_that_fails_after_an_unstable_orbit_names_the_turning_point():
+    """Issue 24: a point that does not converge after a point whose orbit was unstable (|mu| > 1)
+    says that a turning point may lie between and names the solver that passes it; after a stable
+    orbit, or without multipliers (marching), nothing is added."""
+    from types import SimpleNamespace
+
+    from slipstep.frequency.response import turning_point_hint
+
+    unstable = SimpleNamespace(floquet_multipliers=np.array([1.24 + 0.1j, 0.5]))
+    hint = turning_point_hint(unstable)
+    assert "turning point" in hint and "solver='hbm'" in hint and "1.24" in hint
+    assert turning_point_hint(SimpleNamespace(floquet_multipliers=np.array([0.99, 0.5]))) == ""
+    assert turning_point_hint(SimpleNamespace(floquet_multipliers=None)) == ""
+    assert turning_point_hint(None) == ""

@@ -64,7 +64,7 @@ def test_fast_summary_equals_the_plain_run(run):
 def test_fast_path_store_equals_the_plain_path_store(tmp_path, monkeypatch):
     """A whole sweep through the fast path and through the plain one (fast path switched
     off) give the same store values."""
-    import slipstep.sweep.execute as ex
+    import slipstep.sweep.case_run as ex  # where the runner and run_case look it up
 
     spec = SweepSpec(
         base="paper",

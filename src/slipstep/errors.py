@@ -24,6 +24,7 @@ class Status(IntEnum):
     INTERRUPTED = 6
     DIVERGED = 7
     INVARIANT = 8
+    EVENT_CAP = 9
 
     @property
     def message(self) -> str:
@@ -56,6 +57,11 @@ _MESSAGES = {
         "written, N >= 0, |T| <= mu N, slip along T): a solver defect, not a property of the case; the rows "
         "from the step named on cannot be trusted. Tighten state_tolerance or use method full-newton, and "
         "report the case"
+    ),
+    Status.EVENT_CAP: (
+        "the exact event-driven march stopped at its cap of contact-state changes (chattering or an "
+        "accumulation of events, named below with its time and contact); raise max_events or use a "
+        "time-stepping method (piecewise-linear)"
     ),
 }
 

@@ -399,8 +399,14 @@ def _simulation(system, method, scheme: Optional[str], opts: dict, origin: dict)
     method itself with that scheme; explicit ones the variant the method is (fixed: newmark,
     adaptive: newmark-adaptive), with the options an explicit run understands (options from the
     case's \\[run] table that do not apply are left out; command-line ones are refused)."""
-    from slipstep.methods.simulation import Simulation
+    from slipstep.methods.simulation import Simulation, _exact_events
 
+    if _exact_events(method):  # exact event-driven dynamics: no steps, no scheme (methods/exact_events.py)
+        if scheme is not None:
+            raise InputError("--scheme", "does not apply to method events (it has no time step)", "drop --scheme")
+        from slipstep.methods.exact_events import ExactEventRun
+
+        return ExactEventRun(system, **opts), method.name
     if scheme is None:
         return Simulation(system, method, **opts), method.name
     from slipstep.integrators import get_integrator

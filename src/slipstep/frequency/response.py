@@ -158,6 +158,8 @@ def sweep(
             if steady.status != "OK" and retry_steps is not None:
                 retry = steady_solver(system_f, initial=prev, **{**options, "steps_per_period": retry_steps})
                 steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
+            if steady.status != "OK":
+                steady = dataclasses.replace(steady, message=steady.message + turning_point_hint(prev))
             values = _point(steady_solver, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
         except KeyboardInterrupt:  # keep the points done; the rest are marked
             columns["status"][i:] = "INTERRUPTED"
@@ -175,6 +177,21 @@ def sweep(
         ds[name].values = values
     ds.attrs.update(method=last.method if last is not None else "", solver=solver)
     return ds, last
+
+
+def turning_point_hint(previous) -> str:
+    """A sentence for a point that did not converge after a point whose orbit was unstable
+    (largest Floquet multiplier modulus above 1): the branch of the previous point may end at a
+    turning point before this frequency, which a solver stepping in frequency cannot pass and a
+    continuation in arc length (harmonic balance) can; "" otherwise."""
+    multipliers = getattr(previous, "floquet_multipliers", None)
+    if multipliers is None or not len(multipliers) or not np.abs(multipliers).max() > 1.0:
+        return ""
+    return (
+        f"; the previous point's orbit was unstable (largest |Floquet multiplier| {np.abs(multipliers).max():.3g}): "
+        "its branch may end at a turning point before this frequency, which stepping in frequency cannot pass "
+        "(solver='hbm' follows the response through turning points)"
+    )
 
 
 def _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements) -> dict:
@@ -266,6 +283,8 @@ def frf(
     estimate for hbm; None: march and shoot points as solved, no step doubling, no estimate); a point above it keeps its status, gets a status_message, and one
     FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
     frequency, steady) is called after every point (hbm: every continuation step, steady None).
+    method "events" (solver "shoot" only): the reference FRF of exact periodic orbits
+    (slipstep.frequency.exact; options of steady/exact_orbit.periodic_orbit).
     Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep
     and descending per down sweep. Ctrl-C during a point keeps the points done (the others get
     status INTERRUPTED, attribute interrupted = 1)."""
@@ -276,6 +295,13 @@ def frf(
     check_accuracy_options(DEFAULT_RTOL if rtol is None and solver != "hbm" else rtol, max_refinements)
     f = np.sort(check_frequencies(frequencies))
     reason = ""
+    if method == "events":  # the reference FRF: exact periodic orbits (slipstep.frequency.exact)
+        if solver not in ("shoot", "auto"):
+            raise InputError("method", f"'events' is a method of solver 'shoot', not {solver!r}", "use solver='shoot'")
+        from slipstep.frequency.exact import TOLERANCE, exact_frf_dataset
+
+        steady = min(tolerance, TOLERANCE)
+        return exact_frf_dataset(system, f, direction, responses, harmonics, steady, linear, progress, **options)
     if solver == "auto":
         choice = choose(system, method)
         solver, method, reason = choice.solver, choice.method, choice.reason

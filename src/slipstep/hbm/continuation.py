@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slipstep.hbm.residual import HarmonicBalance, Point, blas_threads
+from slipstep.hbm.residual import HarmonicBalance, Point
+from slipstep.methods.blas import one_blas_thread
 
 
 @dataclass
@@ -102,7 +103,7 @@ def solve_point(hb: HarmonicBalance, omega: float, level: float, Z0: np.ndarray 
 def trace(hb: HarmonicBalance, parameter: str, start: float, end: float, fixed: float, **options) -> Branch:
     """Continue the balance from p = start to p = end (p = 'omega' [rad/s] or 'level'), the
     other parameter held at ``fixed`` (options: see :func:`_trace`); BLAS on one thread."""
-    with blas_threads(hb.size):
+    with one_blas_thread(hb.size):
         return _mark_turning(_trace(hb, parameter, start, end, fixed, **options), parameter)
 
 

@@ -44,7 +44,8 @@ from slipstep.hbm.energy import (
 )
 from slipstep.model.frequency_grid import check_frequencies as valid_frequencies
 from slipstep.output.frf_schema import FRF_SCHEMA
-from slipstep.hbm.residual import HarmonicBalance, blas_threads
+from slipstep.hbm.residual import HarmonicBalance
+from slipstep.methods.blas import one_blas_thread
 from slipstep.model.system import System
 
 
@@ -140,7 +141,7 @@ def _solve_branch(
 
 def _response(system, parameter, values, fixed, **options):
     """Solve, estimate, cross-check and lay out (BLAS on one thread: small dense systems)."""
-    with blas_threads():
+    with one_blas_thread():
         return _response_body(system, parameter, values, fixed, **options)
 
 

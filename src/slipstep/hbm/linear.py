@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -56,10 +57,6 @@ class Gather:
     def of_dofs(self, X: np.ndarray, A: np.ndarray) -> np.ndarray:
         """W X for DOF values X (..., n): (..., r)."""
         return X[..., self.dofs] if self.dofs is not None else X @ A.T
-
-    def columns(self, Minv: np.ndarray, AT: np.ndarray) -> np.ndarray:
-        """Minv W^T for matrices Minv (..., n, n): (..., n, r)."""
-        return Minv[..., self.dofs] if self.dofs is not None else Minv @ AT
 
 
 def choose_gather(cs, condense: str = "auto") -> Gather:
@@ -113,6 +110,21 @@ def excitation_multiples(system, fundamental_hz: float | None = None):
     return f0, out[0], out[1], f_const
 
 
+class _DenseLU:
+    """LAPACK's LU of a dense complex matrix, with the ``solve`` of SuperLU's objects."""
+
+    def __init__(self, D: np.ndarray):
+        self.factors = scipy.linalg.lu_factor(np.asarray(D, complex), check_finite=False)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return scipy.linalg.lu_solve(self.factors, b, check_finite=False)
+
+
+def _SparseLU(D) -> spla.SuperLU:
+    """SuperLU's LU of a sparse complex matrix."""
+    return spla.splu(sp.csc_matrix(D, dtype=complex))
+
+
 class LinearPart:
     """D_h, S_h and the linear local response per retained harmonic at a frequency Omega.
 
@@ -120,10 +132,10 @@ class LinearPart:
     the D_h; the excitation is scaled by ``level`` (constant loads and offsets are not).
 
     Two forms of D_h^-1, one interface (:meth:`solve`, :meth:`solve_gathered`):
-    - dense (a CompiledSystem with n x n matrices): the batched inverses, n small or reduced;
+    - dense (a CompiledSystem with n x n matrices): one LAPACK LU of D_h per harmonic;
     - sparse (a CompiledSystem compiled with backend "contacts", whose M, C, K are empty: the
-      structure's scipy.sparse matrices are used): one sparse LU of D_h per harmonic, so
-      S_h = W D_h^-1 W^T costs r solves and no n x n matrix is formed (issue 24, item 7)."""
+      structure's scipy.sparse matrices are used): one SuperLU of D_h per harmonic;
+    either way S_h = W D_h^-1 W^T costs r solves and no inverse is formed (issue 24, item 7)."""
 
     def __init__(self, system, cs, h: np.ndarray, gather: Gather | None = None):
         self.cs, self.h = cs, np.asarray(h)
@@ -165,10 +177,7 @@ class LinearPart:
         kept while omega is unchanged (a continuation in the level, or a Jacobian column in it)."""
         self.level = level
         if omega != self.omega:
-            if self.sparse:
-                self._factorise_sparse(omega)
-            else:
-                self._invert_dense(omega)
+            self._factorise(omega)
             self.omega = omega
         return self
 
@@ -178,22 +187,20 @@ class LinearPart:
         D = self.K - (w * w) * self.M + (1j * w) * self.C
         return D + self.KcD0 if i == 0 else D
 
-    def _invert_dense(self, omega: float):
-        D = np.stack([self._dynamic_stiffness(i, omega) for i in range(self.h.size)])
-        self.Dinv = np.linalg.inv(D)  # (nh, n, n); n is the structure size (small or reduced)
-        self.DinvWT = self.gather.columns(self.Dinv, self.cs.AT)  # (nh, n, r)
-        cs = self.cs
-        self.S = np.ascontiguousarray(np.swapaxes(self.gather.of_dofs(np.swapaxes(self.DinvWT, 1, 2), cs.A), 1, 2))
-
-    def _factorise_sparse(self, omega: float):
+    def _factorise(self, omega: float):
+        """One LU of D_h per harmonic (dense: LAPACK's; sparse: SuperLU), then D_h^-1 W^T by r
+        solves and S_h = W D_h^-1 W^T; no inverse (an LU is a third of its cost, and a solve with
+        it is one BLAS triangular pair per harmonic)."""
         cs, g = self.cs, self.gather
+        factor = _SparseLU if self.sparse else _DenseLU
+        self.lu = [factor(self._dynamic_stiffness(i, omega)) for i in range(self.h.size)]
         WT = self._scatter(np.eye(g.size, dtype=complex)).T  # (n, r): the columns of W^T
-        self.lu = []
-        self.S = np.zeros((self.h.size, g.size, g.size), complex)
-        for i in range(self.h.size):
-            lu = spla.splu(sp.csc_matrix(self._dynamic_stiffness(i, omega), dtype=complex))
-            self.lu.append(lu)
-            self.S[i] = g.of_dofs(lu.solve(WT).T, cs.A).T
+        DinvWT = [lu.solve(WT) for lu in self.lu]
+        self.S = np.stack([g.of_dofs(X.T, cs.A).T for X in DinvWT])
+        # kept for the dense form only (n x r per harmonic: small there; r sparse solves instead)
+        self.DinvWT = None if self.sparse else np.stack(DinvWT)
+        # the linear response to the constant and to the varying loads (the latter scaled by level)
+        self.Xc, self.Xf = self.solve(self.Fc), self.solve(self.Fe)
 
     def _scatter(self, U: np.ndarray) -> np.ndarray:
         """W^T U for gathered values U (k, r): (k, n)."""
@@ -206,15 +213,18 @@ class LinearPart:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """D_h^-1 rhs_h for DOF right-hand sides rhs (nh, n)."""
-        if not self.sparse:
-            return np.einsum("hnm,hm->hn", self.Dinv, rhs)
         return np.stack([lu.solve(np.ascontiguousarray(r, dtype=complex)) for lu, r in zip(self.lu, rhs)])
 
     def solve_gathered(self, U: np.ndarray) -> np.ndarray:
         """D_h^-1 W^T U_h for gathered values U (nh, r): (nh, n)."""
-        if not self.sparse:
+        if self.DinvWT is not None:
             return np.einsum("hnm,hm->hn", self.DinvWT, U)
         return self.solve(self._scatter(U))
+
+    def external_response(self, level: float | None = None) -> np.ndarray:
+        """D_h^-1 Fe_h (nh, n) of :meth:`external`, from the two responses of the factorisation."""
+        lv = self.level if level is None else level
+        return self.Xc + lv * self.Xf
 
     def external(self, level: float | None = None) -> np.ndarray:
         """Fe_h (nh, n): constant + level x varying forces."""

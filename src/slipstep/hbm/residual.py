@@ -25,16 +25,15 @@ seen by the contacts, |L R| <= tol x (displacement scale), the same number in bo
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 from slipstep.errors import InputError
 from slipstep.hbm.aft import AFT
 from slipstep.hbm.fourier import Basis, harmonic_set
 from slipstep.hbm.linear import LinearPart, choose_gather
+from slipstep.methods.blas import one_blas_thread
 from slipstep.methods.plan import plan_run
 from slipstep.methods.start import static_equilibrium
 from slipstep.model.contact import without_piecewise_linear_form
@@ -43,24 +42,12 @@ from slipstep.model.system import System
 
 def preload_sliders(system: System) -> tuple[np.ndarray, np.ndarray]:
     """(x, w) of the static preload, the same one every time march starts from
-    (methods/start.py static_equilibrium)."""
-    start = static_equilibrium(plan_run(system, "piecewise-linear", periods=1, error_estimate=False))
+    (methods/start.py static_equilibrium). The plan's step is T / 4: the preload does not depend
+    on it, and the default step rule (T_min) would size outputs for a period of a stiff model
+    (1.5e6 steps and 35 GB on the unreduced blade pair) that nothing marches here."""
+    plan = plan_run(system, "piecewise-linear", periods=1, error_estimate=False, dt=system.period / 4)
+    start = static_equilibrium(plan)
     return start.x.copy(), start.w.copy()
-
-
-_THREADPOOLS = None
-
-
-def blas_threads(size: int = 0):
-    """A context limiting BLAS to one thread for the small dense systems of a harmonic balance
-    (size unknowns < 2000): multi-threaded BLAS on matrices of a few hundred rows is 10-30x
-    slower on a loaded machine than one thread. (The library scan is done once.)"""
-    global _THREADPOOLS
-    if size >= 2000:
-        return contextlib.nullcontext()
-    if _THREADPOOLS is None:
-        _THREADPOOLS = ThreadpoolController()
-    return _THREADPOOLS.limit(limits=1, user_api="blas")
 
 
 def default_samples(h_max: int) -> int:
@@ -196,7 +183,7 @@ class HarmonicBalance:
         LY = b.phasors(Y) @ L.T
         U = b.phasors(F) - lin.Kc * LY
         LtU = U @ L
-        Xe = lin.solve(lin.external(level))
+        Xe = lin.external_response(level)
         R = b.phasors(Y) - self.gather.of_dofs(Xe, cs.A) + np.einsum("hrs,hs->hr", lin.S, LtU)
         Rr = b.coefficients(R).ravel()
         if not jacobian:
@@ -208,7 +195,7 @@ class HarmonicBalance:
         J[np.diag_indices_from(J)] += 1.0
         X = Xe - lin.solve_gathered(LtU)
         dR_dw = self.gather.of_dofs(lin.solve(lin.dD_times(X)), cs.A)
-        dR_dl = -self.gather.of_dofs(lin.solve(lin.Fe), cs.A)
+        dR_dl = -self.gather.of_dofs(lin.Xf, cs.A)
         if cs.B.shape[1] and np.any(lin.P != 0):
             V = b.coefficients(-(lin.P @ cs.B.T))
             dF = (self.aft.jacobian() @ V.ravel()).reshape(V.shape) if self.gather.mode == "contacts" else None
@@ -250,7 +237,7 @@ class HarmonicBalance:
         max_iterations: int = 50,
     ) -> Point:
         """Newton on R(Y) = 0 at fixed (omega, level), exact Jacobian, backtracking on |R|."""
-        with blas_threads(self.size):
+        with one_blas_thread(self.size):
             return self._solve(omega, level, Y0, tol, max_iterations)
 
     @property

@@ -13,6 +13,8 @@ N_COUNTERS = 11
 OK, NOT_CONVERGED, STATE_CYCLING, SINGULAR, CAPACITY, NON_FINITE, INTERRUPTED, DIVERGED = 0, 1, 2, 3, 4, 5, 6, 7
 # set by the Python layer, never by a kernel: an OK march whose outputs break a contact invariant (slipstep.invariants)
 INVARIANT = 8
+# the exact event-driven march (methods/exact_events.py) stopped at its cap of events (chattering, accumulation)
+EVENT_CAP = 9
 
 # contact states, one per tangential direction (a contact's directions share LIFT, STICK
 # of a coupled law and SLIP_COUPLED)
@@ -32,5 +34,6 @@ P_KN, P_MU = 0, 1
 N_LAW_PAR = 2
 
 # step solvers of kernels.march (here so that the method registry needs no numba import);
-# EVENTS is not a step solver: the event-driven quasi-static march of kernels/events.py
-MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE, EVENTS = 0, 1, 2, 3, 4
+# EVENTS is not a step solver: the event-driven quasi-static march of kernels/events.py;
+# EXACT_EVENTS neither: the exact event-driven dynamic march (methods/exact_events.py, kernels/exact_events.py)
+MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE, EVENTS, EXACT_EVENTS = 0, 1, 2, 3, 4, 5

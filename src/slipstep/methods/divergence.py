@@ -10,6 +10,7 @@ import numpy as np
 from slipstep.errors import Status
 from slipstep.kernels.codes import C_FAIL_STEP, C_STEPS
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
+from slipstep.model.system import is_sparse, quadratic_form, structure_matrix
 
 
 def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -> int:
@@ -34,6 +35,8 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
         band_quadratic_forms(cs.Mb, cs.kl, cs.ku, np.ascontiguousarray(v), E)
         band_quadratic_forms(cs.Kb, cs.kl, cs.ku, np.ascontiguousarray(x), ek)
         E = 0.5 * (E + ek)
+    elif is_sparse(cs):  # the sparse backend: the structure's CSR matrices, the user's DOF order
+        E = 0.5 * quadratic_form(structure_matrix(cs, "M"), v) + 0.5 * quadratic_form(structure_matrix(cs, "K"), x)
     else:
         E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
     nrow, trow = np.asarray(cs.normal_row), np.asarray(cs.tangential_row)

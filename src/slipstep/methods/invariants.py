@@ -193,7 +193,9 @@ def step_residuals(runner) -> np.ndarray | None:
     scheme = runner.options.scheme
     if plan is not None and not (plan.all_dofs and plan.all_contacts and plan.every_step):
         return None
-    if cs.banded or scheme.alpha_m != 0.0 or scheme.alpha_f != 0.0 or getattr(runner, "massless", None) is not None:
+    if cs.banded or cs.M.shape[1] != cs.M.shape[0]:  # banded or sparse backend: no dense matrices to audit with
+        return None
+    if scheme.alpha_m != 0.0 or scheme.alpha_f != 0.0 or getattr(runner, "massless", None) is not None:
         return None
     k = saved_rows(out, int(out.counters[C_STEPS]))
     n = cs.M.shape[0]

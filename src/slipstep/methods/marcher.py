@@ -125,6 +125,22 @@ class KernelEntry:
         return Status(status), kernel_time
 
 
+#: backend name -> the class path of the Marcher subclass that marches it (loaded when a plan of
+#: that backend is marched; the subclass stands on this module)
+BACKEND_MARCHERS: dict[str, str] = {"sparse": "slipstep.methods.sparse_marcher.SparseMarcher"}
+
+
+def backend_marcher(backend: str) -> type | None:
+    """The Marcher subclass of ``backend`` (BACKEND_MARCHERS), None for the base class's own."""
+    path = BACKEND_MARCHERS.get(backend)
+    if path is None:
+        return None
+    import importlib
+
+    module, name = path.rsplit(".", 1)
+    return getattr(importlib.import_module(module), name)
+
+
 class Marcher:
     """The buffers and the kernel of one :class:`RunPlan` (module docstring).
 
@@ -134,6 +150,12 @@ class Marcher:
     for marches longer than a second (the CLI sets it)."""
 
     progress = False
+
+    def __new__(cls, plan: RunPlan | None = None):
+        """A plan on a backend with a marcher of its own (BACKEND_MARCHERS: the condensed sparse
+        backend's, methods/sparse_marcher.py) gets that one."""
+        own = backend_marcher(plan.backend) if cls is Marcher and plan is not None else None
+        return super().__new__(own or cls)
 
     def __init__(self, plan: RunPlan):
         cs = plan.compiled

@@ -17,7 +17,7 @@ from slipstep.methods.schemes import Scheme, newmark
 from slipstep.model.validate import positive
 
 #: the values of RunOptions.linear_solver
-LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded")
+LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded", "sparse")
 #: the values of RunOptions.step_rule (None: the method's default, methods/plan.py ``step_rule_of``)
 STEP_RULES = ("accuracy", "t-min")
 
@@ -41,7 +41,10 @@ class RunOptions:
     linear_solver: 'direct' (an n x n LU per contact state), 'low-rank' (one LU of J(stick) and
         an nq x nq capacitance matrix per state: kernels/state_solve.py), 'banded' (the DOFs
         reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.model.system,
-        kernels/banded.py) or 'auto' (banded for a sparse structure of at least
+        kernels/banded.py), 'sparse' (one sparse LU per step size, the contact problem condensed
+        on the contact coordinates: kernels/sparse.py; the dynamic piecewise-linear methods) or
+        'auto' (sparse for a sparse structure of at least methods.sparse.SPARSE_MIN_N DOFs with a
+        wide band marched by a method it serves, banded for a sparse structure of at least
         slipstep.model.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
         coordinates are at most half the DOFs, else direct).
     rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate

@@ -30,17 +30,19 @@ import numpy as np
 
 from slipstep.errors import InputError
 from slipstep.kernels import march as K
+from slipstep.kernels.codes import EXACT_EVENTS
 from slipstep.kernels.contact import STICK
 from slipstep.methods import massless as ML
 from slipstep.methods import memory
 from slipstep.methods import save as SV
+from slipstep.methods import sparse as SB
 from slipstep.methods import step_control as SC
 from slipstep.methods.buffers import workspace_bytes
 from slipstep.methods.options import RunOptions
 from slipstep.methods.registry import Method, get_method
 from slipstep.methods.step_control import default_max_step, state_t_min
 from slipstep.model.contact import without_piecewise_linear_form
-from slipstep.model.system import CompiledSystem, System
+from slipstep.model.system import CompiledSystem, System, is_sparse
 
 #: rtol -> local error bound rtol * RTOL_LOCAL_FACTOR * L (calibrated: loop energy within rtol on the paper case)
 RTOL_LOCAL_FACTOR = 0.1
@@ -85,7 +87,9 @@ class RunPlan:
 
     @property
     def backend(self) -> str:
-        """The structure backend of the march: 'banded', 'low-rank' or 'dense'."""
+        """The structure backend of the march: 'sparse', 'banded', 'low-rank' or 'dense'."""
+        if is_sparse(self.compiled):
+            return "sparse"
         return "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "dense")
 
     @property
@@ -175,11 +179,14 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
         )
     method = method if isinstance(method, Method) else get_method(method)
     opt = RunOptions(**options).validated()
-    cs = system.compile(compile_backend(opt.linear_solver))
+    cs = system.compile(_backend_of(system, method, opt))
     if cs.banded:
         check_banded_method(method)
-    if method.solver == K.EVENTS:
-        check_event_case(system, cs)
+    if is_sparse(cs):
+        SB.check_method(method, opt)
+        SB.check_contacts(system)
+    if method.solver in (K.EVENTS, EXACT_EVENTS):
+        check_event_case(system, cs, method.name)
     stick = np.full(cs.kt.shape[0], STICK, np.int8)
     massless = ML.select_massless(system, opt.massless_dofs) if method.massless else None
     if massless is not None:  # those DOFs without inertia; T_min of the dynamic part
@@ -190,15 +197,41 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             f"is only used by the quasi-static-dofs method, not {method.name}",
             "use method quasi-static-dofs or drop the option",
         )
-    t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
-    dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
-    return _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
+    if is_sparse(cs) and not sparse_t_min_needed(cs, method, opt):
+        t_min_stick = math.nan  # not computed: neither the step rule nor the given dt uses it (methods/sparse.py)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf)
+    else:
+        t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
+        dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
+    plan = _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
+    if is_sparse(cs):
+        SB.check_adaptive(plan)
+    return plan
+
+
+def _backend_of(system: System, method: Method, opt: RunOptions) -> str:
+    """The System.compile backend of the linear_solver option: 'auto' takes the sparse backend
+    where methods.sparse.auto_chooses says so (a large sparse structure with a wide band marched
+    by a method it serves), else the rule of System.compile."""
+    if opt.linear_solver == "auto" and SB.auto_chooses(system, method, opt):
+        return "sparse"
+    return compile_backend(opt.linear_solver)
 
 
 #: the rule when step_rule is not given. Issue 26 asks for 'accuracy' as the default of the
 #: piecewise-linear methods; the flip waits for the tests that pin the paper's steps of Methods
 #: 3 and 2+3 to pass step_rule='t-min' and for the no-period case (no cap T / 50) to be settled
 DEFAULT_STEP_RULE = "t-min"
+
+
+def sparse_t_min_needed(cs, method, opt) -> bool:
+    """Does a plan on the sparse backend need T_min of full stick? Always up to DENSE_EIGEN_MAX_N DOFs (cheap, and
+    the dense backend's value); beyond, only under the 't-min' step rule without a given dt
+    (the 'accuracy' rule's step and a given dt do not use it, and the eigen-solve of a large
+    mesh costs more than its march)."""
+    if cs.M.shape[0] <= SB.DENSE_EIGEN_MAX_N:
+        return True
+    return step_rule_of(method, opt) != "accuracy" and opt.dt is None
 
 
 def step_rule_of(method: Method, opt: RunOptions) -> str:
@@ -289,6 +322,18 @@ def _timed_plan(
     return plan.with_step(dt)
 
 
+def replanned(plan: RunPlan, compiled: CompiledSystem) -> RunPlan:
+    """``plan``'s run on ``compiled``, a compiled system of the same layout whose numbers differ
+    (contact stiffnesses or friction patched by a sweep, slipstep.sweep.runner): T_min of full
+    stick, the step limits and the timed part planned again, as :func:`plan_run` plans them.
+    For plans without massless DOFs and without the pilot refinement (the runner's own)."""
+    if plan.massless is not None or plan.pilot_allowed:
+        raise ValueError("replanned: a plan with massless DOFs or a pilot refinement is planned by plan_run")
+    t_min_stick = state_t_min(compiled, plan.stick)
+    dt_limit, dt_stability = _step_limits(compiled, plan.method, plan.options, t_min_stick)
+    return _timed_plan(plan.system, plan.method, plan.options, compiled, None, t_min_stick, dt_limit, dt_stability)
+
+
 def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = None, **option_changes) -> RunPlan:
     """:meth:`RunPlan.retuned` (see there)."""
     from slipstep.model.retune import retune
@@ -377,7 +422,7 @@ def kernel_settings(plan: RunPlan, dt: float, max_step: float, low_rank: bool) -
         fallback=opt.fallback,
         signals=True,
         preload=0,
-        structure=K.BANDED if cs.banded else (K.LOW_RANK if low_rank else K.DENSE),
+        structure=K.BANDED if cs.banded else (K.LOW_RANK if low_rank else K.DENSE),  # (sparse: its own kernel)
     )
 
 
@@ -395,7 +440,7 @@ def _kernel_step_factor(plan: RunPlan) -> float:
 def check_banded_method(method: Method) -> None:
     """The banded backend (sparse structures) runs the implicit march's methods; the
     event-driven march and the partly quasi-static method need the dense matrices."""
-    if method.solver == K.EVENTS or method.massless:
+    if method.solver in (K.EVENTS, EXACT_EVENTS) or method.massless:
         raise InputError(
             "method",
             f"{method.name} needs the dense backend; this sparse structure compiles to the banded one",
@@ -404,27 +449,35 @@ def check_banded_method(method: Method) -> None:
         )
 
 
-def check_event_case(system: System, cs: CompiledSystem) -> None:
-    """The event-driven method needs phases that are linear in known harmonic functions of time."""
+def check_event_case(system: System, cs: CompiledSystem, name: str = "quasi-static-events") -> None:
+    """The event-driven methods (``name``: quasi-static-events, events) need phases that are
+    linear in known harmonic functions of time; the dynamic one a mass on every DOF."""
+    other = "quasi-static" if name == "quasi-static-events" else "piecewise-linear"
     if cs.force_table_time.size or cs.motion_table_time.size:
         raise InputError(
             "method",
-            "quasi-static-events needs harmonic loads and motions, the case has tables",
-            "use method 'quasi-static' for tabulated signals",
+            f"{name} needs harmonic loads and motions, the case has tables",
+            f"use method '{other}' for tabulated signals",
         )
     if cs.force_ramp > 0 or cs.motion_ramp > 0:
         raise InputError(
             "ramp_time",
-            "is set: quasi-static-events needs unramped harmonic signals",
-            "remove ramp_time or use method 'quasi-static'",
+            f"is set: {name} needs unramped harmonic signals",
+            f"remove ramp_time or use method '{other}'",
         )
     circles = without_piecewise_linear_form(system.contacts)
     if circles:
         laws = sorted({c.law for c in system.contacts if c.name in circles})
         raise InputError(
             "method",
-            f"quasi-static-events needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
-            "use method 'quasi-static' for friction-circle contacts",
+            f"{name} needs piecewise-linear contact laws; {circles} use {', '.join(map(repr, laws))}",
+            f"use method '{other}' for friction-circle contacts",
+        )
+    if name != "quasi-static-events" and not cs.banded and np.linalg.matrix_rank(cs.M) < cs.M.shape[0]:
+        raise InputError(
+            "method",
+            f"{name} needs a mass on every DOF (the mass matrix is singular)",
+            "use method 'quasi-static-dofs' or 'piecewise-linear' for DOFs without inertia",
         )
 
 
@@ -445,14 +498,14 @@ def _check_time_scales(t_end: float, dt_limit: float, max_step: float, opt: RunO
 
 def compile_backend(linear_solver: str) -> str:
     """The System.compile backend a linear_solver option asks for."""
-    return {"banded": "banded", "direct": "dense", "low-rank": "dense"}.get(linear_solver, "auto")
+    return {"banded": "banded", "direct": "dense", "low-rank": "dense", "sparse": "sparse"}.get(linear_solver, "auto")
 
 
 def use_low_rank(cs: CompiledSystem, linear_solver: str) -> bool:
     """The low-rank (Woodbury) state solve pays when the contact coordinates are few against
     the DOFs (kernels/state_solve.py): 'auto' takes it when 2 nq <= n (never with the banded
-    backend, whose banded LU per state is already O(n b^2))."""
-    if cs.banded:
+    backend, whose banded LU per state is already O(n b^2), nor the sparse one)."""
+    if cs.banded or is_sparse(cs):
         return False
     n, nq = cs.M.shape[0], cs.A.shape[0]
     if linear_solver == "auto":
@@ -474,6 +527,7 @@ def check_memory(
     it [bytes]."""
     n, nq, nd, m = cs.M.shape[0], cs.A.shape[0], cs.kt.shape[0], cs.B.shape[1]
     field_name = "duration" if opt.duration is not None else "periods"
+    work = SB.workspace_bytes(cs, opt.max_state_iterations) if is_sparse(cs) else None
     fixes = "simulate fewer periods (or a shorter duration)" + (
         ", use fewer steps_per_period" if quasi_static else ", raise the step ratio"
     )
@@ -483,6 +537,6 @@ def check_memory(
         points = SV.rows_needed(plan, capacity, 0.0, t_end)
         fixes = "save less (save: fewer dofs, every k-th step or the last periods; --save-dofs, --save-every), " + fixes
     limit = None if opt.max_memory is None else memory.parse_size("max_memory", opt.max_memory)
-    return memory.check(
-        points, n, nq, nd, m, workspace_bytes(cs, opt.max_state_iterations, low_rank), limit, field_name, fixes
-    )
+    if work is None:
+        work = workspace_bytes(cs, opt.max_state_iterations, low_rank)
+    return memory.check(points, n, nq, nd, m, work, limit, field_name, fixes)

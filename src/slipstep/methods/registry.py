@@ -21,7 +21,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from slipstep.errors import InputError
-from slipstep.kernels.codes import EVENTS, FULL_NEWTON, MODIFIED_NEWTON, MODIFIED_NEWTON_STATE, PIECEWISE_LINEAR
+from slipstep.kernels.codes import (
+    EVENTS,
+    EXACT_EVENTS,
+    FULL_NEWTON,
+    MODIFIED_NEWTON,
+    MODIFIED_NEWTON_STATE,
+    PIECEWISE_LINEAR,
+)
 
 
 @dataclass(frozen=True)
@@ -125,6 +132,16 @@ METHODS: dict[str, Method] = {
             "outputs on the steps_per_period grid (harmonic excitation, piecewise-linear laws)",
         ),
         Method(
+            "events",
+            "beyond the paper",
+            EXACT_EVENTS,
+            False,
+            False,
+            "exact event-driven dynamics: each linear phase by its exact propagator (modal form, harmonic and "
+            "constant loads in closed form), state changes located by root finding on the exact solution "
+            "(harmonic excitation, piecewise-linear laws)",
+        ),
+        Method(
             "newmark-adaptive-stick",
             "Method 2 (stick tangent)",
             MODIFIED_NEWTON,
@@ -153,6 +170,9 @@ METHOD_ADVICE: dict[str, str] = {
     "quasi-static-events": "the same conditions as Method 4 with harmonic excitation and piecewise-linear laws: "
     "exact transition instants, a few solves per state change instead of per step (the paper case: 32 solves "
     "in 3 periods against Method 4's 922)",
+    "events": "you want the reference without a time step (harmonic excitation, piecewise-linear laws): each "
+    "linear phase exact, the state changes located to round-off; the fastest method when states change rarely "
+    "(docs/exact_events.md)",
     "newmark-adaptive-stick": "you reproduce the paper's Method 2 exactly (the full-stick tangent in every "
     "state); slower than `newmark-adaptive`",
     "quasi-static-dofs": "a structure (blades) carries light dampers whose internal modes are far above the "

@@ -16,8 +16,9 @@ import warnings
 
 import numpy as np
 
-from slipstep.errors import Interrupted, SolverError, Status
+from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.kernels import march as K
+from slipstep.kernels.codes import EXACT_EVENTS
 from slipstep.methods import accuracy
 from slipstep.methods.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
@@ -72,6 +73,7 @@ SOLVER_NAMES = {
     K.PIECEWISE_LINEAR: "piecewise-linear",
     K.MODIFIED_NEWTON_STATE: "modified-newton-state",
     K.EVENTS: "events",
+    EXACT_EVENTS: "exact-events",
 }
 
 
@@ -221,6 +223,13 @@ class Simulation(Runner):
     save_plan, ...) and the marcher's buffers (ws, out) read as attributes."""
 
     def __init__(self, system: System, method: str | Method = "newmark", **options):
+        if _exact_events(method):
+            raise InputError(
+                "method",
+                "'events' marches no time steps: it has no Simulation (marcher, workspace, start_from)",
+                "use slipstep.run(system, 'events') (runner: slipstep.methods.exact_events.ExactEventRun), "
+                "and slipstep.steady.shoot(system, method='events') for the steady state",
+            )
         plan = plan_run(system, method, **options)
         if plan.pilot_allowed:
             plan = accuracy.pilot_plan(plan)
@@ -377,7 +386,7 @@ class Simulation(Runner):
             "state_tolerance": self.options.state_tolerance,
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "step_rule": self.plan.step_rule,
-            "linear_solver": "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "direct"),
+            "linear_solver": {"dense": "direct"}.get(self.plan.backend, self.plan.backend),
             "bandwidth": int(self.compiled.kl) if self.compiled.banded else -1,
             **(
                 {}
@@ -389,8 +398,20 @@ class Simulation(Runner):
 
 def run(system: System, method: str = "newmark", *, raise_on_failure: bool = False, **options):
     """Simulate ``system`` with ``method`` (see slipstep.methods.registry) and return the
-    result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`."""
+    result Dataset (schema in slipstep.output.results). Options: see :class:`RunOptions`
+    (method ``events``: methods/exact_events.py, which also takes ``max_events``)."""
+    if _exact_events(method):
+        from slipstep.methods.exact_events import ExactEventRun
+
+        return ExactEventRun(system, **options).run(raise_on_failure=raise_on_failure)
     return Simulation(system, method, **options).run(raise_on_failure=raise_on_failure)
+
+
+def _exact_events(method) -> bool:
+    """Is ``method`` (a name, a paper number or a Method) the exact event-driven one?"""
+    from slipstep.methods.registry import get_method
+
+    return (method if isinstance(method, Method) else get_method(method)).solver == EXACT_EVENTS
 
 
 #: a run taking more than this many times the steps of its planned step warns (issue 29)

@@ -19,15 +19,17 @@ import numpy as np
 from slipstep.errors import SolverError, Status
 from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
+from slipstep.kernels import sparse as KS
 from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
 from slipstep.methods import massless as ML
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache
 from slipstep.methods.eigen import band_mass_lu
+from slipstep.methods import sparse as SB
 from slipstep.methods.plan import RunPlan
 from slipstep.methods.state import StartTerms, State
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
 from slipstep.output.results import STATE_NAMES
-from slipstep.model.system import CompiledSystem, to_user_order
+from slipstep.model.system import CompiledSystem, is_sparse, structure_matrix, to_user_order
 
 
 def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> State:
@@ -40,11 +42,16 @@ def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> S
     ``workspace``: the one to march the ramp in (a marcher's: its T_min cache is kept), else
     a new one."""
     cs, opt = plan.compiled, plan.options
-    ws = workspace if workspace is not None else allocate_workspace(cs, opt.max_state_iterations, plan.low_rank)
+    sparse = is_sparse(cs)  # the condensed sparse backend: its workspace and kernel (methods/sparse.py)
+    if sparse:
+        ws = SB.preload_workspace(plan, workspace)
+    else:
+        ws = workspace if workspace is not None else allocate_workspace(cs, opt.max_state_iterations, plan.low_rank)
     for arr in (ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w):
         arr[:] = 0.0
     ws.state[:] = STICK
-    reset_cache(ws)
+    if not sparse:
+        reset_cache(ws)
     settings = K.replace_settings(
         plan.settings,
         inertia=False,
@@ -58,7 +65,7 @@ def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> S
     q, f = np.zeros(nq), np.zeros(nq)
     ramp = allocate_outputs(cs, opt.preload_increments)
     if np.any(cs.constant_force != 0) or np.any(cs.g != 0):
-        status = K.march(cs, settings, ws, ramp, q, f)
+        status = (KS.sparse_march if sparse else K.march)(cs, settings, ws, ramp, q, f)
         counters = ramp.counters
         q[:], f[:] = ramp.q[counters[K.C_STEPS]], ramp.f[counters[K.C_STEPS]]
     else:
@@ -165,7 +172,9 @@ def elastic_contact_force(cs: CompiledSystem, q: np.ndarray, w: np.ndarray) -> n
 
 
 def structure_product(cs: CompiledSystem, which: str, x: np.ndarray) -> np.ndarray:
-    """M x, C x or K x (``which`` 'M', 'C', 'K') in the kernel DOF order, dense or banded."""
+    """M x, C x or K x (``which`` 'M', 'C', 'K') in the kernel DOF order, dense, banded or sparse."""
+    if is_sparse(cs):
+        return structure_matrix(cs, which) @ x
     if not cs.banded:
         return getattr(cs, which) @ x
     out = np.empty(cs.Mb.shape[0])
@@ -174,7 +183,9 @@ def structure_product(cs: CompiledSystem, which: str, x: np.ndarray) -> np.ndarr
 
 
 def mass_solve(cs: CompiledSystem, rhs: np.ndarray) -> np.ndarray:
-    """a = M^-1 rhs on the DOFs with inertia (methods/massless.py), dense or banded."""
+    """a = M^-1 rhs on the DOFs with inertia (methods/massless.py), dense, banded or sparse."""
+    if is_sparse(cs):
+        return SB.mass_solve(cs, rhs)
     if not cs.banded:
         return ML.initial_acceleration(cs.M, rhs)
     lu, piv = band_mass_lu(cs)

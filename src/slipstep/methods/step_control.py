@@ -100,6 +100,10 @@ def state_omega2(cs, state) -> float:
     state = contact_state_vector(cs, state)
     if cs.banded:  # banded backend (issue 10): Arnoldi on the band, as the march per state
         return eigen.banded_lambda_max(cs, state)
+    if cs.M.shape[1] != cs.M.shape[0]:  # the sparse backend (issue 26): the structure's own matrices
+        from slipstep.methods import sparse
+
+        return sparse.omega2(cs, state)
     K = effective_stiffness(cs, state)
     zero = ML.massless_mask(cs.M)
     if zero.any():

@@ -88,6 +88,24 @@ class CompiledSystem(NamedTuple):
     dof_order: np.ndarray  # int64 (n): kernel DOF k is the user's DOF dof_order[k] (identity when dense)
 
 
+class SparseCompiledSystem(CompiledSystem):
+    """The compiled system of the condensed sparse backend (issue 26, kernels/sparse.py): the
+    'contacts' layout (M, C, K fields empty (n, 0); A dense and in CSR; the user's DOF order)
+    with the structure's matrices as scipy CSR in the attribute ``matrices`` (M, C, K), which
+    the kernel's arrays and the Python products are made from (not a field: numba sees the
+    fields only)."""
+
+    def _replace(self, **changes):
+        new = CompiledSystem._replace(self, **changes)
+        new.matrices = self.matrices
+        return new
+
+
+def is_sparse(cs) -> bool:
+    """Is ``cs`` compiled for the condensed sparse backend?"""
+    return isinstance(cs, SparseCompiledSystem)
+
+
 @dataclass(frozen=True)
 class System:
     """Structure + contact elements + excitation; validated once, then compiled to arrays."""
@@ -213,8 +231,13 @@ class System:
         """The kernel arrays; ``backend`` 'auto' (banded for a sparse structure of at least
         BANDED_MIN_N DOFs whose band is narrow, else dense), 'dense', 'banded' or 'contacts'
         (the contact arrays in the user's DOF order, M, C and K left empty (n, 0): for the
-        frequency-domain solvers that factorise the structure's sparse matrices themselves)."""
+        frequency-domain solvers that factorise the structure's sparse matrices themselves) or
+        'sparse' (the 'contacts' layout holding the matrices: :class:`SparseCompiledSystem`)."""
         s = self.structure
+        if backend == "sparse":
+            cs = SparseCompiledSystem(*self.compile("contacts"))
+            cs.matrices = tuple(sp.csr_matrix(X) for X in (s.mass, s.damping, s.stiffness))
+            return cs
         n, m = s.n_dofs, len(self.motion_names)
         A_rows, B_rows, g = [], [], []
         normal_row, kn, mu, first_dir, n_dir = [], [], [], [], []
@@ -345,7 +368,10 @@ def _contacts(value) -> tuple:
 
 def structure_matrix(cs: CompiledSystem, which: str):
     """M, C or K (``which`` 'M', 'C', 'K') in the kernel DOF order: the dense array, or for the
-    banded backend a scipy.sparse CSR matrix built from its band storage (for products only)."""
+    banded backend a scipy.sparse CSR matrix built from its band storage (for products only), for
+    the sparse backend the structure's own CSR matrix."""
+    if is_sparse(cs):
+        return cs.matrices["MCK".index(which)]
     if not cs.banded:
         return getattr(cs, which)
     ab = getattr(cs, which + "b")
@@ -428,7 +454,7 @@ def _choose_backend(structure: Structure, contacts, A, backend: str) -> tuple[bo
     n = structure.n_dofs
     identity = np.arange(n, dtype=np.int64)
     if backend not in ("auto", "dense", "banded", "contacts"):
-        raise InputError("linear_solver", f"backend {backend!r}", "use 'auto', 'dense' or 'banded'")
+        raise InputError("linear_solver", f"backend {backend!r}", "use 'auto', 'dense', 'banded' or 'sparse'")
     if backend in ("dense", "contacts") or (backend == "auto" and (not structure.sparse or n < BANDED_MIN_N)):
         return False, identity, 0
     key = tuple(id(c.dof_gather) for c in contacts)  # the order of these matrices, computed once

@@ -49,8 +49,9 @@ def loop_properties(u: np.ndarray, T: np.ndarray) -> dict:
     u = np.asarray(u, float)
     T = np.asarray(T, float)
     E = loop_energy(u, T)
-    du = float(u.max() - u.min())
-    dT = float(T.max() - T.min())
+    u_min, u_max, T_min, T_max = u.min(), u.max(), T.min(), T.max()
+    du = float(u_max - u_min)
+    dT = float(T_max - T_min)
     k = dT / du if du > 0 else math.nan
     E_el = 0.5 * k * (du / 2) ** 2 if du > 0 else math.nan
     zeta = E / (4 * math.pi * E_el) if du > 0 and E_el > 0 else math.nan
@@ -59,10 +60,10 @@ def loop_properties(u: np.ndarray, T: np.ndarray) -> dict:
         "k_eq_N_per_m": k,
         "elastic_energy_J": E_el,
         "zeta_eq": zeta,
-        "u_min_m": float(u.min()),
-        "u_max_m": float(u.max()),
-        "T_min_N": float(T.min()),
-        "T_max_N": float(T.max()),
+        "u_min_m": float(u_min),
+        "u_max_m": float(u_max),
+        "T_min_N": float(T_min),
+        "T_max_N": float(T_max),
     }
 
 

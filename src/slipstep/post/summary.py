@@ -34,7 +34,7 @@ import xarray as xr
 from slipstep.errors import InputError, Status
 from slipstep.post.loops import interfaces_from_system, loop_summary
 from slipstep.post.periodic import last_period, periodicity
-from slipstep.post.timeline import LIFT, SLIP_NEG, SLIP_POS, STATE_NAMES, STICK, full_slip_share, state_shares
+from slipstep.post.timeline import LIFT, SLIP_NEG, SLIP_POS, STICK, full_slip_share, state_shares
 
 # base name -> (units, long_name); one place for what the summary keys mean (all over the last
 # period; the module docstring gives the definitions)
@@ -279,7 +279,7 @@ def _groups(rec: Record, interfaces) -> dict:
 
 
 def _loops_record(rec: Record, groups: dict, lp) -> dict:
-    from slipstep.post.loops import loop_properties
+    from slipstep.post.loops import loop_energy, loop_properties
 
     out = {}
     if lp is None:
@@ -289,13 +289,12 @@ def _loops_record(rec: Record, groups: dict, lp) -> dict:
         out["energy_per_cycle_J"] = math.nan
         return out
     _, u, T, _, _ = lp
-    per_dir = [loop_properties(u[:, d], T[:, d]) for d in range(u.shape[1])]
-    owner = np.asarray(rec.direction_contact)
+    per_dir = [loop_energy(u[:, d], T[:, d]) for d in range(u.shape[1])]
     energies = []
     for name, members in groups.items():
-        d = np.flatnonzero(np.isin(owner, members))
+        d = np.array([k for k, c in enumerate(rec.direction_contact) if c in members], np.int64)
         p = loop_properties(u[:, d].mean(axis=1), T[:, d].sum(axis=1))
-        e_sum = sum(per_dir[k]["energy_J"] for k in d)
+        e_sum = sum(per_dir[k] for k in d)
         zeta = e_sum / (4 * math.pi * p["elastic_energy_J"]) if p["elastic_energy_J"] > 0 else math.nan
         energies.append(e_sum)
         out[f"interface_energy_per_cycle_J[{name}]"] = float(e_sum)
@@ -324,15 +323,17 @@ def _contacts_record(rec: Record, lp) -> dict:
         c = contacts.index(rec.direction_contact[j])
         limit = rec.mu[c] * N[:, c]
         loaded = limit > 0
-        ratio = np.abs(T[loaded, j]) / limit[loaded]
-        share = [dt[S[1:, j] == s].sum() / total for s in range(len(STATE_NAMES))]
+        ratio = np.abs(T[:, j][loaded]) / limit[loaded]
+        states = S[1:, j]
+        share = {s: dt[states == s].sum() / total for s in (STICK, SLIP_POS, SLIP_NEG, LIFT)}
         out[f"direction_peak_T_over_muN[{d}]"] = float(ratio.max()) if ratio.size else math.nan
         out[f"direction_stick_share[{d}]"] = float(share[STICK])
         out[f"direction_slip_share[{d}]"] = float(share[SLIP_POS] + share[SLIP_NEG])
         out[f"direction_lift_off_share[{d}]"] = float(share[LIFT])
+    low, high = N.min(axis=0), N.max(axis=0)
     for k, c in enumerate(contacts):
-        out[f"contact_N_min_N[{c}]"] = float(N[:, k].min())
-        out[f"contact_N_max_N[{c}]"] = float(N[:, k].max())
+        out[f"contact_N_min_N[{c}]"] = float(low[k])
+        out[f"contact_N_max_N[{c}]"] = float(high[k])
     return out
 
 
@@ -340,7 +341,10 @@ def _full_slip(lp) -> float:
     from slipstep.post.timeline import SLIP_STATES
 
     t, S = lp[0], lp[4]
-    all_slip = np.all(np.isin(S[1:], SLIP_STATES), axis=1)
+    slip = np.zeros(S[1:].shape, bool)
+    for state in SLIP_STATES:  # np.isin(S[1:], SLIP_STATES), without its set-up
+        slip |= S[1:] == state
+    all_slip = np.all(slip, axis=1)
     total = t[-1] - t[0]
     return float(np.diff(t)[all_slip].sum() / total) if total > 0 else 0.0
 
@@ -355,5 +359,6 @@ def _steady_record(rec: Record) -> float:
         return math.nan
     n = int(np.floor((t[-1] - t[0]) / P * (1 + _REL)))
     scale = max(float(np.ptp(y, axis=0).max(initial=0.0)), rec.length_scale * 1e-3, 1e-300)
-    errors = [_phase_compare(t, y, t[0] + (k - 1) * P, P) / scale for k in range(1, n)]
-    return float(errors[-1]) if errors else math.nan
+    if n < 2:  # fewer than two periods: no pair to compare
+        return math.nan
+    return float(_phase_compare(t, y, t[0] + (n - 2) * P, P) / scale)  # the last pair (k = n - 1)

@@ -36,6 +36,7 @@ from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED, STICK
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.kernels.settings import contact_table
+from slipstep.methods.blas import one_blas_thread
 from slipstep.methods.invariants import check_march
 from slipstep.methods.massless import inverse_mass
 from slipstep.methods.simulation import Simulation
@@ -305,9 +306,47 @@ def shoot(
     (:func:`predicted_start`; the previous orbit if the predicted period fails). When Newton
     from a given start has not converged after half of ``max_iterations``, the search starts
     afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
-    frequency can be a worse start than the preload."""
+    frequency can be a worse start than the preload. method "events": the exact periodic orbit
+    (steady/exact_orbit.steady_state; the step and march options do not apply)."""
+    with one_blas_thread(2 * system.n_dofs if isinstance(system, System) else 0):  # small dense Jacobians
+        return _shoot(
+            system,
+            tolerance=tolerance,
+            initial=initial,
+            max_iterations=max_iterations,
+            max_periods=max_periods,
+            method=method,
+            min_steps_per_period=min_steps_per_period,
+            settle_periods=settle_periods,
+            max_backtracks=max_backtracks,
+            warmup_periods=warmup_periods,
+            predictor=predictor,
+            **run_options,
+        )
+
+
+def _shoot(
+    system: System,
+    *,
+    tolerance: float = 1e-6,
+    initial=None,
+    max_iterations: int = 60,
+    max_periods: int = 200,
+    method="piecewise-linear",
+    min_steps_per_period: int | None = None,
+    settle_periods: int = 3,
+    max_backtracks: int = 3,
+    warmup_periods: int = 5,
+    predictor: bool = True,
+    **run_options,
+):
+    """:func:`shoot` on the BLAS threads it sets."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
+    if method == "events":  # Newton on the exact period map (steady/exact_orbit.py)
+        from slipstep.steady.exact_orbit import steady_state
+
+        return steady_state(system, min(tolerance, 1e-12), initial, max_iterations)
     for name, value, low in (
         ("max_iterations", max_iterations, 1),
         ("settle_periods", settle_periods, 0),
@@ -318,10 +357,10 @@ def shoot(
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
     run_options = dense_backend_options(system, run_options)
     sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
-    if sim.compiled.banded:  # the period Jacobian is dense in 2 n + nd unknowns
+    if sim.compiled.banded or sim.plan.backend == "sparse":  # the period Jacobian is dense in 2 n + nd unknowns
         raise InputError(
             "linear_solver",
-            "is 'banded': shooting's period Jacobian needs the dense matrices",
+            f"is '{sim.plan.backend}': shooting's period Jacobian needs the dense matrices",
             "leave linear_solver unset (shooting then marches a sparse structure of up to "
             f"{DENSE_MAX_N} DOFs densely), use solver='hbm', or march_to_steady",
         )
