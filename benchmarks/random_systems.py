@@ -18,6 +18,15 @@ to T_min) and, per method and family, the rate of results ending INVARIANT (an O
 broke a contact invariant: slipstep.methods.invariants) and, for Method 1, full Newton and Method 3 on
 the decidable systems (full Newton and the piecewise-linear solve at 1e-13 agree to 1e-8), the
 rate of OK results more than rtol of the range from them.
+
+    python benchmarks/random_systems.py --trust --n 5000   # issue 29 item 3: n systems per generator
+
+The issue-29 item-3 mode: the generators of slipstep.study.trust_systems (stick-1dof, shared-dof,
+lever-map, broad), Method 1 ('newmark') at its defaults against full Newton and the piecewise-linear
+solve at 1e-13 (study.trust_systems.newmark_check); per generator the decidable systems, the silent
+failures (OK, no per-step flag, more than rtol of the range off; those whose references are
+sensitive, a round-off spread above 1e-12 or a 1e-10 load change moving them by rtol, counted
+apart), the flagged and the non-OK results.
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ import time
 
 import numpy as np
 
+from slipstep.study.trust_systems import GENERATORS, newmark_check, reference_sensitive, trust_system
 from slipstep.study.verification import (
     CHECK_METHODS,
     FAMILIES,
@@ -70,6 +80,47 @@ def families(n: int, seed: int, periods: float, rtol: float) -> None:
     print(f"  {time.perf_counter() - start:.0f} s")
 
 
+def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark") -> None:
+    """The issue-29 item-3 table (module docstring): per generator, Method 1's silent failures."""
+    start = time.perf_counter()
+    print(f"{n} systems per generator, seed {seed}, {periods:g} periods, method {method}, rtol {rtol:g}")
+    print("  silent: OK, unflagged, more than rtol of the range off the two agreeing tight references")
+    print(
+        f"  {'generator':11s} {'systems':>7s} {'decidable':>9s} {'silent':>15s} {'of them sensitive':>17s} "
+        f"{'flagged':>7s} {'non-OK':>6s}  worst silent, not sensitive"
+    )
+    total = np.zeros(6, int)
+    for g, generator in enumerate(GENERATORS):
+        c = np.zeros(6, int)  # systems, decidable, silent, silent and sensitive, flagged, non-OK
+        worst = (0.0, -1)
+        for i in range(n):
+            system = trust_system(np.random.default_rng([seed, g, i]), generator)
+            row = newmark_check(system, method, periods=periods)
+            if row is None:
+                continue
+            c[0] += 1
+            c[1] += row["decidable"]
+            c[4] += row["flagged"]
+            c[5] += row["status"] != "OK"
+            if row["error"] > rtol and not row["flagged"]:
+                c[2] += 1
+                sensitive = reference_sensitive(system, periods=periods, rtol=rtol)
+                c[3] += sensitive
+                if not sensitive:
+                    worst = max(worst, (row["error"], i))
+        total += c
+        print(
+            f"  {generator:11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
+            f"{c[4]:7d} {c[5]:6d}  {worst[0]:.2g} (system {worst[1]})"
+        )
+    c = total
+    print(
+        f"  {'all':11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
+        f"{c[4]:7d} {c[5]:6d}"
+    )
+    print(f"  {time.perf_counter() - start:.0f} s")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=5000, help="number of random systems")
@@ -80,7 +131,13 @@ def main() -> None:
         "--adaptive", action="store_true", help="also Method 2 against a tight Method 2+3 on their adaptive grid"
     )
     parser.add_argument("--families", action="store_true", help="issue 29: invariants and agreement per family")
+    parser.add_argument(
+        "--trust", action="store_true", help="issue 29 item 3: Method 1's silent failures per generator"
+    )
     args = parser.parse_args()
+    if args.trust:
+        trust(args.n, args.seed, args.periods, args.rtol)
+        return
     if args.families:
         families(args.n, args.seed, args.periods, args.rtol)
         return

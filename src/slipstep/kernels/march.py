@@ -507,7 +507,10 @@ def march(sys, st, ws, out, q0, f0):
                 last_slot = -1
                 so.build_lin(backend, sys, inertia, (1.0 - am) * a0, (1.0 - af) * c1, 1.0 - af, Lin)
                 ws.lin_dt[0] = dt
-                conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(backend, Lin, kfac, kd_stick)
+                # the floor of a step at rest: the stiffness forces of a displacement L (no inertia term:
+                # tol L a0 M exceeds the step's forces by (2 / omega dt)^2 and let steps off by 1e-8 pass)
+                conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(
+                    backend, sys.Kb if backend == so.BANDED else sys.K, kfac, kd_stick)
             # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
             _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p)
             so.gather_state(backend, sys, x, p, qbase)

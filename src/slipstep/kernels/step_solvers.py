@@ -29,7 +29,7 @@ THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick
 # convergence parameters of the Newton iterations (the array ``conv``, filled per step by march):
 #   conv[CV_TOL]    tol, the relative tolerance (RunOptions.tolerance)
 #   conv[CV_TOL_Q]  tol * L, the absolute tolerance on the contact coordinates [m]
-#   conv[CV_FLOOR]  tol * L * max diag J(stick): the residual floor [N] (a step at rest)
+#   conv[CV_FLOOR]  tol * L * max diag (K + K_D(stick)): the residual floor [N] (a step at rest; no inertia)
 #   conv[CV_X + j]  tol * L / max_r |A_rj| (tol * L for a DOF no contact sees): the tolerance on DOF j
 CV_TOL, CV_TOL_Q, CV_FLOOR, CV_X = 0, 1, 2, 3
 #: the residual test never asks for less than this relative residual (round-off of r)
@@ -110,7 +110,8 @@ def residual_converged(sv, kfac, conv):
         max_i |r_i| <= max(tol, RESIDUAL_RTOL_MIN) * max(F, floor)
     with F the step's force scale, the largest term of the balance over the DOFs,
     F = max_i max(|r0_i|, kfac |(A^T f)_i|, |(Lin dx)_i|), (Lin dx = r0 - kfac A^T f - r),
-    and floor = tol L max diag J(stick) (conv)."""
+    and floor = tol L max diag (K + K_D(stick)) (conv: the stiffness forces of a displacement L;
+    the inertia term a0 M of J(stick) is left out, it let steps off by 1e-8 of the forces pass)."""
     r, r0, gf1 = sv.r, sv.r0, sv.gf1
     rmax = 0.0
     scale = conv[CV_FLOOR] / conv[CV_TOL]
