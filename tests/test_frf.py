@@ -2,6 +2,7 @@
 directions and its layout, the sine sweep, the CLI command and its plot."""
 
 import json
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -260,3 +261,21 @@ def test_plot_many_contacts_and_both_sweeps(tmp_path):
     assert default_response(both) == "x"  # metres before radians
     png = plot_frf(both, tmp_path / "f.png").read_bytes()
     assert png[:4] == b"\x89PNG"
+
+
+def test_the_plot_draws_the_linear_limits_on_a_fine_grid(tmp_path):
+    """The linear limits beside an FRF are drawn on FINE_POINTS frequencies spanning its grid
+    (a 5-point grid would draw a linear resonance as a triangle): at the grid's ends they equal
+    the FRF's own linear limits; a structure above FINE_MAX_DOFS DOFs keeps the FRF's points."""
+    from slipstep.frequency.plots import FINE_POINTS, fine_linear_limits, plot_frf
+
+    system = ss.load_system(JENKINS)
+    ds = frf(system, np.linspace(300, 340, 3), solver="shoot", rtol=None)
+    fine = fine_linear_limits(system, ds, "x")
+    assert fine.sizes["frequency"] == FINE_POINTS
+    for name in ("linear_free_amplitude", "linear_stuck_amplitude"):
+        ends = fine[name].sel(response="x").values[[0, -1]]
+        np.testing.assert_allclose(ends, ds[name].sel(response="x").values[[0, -1]], rtol=1e-12)
+    assert plot_frf(ds, tmp_path / "f.png", linear=fine).stat().st_size > 10_000
+    big = SimpleNamespace(n_dofs=10_000)
+    assert fine_linear_limits(big, ds) is None

@@ -117,7 +117,7 @@ def frf(
 
         from slipstep.casefile.case import load_system
         from slipstep.frequency.response import check_frequencies, parse_frequencies
-        from slipstep.frequency.plots import plot_frf
+        from slipstep.frequency.plots import fine_linear_limits, plot_frf
         from slipstep.output.results import save as save_netcdf
         from slipstep.model.text import escape_text
 
@@ -218,7 +218,7 @@ def frf(
 
             plot_hbm(ds, png)
         else:
-            plot_frf(ds, png)
+            plot_frf(ds, png, linear=fine_linear_limits(system, ds))
         summary = _summary(ds, time.perf_counter() - start)
         if hbm:
             extra = hbm_summary(ds)

@@ -42,10 +42,14 @@ def default_response(ds: xr.Dataset) -> str:
     return str(ds["response"].values[int(np.argmax(peak))])
 
 
-def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | None = None) -> Path:
+def plot_frf(
+    ds: xr.Dataset, path, response: str | None = None, title: str | None = None, linear: xr.Dataset | None = None
+) -> Path:
     """Amplitude of ``response`` (default :func:`default_response`) against frequency with the
     linear limits (contacts removed, every contact stuck), and the friction energy per cycle
-    of each contact; written as PNG to ``path``."""
+    of each contact; written as PNG to ``path``. ``linear``: the linear limits on a finer grid
+    (:func:`fine_linear_limits`), drawn instead of their values at the FRF's points (a coarse
+    grid draws a linear resonance as a triangle)."""
     response = response or default_response(ds)
     unit = str(ds["response_unit"].sel(response=response).values)
     factor, label = _DISPLAY.get(unit, (1.0, unit))
@@ -76,12 +80,12 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         ("linear_free_amplitude", "--", "linear: contacts removed"),
         ("linear_stuck_amplitude", ":", "linear: contacts stuck"),
     ):
-        lim = ds[name]
+        lim = (linear if linear is not None and response in linear["response"].values else ds)[name]
         if "sweep" in lim.dims:
             lim = lim.isel(sweep=0)
         y = lim.sel(response=response).values * factor
         if np.isfinite(y).any():
-            ax.plot(f, y, style, color="0.35", lw=1.2, label=text)
+            ax.plot(lim["frequency"].values, y, style, color="0.35", lw=1.2, label=text)
     ax.set_yscale("log")
     ax.set_ylabel(f"amplitude of {response} [{label}]")
     ax.set_title(title or f"{ds.attrs.get('case', '')}: forced response ({response})")
@@ -115,6 +119,23 @@ def plot_frf(ds: xr.Dataset, path, response: str | None = None, title: str | Non
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
     return path
+
+
+FINE_POINTS = 400  # frequencies of the linear limits drawn beside an FRF
+FINE_MAX_DOFS = 300  # above this the factorisation per frequency costs more than a figure is worth
+
+
+def fine_linear_limits(system, ds: xr.Dataset, response: str | None = None) -> xr.Dataset | None:
+    """The linear limits of ``response`` (default :func:`default_response`) on FINE_POINTS
+    frequencies spanning the FRF's grid (slipstep.steady.linear.linear_limits), for
+    :func:`plot_frf`; None for a structure above FINE_MAX_DOFS DOFs or a grid of one point."""
+    from slipstep.steady.linear import linear_limits
+
+    f = np.asarray(ds["frequency"].values, float)
+    if system.n_dofs > FINE_MAX_DOFS or f.size < 2 or not np.ptp(f) > 0:
+        return None
+    response = response or default_response(ds)
+    return linear_limits(system, np.linspace(f.min(), f.max(), FINE_POINTS), responses=[response])
 
 
 def _above_rtol(part, rtol) -> np.ndarray:
