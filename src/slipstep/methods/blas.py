@@ -10,6 +10,7 @@ unknowns these problems run on one BLAS thread.
 from __future__ import annotations
 
 import contextlib
+import functools
 
 SMALL_SIZE = 2000  # unknowns below which BLAS runs on one thread
 
@@ -27,3 +28,18 @@ def one_blas_thread(size: int = 0):
 
         _CONTROLLER = ThreadpoolController()
     return _CONTROLLER.limit(limits=1, user_api="blas")
+
+
+def on_one_blas_thread(size_of):
+    """Decorator: the function runs within ``one_blas_thread(size_of(*args, **kwargs))``, the
+    problem size computed from its own arguments."""
+
+    def decorate(fn):
+        @functools.wraps(fn)
+        def wrapped(*args, **kwargs):
+            with one_blas_thread(size_of(*args, **kwargs)):
+                return fn(*args, **kwargs)
+
+        return wrapped
+
+    return decorate

@@ -36,7 +36,7 @@ from slipstep.errors import InputError, SolverError, Status
 from slipstep.kernels.codes import C_STEPS, SLIP_COUPLED, STICK
 from slipstep.kernels.sensitivity import period_sensitivity
 from slipstep.kernels.settings import contact_table
-from slipstep.methods.blas import one_blas_thread
+from slipstep.methods.blas import on_one_blas_thread
 from slipstep.methods.invariants import check_march
 from slipstep.methods.massless import inverse_mass
 from slipstep.methods.simulation import Simulation
@@ -283,6 +283,12 @@ def predicted_start(history, frequency_hz: float, n: int, quasi: bool) -> State 
     return _from_unknowns(z_b + r * (z_b - z_a), n, quasi, s_b.states)
 
 
+def _shooting_size(system, *args, **kwargs) -> int:
+    """Unknowns of a shooting problem for the BLAS-thread rule (methods/blas.py): about 2n."""
+    return 2 * system.n_dofs if isinstance(system, System) else 0
+
+
+@on_one_blas_thread(_shooting_size)  # small dense Jacobians: one BLAS thread
 def shoot(
     system: System,
     *,
@@ -308,39 +314,6 @@ def shoot(
     afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
     frequency can be a worse start than the preload. method "events": the exact periodic orbit
     (steady/exact_orbit.steady_state; the step and march options do not apply)."""
-    with one_blas_thread(2 * system.n_dofs if isinstance(system, System) else 0):  # small dense Jacobians
-        return _shoot(
-            system,
-            tolerance=tolerance,
-            initial=initial,
-            max_iterations=max_iterations,
-            max_periods=max_periods,
-            method=method,
-            min_steps_per_period=min_steps_per_period,
-            settle_periods=settle_periods,
-            max_backtracks=max_backtracks,
-            warmup_periods=warmup_periods,
-            predictor=predictor,
-            **run_options,
-        )
-
-
-def _shoot(
-    system: System,
-    *,
-    tolerance: float = 1e-6,
-    initial=None,
-    max_iterations: int = 60,
-    max_periods: int = 200,
-    method="piecewise-linear",
-    min_steps_per_period: int | None = None,
-    settle_periods: int = 3,
-    max_backtracks: int = 3,
-    warmup_periods: int = 5,
-    predictor: bool = True,
-    **run_options,
-):
-    """:func:`shoot` on the BLAS threads it sets."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
     if method == "events":  # Newton on the exact period map (steady/exact_orbit.py)
