@@ -5,6 +5,7 @@ of the FRF against a direct serial computation through slipstep.frequency.respon
 from __future__ import annotations
 
 import copy
+import math
 import dataclasses
 from pathlib import Path
 
@@ -149,12 +150,18 @@ def _direct_peaks(data: dict, responses: list[str]) -> tuple[float, float, int, 
     ds = ds.isel(frequency=np.flatnonzero(ds["point_kind"].values.astype(str) == "asked")).sortby("frequency")
     a = ds["amplitude"].transpose("frequency", "response").values
     i, j = np.unravel_index(np.argmax(a), a.shape)
+
+    def resonant_peak(name):  # the largest value of a linear limit, NaN on the grid's edge
+        values = ds[name].transpose("frequency", "response").values.max(axis=1)
+        k = int(np.argmax(values))
+        return float(values[k]) if 0 < k < values.size - 1 else math.nan
+
     return (
         float(a[i, j]),
         float(ds["frequency"].values[i]),
         int(j) + 1,
-        float(ds["linear_free_amplitude"].max()),
-        float(ds["linear_stuck_amplitude"].max()),
+        resonant_peak("linear_free_amplitude"),
+        resonant_peak("linear_stuck_amplitude"),
     )
 
 
@@ -175,8 +182,12 @@ def test_the_amplification_statistics_equal_a_direct_serial_computation(tmp_path
         assert ds["peak_blade_amplitude"].values[i] == pytest.approx(peak, rel=1e-12)
         assert ds["peak_frequency_Hz"].values[i] == freq and ds["peak_blade"].values[i] == blade
         assert ds["amplification_factor"].values[i] == pytest.approx(peak / tuned[0], rel=1e-12)
-        assert ds["linear_free_amplification_factor"].values[i] == pytest.approx(free / tuned[3], rel=1e-12)
-        assert ds["linear_stuck_amplification_factor"].values[i] == pytest.approx(stuck / tuned[4], rel=1e-12)
+        assert ds["linear_free_amplification_factor"].values[i] == pytest.approx(
+            free / tuned[3], rel=1e-12, nan_ok=True
+        )
+        assert ds["linear_stuck_amplification_factor"].values[i] == pytest.approx(
+            stuck / tuned[4], rel=1e-12, nan_ok=True
+        )
         assert ds["mistuning_rms"].values[i] == pytest.approx(np.sqrt(np.mean(np.square(data["chain"]["mistuning"]))))
     # mistuning localises the response: some sample amplifies (AF > 1) the tuned peak
     assert ds["amplification_factor"].max() > 1.0
@@ -206,3 +217,23 @@ def test_the_example_file_plans_200_rings():
     assert plan.outputs["mistuning"]["responses"] == [f"blade{j}.8.x" for j in range(1, 7)]
     small = dataclasses.replace(spec.parameters[0], levels=spec.parameters[0].levels[:1], samples=2)
     assert make_plan(dataclasses.replace(spec, parameters=(small,))).hashes == plan.hashes[:2]
+
+
+def test_a_linear_limit_peaking_on_the_grid_edge_has_no_amplification_factor():
+    """A linear limit whose largest value is on the first or last frequency resonates outside
+    the grid: no peak (NaN, blade -1), so no amplification factor; an interior maximum is kept
+    and the friction response's peak is kept wherever it lies."""
+    from slipstep.sweep.mistuning import peaks
+
+    f = np.array([100.0, 110.0, 120.0, 130.0])
+    rising = np.array([[1.0, 2.0], [2.0, 3.0], [3.0, 4.0], [4.0, 5.0]])  # peak on the last point
+    interior = np.array([[1.0, 2.0], [5.0, 3.0], [3.0, 4.0], [1.0, 2.0]])
+    p = peaks(
+        {"amplitude": rising, "linear_stuck_amplitude": rising, "linear_free_amplitude": interior},
+        f,
+        ["a", "b"],
+        ["a", "b"],
+    )
+    assert math.isnan(p["linear_stuck_peak_amplitude"][0]) and p["linear_stuck_peak_amplitude"][2] == -1
+    assert p["linear_free_peak_amplitude"] == (5.0, 110.0, 1)
+    assert p["peak_blade_amplitude"] == (5.0, 130.0, 2)

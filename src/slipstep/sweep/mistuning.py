@@ -143,7 +143,11 @@ def mistuning_stats(data: dict) -> dict:
 
 def peaks(frf: dict, frequencies, responses: list[str], blade_dofs: list[str]) -> dict:
     """{peak field: (A_peak, f_peak, blade 1-based)} of the FRF arrays (frequency, response) for
-    each PEAKS variable; NaN (blade -1) where the FRF holds no finite value."""
+    each PEAKS variable; NaN (blade -1) where the FRF holds no finite value, and for a linear
+    limit whose largest value lies on the first or last frequency of the grid: its resonance is
+    outside the grid (the grid is set around the damped response; the stuck ring resonates
+    higher), so that value is no peak and its amplification factor would mean nothing (the
+    Whitehead limit bounds peak ratios, not ratios of grid-edge values)."""
     cols = [responses.index(r) for r in blade_dofs]
     f = np.asarray(frequencies, float)
     out = {}
@@ -153,6 +157,9 @@ def peaks(frf: dict, frequencies, responses: list[str], blade_dofs: list[str]) -
             out[field] = (math.nan, math.nan, -1)
             continue
         i, j = np.unravel_index(np.nanargmax(a), a.shape)
+        if name.startswith("linear_") and f.size > 2 and i in (0, f.size - 1):
+            out[field] = (math.nan, math.nan, -1)
+            continue
         out[field] = (float(a[i, j]), float(f[i]), int(j) + 1)
     return out
 

@@ -461,9 +461,10 @@ def mistuning_distribution(ds, ax=None):
         ax_h.hist(af[np.isfinite(af)], bins=bins, color=c, alpha=0.55, label=label)
         x, F = _ecdf(af)
         ax_c.step(x, F, where="post", color=c, label=label)
-        if "linear_stuck_amplification_factor" in ds:
+        if "linear_stuck_amplification_factor" in ds:  # NaN where the stuck resonance is off the grid
             xs, Fs = _ecdf(np.asarray(ds["linear_stuck_amplification_factor"].values, float)[at])
-            ax_c.step(xs, Fs, where="post", color=c, ls="--", lw=1, label=f"linear stuck, {level} = {lev:g}")
+            if xs.size:
+                ax_c.step(xs, Fs, where="post", color=c, ls="--", lw=1, label=f"linear stuck, {level} = {lev:g}")
     for a in (ax_h, ax_c):
         a.axvline(1.0, color="k", lw=1.2, label="tuned (AF = 1)")
         if n_blades:
@@ -498,6 +499,8 @@ def mistuning_levels(ds):
         rows = [np.asarray(ds[field].values, float)[ok & (ds[level].values == lev)] * scale for lev in levels]
         rows = [r[np.isfinite(r)] for r in rows]
         keep = [i for i, r in enumerate(rows) if r.size]
+        if not keep:  # no finite peak (a linear limit resonating off the grid: sweep.mistuning.peaks)
+            continue
         x = levels[keep]
         q = np.array([np.percentile(rows[i], [5, 50, 95]) for i in keep]).reshape(-1, 3)
         ax.fill_between(x, q[:, 0], q[:, 2], color=c, alpha=0.2, label=f"{label}: 5-95 %")
