@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from slipstep.errors import InputError
+from slipstep.frequency.hbm_seed import HbmSeeder
 from slipstep.frequency.choice import DEFAULT_METHOD, choose
 from slipstep.output.frf_dataset import concat_sweeps, empty_frf, finalise
 from slipstep.frequency.error_estimate import (
@@ -131,12 +132,16 @@ def sweep(
     rtol: float = DEFAULT_RTOL,
     max_refinements: int = DEFAULT_MAX_REFINEMENTS,
     retry_steps: int | None = None,
+    hbm_start: bool = True,
     **options,
 ) -> tuple[xr.Dataset, SteadyState | None]:
     """One sweep through ``frequencies`` in the given order; returns (Dataset, last steady state).
     Each converged point is refined by step doubling (slipstep.frequency.error_estimate); with
     ``retry_steps``, a point whose steady state did not converge is solved once more from the
-    same start with that many steps per period (its periods counted in both)."""
+    same start with that many steps per period (its periods counted in both). hbm_start (solver
+    "shoot"): a point still not converged is shot once more from the harmonic balance solution
+    continued from the previous frequency (slipstep.frequency.hbm_seed: an unstable orbit, on
+    which marching never settles)."""
     if solver not in STEADY_SOLVERS:
         raise InputError("solver", f"is {solver!r}", f"use one of {sorted(SOLVERS)}")
     names = list(system.structure.dof_names)
@@ -150,6 +155,7 @@ def sweep(
     steady_solver = STEADY_SOLVERS[solver]
     prev = initial
     last = None
+    seeder = HbmSeeder(system) if hbm_start and solver == "shoot" else None
     for i, f in enumerate(frequencies):
         start = time.perf_counter()
         system_f = retune(system, float(f))
@@ -158,15 +164,22 @@ def sweep(
             if steady.status != "OK" and retry_steps is not None:
                 retry = steady_solver(system_f, initial=prev, **{**options, "steps_per_period": retry_steps})
                 steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
+            solve = steady_solver
+            if seeder is not None:
+                solve = _WithHbmStart(steady_solver, seeder, float(frequencies[i - 1]) if i else None, float(f))
+                if steady.status != "OK":
+                    steps = {} if retry_steps is None else {"steps_per_period": retry_steps}
+                    steady = solve(system_f, failed=steady, **{**options, **steps})
             if steady.status != "OK":
                 steady = dataclasses.replace(steady, message=steady.message + turning_point_hint(prev))
-            values = _point(steady_solver, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
+            values = _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)
         except KeyboardInterrupt:  # keep the points done; the rest are marked
             columns["status"][i:] = "INTERRUPTED"
             ds.attrs["interrupted"] = 1
             break
         steady = values.pop("steady")
         values["point_time"] = time.perf_counter() - start
+        values["solve_start"] = "harmonic balance" if getattr(solve, "used", False) else "previous orbit"
         for name, value in values.items():
             columns[name][i] = value
         prev = steady if steady.status in ("OK", "NOT_STEADY") else None
@@ -177,6 +190,33 @@ def sweep(
         ds[name].values = values
     ds.attrs.update(method=last.method if last is not None else "", solver=solver)
     return ds, last
+
+
+class _WithHbmStart:
+    """``steady_solver`` that, when a solve does not converge (or given the ``failed`` one), shoots
+    again from the harmonic balance start at ``f`` [Hz] continued from ``f_previous``
+    (HbmSeeder.start); the periods of both attempts are counted, the message keeps the first
+    attempt's status, and ``used`` says whether a start was taken from the balance."""
+
+    def __init__(self, steady_solver, seeder, f_previous, f):
+        self.steady_solver, self.seeder, self.f_previous, self.f = steady_solver, seeder, f_previous, f
+        self.used = False
+
+    def __call__(self, system_f, initial=None, failed=None, **options):
+        if failed is None:
+            failed = self.steady_solver(system_f, initial=initial, **options)
+            if failed.status == "OK":
+                return failed
+        start, text = self.seeder.start(self.f_previous, self.f)
+        if start is None:
+            return dataclasses.replace(failed, message=f"{failed.message}; {text}")
+        self.used = True
+        again = self.steady_solver(system_f, initial=start, **options)
+        periods = failed.periods + again.periods
+        if again.status != "OK":
+            return dataclasses.replace(failed, periods=periods, message=f"{failed.message}; {text}: {again.message}")
+        note = f"{text} after {failed.status} from the previous orbit ({failed.message})"
+        return dataclasses.replace(again, periods=periods, message=f"{again.message}; {note}")
 
 
 def turning_point_hint(previous) -> str:
@@ -283,6 +323,9 @@ def frf(
     estimate for hbm; None: march and shoot points as solved, no step doubling, no estimate); a point above it keeps its status, gets a status_message, and one
     FrfAccuracyWarning (hbm: HarmonicAdequacyWarning) is issued. progress(done, total,
     frequency, steady) is called after every point (hbm: every continuation step, steady None).
+    hbm_start (solver "shoot", default True): a point that does not converge is shot once more
+    from the harmonic balance solution continued from the previous frequency (:func:`sweep`;
+    the point's ``solve_start`` says so).
     method "events" (solver "shoot" only): the reference FRF of exact periodic orbits
     (slipstep.frequency.exact; options of steady/exact_orbit.periodic_orbit).
     Returns a Dataset in the layout of FRF_SCHEMA, the frequencies asked, ascending per up sweep

@@ -123,10 +123,18 @@ FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
         "1",
         "text: why the point is not OK, or that its error estimate exceeds rtol (empty when nothing to say)",
     ),
+    "solve_start": (
+        ("frequency",),
+        "1",
+        "text: where the point's steady-state solve started (march, shoot): 'previous orbit' (the previous "
+        "point's orbit; the preload at the first point) or 'harmonic balance' (shooting restarted from the "
+        "harmonic balance solution continued from the previous frequency, slipstep.frequency.hbm_seed, after the "
+        "previous orbit failed)",
+    ),
     # ---- end of the error block ----
 }
 
-TEXT_VARIABLES = frozenset({"status", "status_message", "point_kind"})
+TEXT_VARIABLES = frozenset({"status", "status_message", "point_kind", "solve_start"})
 """Variables of FRF_SCHEMA holding text (one string per point; "" when not set)."""
 """Attributes of an FRF Dataset: ``case``, ``solver`` ("march", "shoot", "hbm", "sine-sweep"),
 ``sweep`` ("up" or "down"), ``method`` (time-marching method, where one is used),
