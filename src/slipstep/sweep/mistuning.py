@@ -188,22 +188,24 @@ def limit_modes(limit, f_min: float, f_max: float, modes: int = MODES) -> tuple[
 
         K phi = w_n^2 M phi,   phi^T M phi = 1,   zeta_n = phi^T C phi / (2 w_n)
 
-    (the modal damping ratio of the mode's diagonal term; C need not be modal). Dense:
-    scipy.linalg.eigh of (K, M), every mode. Sparse: scipy.sparse.linalg.eigsh by shift-invert
-    about the band's centre, (2 pi (f_min + f_max) / 2)^2, the count doubled until the modes
-    found reach beyond both band edges (or every mode is found). Zero and rigid-body modes
-    (w_n^2 <= 0) are left out."""
+    (the modal damping ratio of the mode's diagonal term; C need not be modal). Dense (or a
+    sparse structure of at most 3 ``modes`` + 2 DOFs): scipy.linalg.eigh of (K, M), every mode.
+    Sparse: scipy.sparse.linalg.eigsh by shift-invert
+    about the band's centre, sigma = (2 pi (f_min + f_max) / 2)^2, the count doubled until the
+    eigenvalues found (the nearest sigma) reach beyond both band edges' (or n - 2 are found).
+    Zero and rigid-body modes (w_n^2 <= 0) are left out."""
     K, M, C = limit.K, limit.M, limit.C
     n = limit.n
-    if limit.sparse:
+    if limit.sparse and n > 3 * modes + 2:
         import scipy.sparse.linalg as spla
 
         sigma = (np.pi * (f_min + f_max)) ** 2
         k = min(max(modes, 6), n - 2)
-        while True:
-            w2, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM")
-            f = np.sqrt(np.clip(w2, 0.0, None)) / (2 * np.pi)
-            if k >= n - 2 or (f.min() < f_min and f.max() > f_max):
+        start = np.random.default_rng(0).standard_normal(n)  # a fixed start: a case's numbers are reproducible
+        radius = max(sigma - (2 * np.pi * f_min) ** 2, (2 * np.pi * f_max) ** 2 - sigma)
+        while True:  # the k eigenvalues nearest sigma: every one within max |w2 - sigma| of it
+            w2, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", v0=start)
+            if k >= n - 2 or np.abs(w2 - sigma).max() >= radius:
                 break
             k = min(2 * k, n - 2)
         V = V / np.sqrt(np.einsum("ij,ij->j", V, M @ V))  # M-normalised (eigsh's are already, up to round-off)
@@ -211,8 +213,9 @@ def limit_modes(limit, f_min: float, f_max: float, modes: int = MODES) -> tuple[
     else:
         import scipy.linalg
 
-        w2, V = scipy.linalg.eigh(np.asarray(K), np.asarray(M))
-        CV = np.asarray(C) @ V
+        K, M, C = (X.toarray() if hasattr(X, "toarray") else np.asarray(X) for X in (K, M, C))
+        w2, V = scipy.linalg.eigh(K, M)
+        CV = C @ V
     keep = w2 > 0.0
     w2, V, CV = w2[keep], V[:, keep], CV[:, keep]
     wn = np.sqrt(w2)
