@@ -15,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ring_mistuning.toml"
 TARGET_S = 300.0
 
@@ -55,10 +57,34 @@ def main() -> None:
         print(
             f"  throughput {n / report['elapsed_s']:.2f} cases/s = {report['workers'] * report['elapsed_s'] / n:.2f} worker-s per case"
         )
-        af = ds["amplification_factor"].values
+        ok = ds["status"].values.astype(str) == "OK"
+        n_blades = len(ds.attrs.get("mistuning_responses", [])) or 6
+        whitehead = (1 + n_blades**0.5) / 2
+        print(f"OK samples {int(ok.sum())} of {ok.size}; Whitehead limit (1 + sqrt({n_blades}))/2 = {whitehead:.4f}")
         for level in sorted(set(ds["mistuning_level"].values)):
-            sel = ds["mistuning_level"].values == level
-            print(f"  std {level:g}: AF mean {af[sel].mean():.3f}, max {af[sel].max():.3f}")
+            sel = ok & (ds["mistuning_level"].values == level)
+            row = []
+            for label, field in (
+                ("AF", "amplification_factor"),
+                ("stuck AF", "linear_stuck_amplification_factor"),
+                ("free AF", "linear_free_amplification_factor"),
+            ):
+                v = ds[field].values[sel]
+                fin = v[np.isfinite(v)]
+                row.append(
+                    f"{label} mean {fin.mean():.4f} max {fin.max():.4f} ({fin.size} finite)"
+                    if fin.size
+                    else f"{label}: none finite"
+                )
+            print(f"  std {level:g}: " + "; ".join(row))
+        for name in ("linear_stuck", "linear_free"):
+            field = f"{name}_peak_frequency_Hz"
+            if field in ds:
+                fr = ds[field].values[ok]
+                print(f"  {field}: min {np.nanmin(fr):.3f}, max {np.nanmax(fr):.3f} Hz")
+        print(
+            "  AF of the friction response, per case:", " ".join(f"{v:.12g}" for v in ds["amplification_factor"].values)
+        )
         print(
             f"load average 1/5/15 min: before {load0[0]:.2f}/{load0[1]:.2f}/{load0[2]:.2f}, after {load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f} (2 cores)"
         )

@@ -5,13 +5,15 @@ of the FRF against a direct serial computation through slipstep.frequency.respon
 from __future__ import annotations
 
 import copy
-import math
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
+import slipstep as ss
 from slipstep.casefile.case import CASES_DIR, read_toml
 from slipstep.errors import InputError
 from slipstep.sweep import SerialExecutor, SweepSpec, load_spec, make_plan, open_sweep, run_sweep, spec_from_dict
@@ -139,10 +141,12 @@ def test_a_mistuning_sweep_needs_a_grid_an_assembly_and_an_frf():
         make_plan(spec_from_dict({"sweep": {"base": "paper"}, "parameter": [table], "outputs": {"frf": FAST_FRF}}))
 
 
-def _direct_peaks(data: dict, responses: list[str]) -> tuple[float, float, int, float, float]:
-    """(peak amplitude, its frequency, blade 1-based, linear-free peak, linear-stuck peak) of a
-    case dictionary, by slipstep.frequency.response.frf directly (not through the sweep)."""
+def _direct_peaks(data: dict, responses: list[str]) -> tuple:
+    """(peak amplitude, its frequency, blade 1-based, linear-free peak, linear-stuck peak, the
+    FRF Dataset, the System) of a case dictionary, by slipstep.frequency.response.frf directly
+    (not through the sweep); the linear peaks by sweep.mistuning.linear_peaks on that system."""
     from slipstep.frequency.response import frf
+    from slipstep.sweep.mistuning import linear_peaks
 
     system, _ = build_case(data, str(CASES_DIR))
     freqs = np.linspace(FAST_FRF["start_Hz"], FAST_FRF["stop_Hz"], FAST_FRF["num"])
@@ -150,18 +154,14 @@ def _direct_peaks(data: dict, responses: list[str]) -> tuple[float, float, int, 
     ds = ds.isel(frequency=np.flatnonzero(ds["point_kind"].values.astype(str) == "asked")).sortby("frequency")
     a = ds["amplitude"].transpose("frequency", "response").values
     i, j = np.unravel_index(np.argmax(a), a.shape)
-
-    def resonant_peak(name):  # the largest value of a linear limit, NaN on the grid's edge
-        values = ds[name].transpose("frequency", "response").values.max(axis=1)
-        k = int(np.argmax(values))
-        return float(values[k]) if 0 < k < values.size - 1 else math.nan
-
+    lin = linear_peaks(system, freqs, responses)
     return (
         float(a[i, j]),
         float(ds["frequency"].values[i]),
         int(j) + 1,
-        resonant_peak("linear_free_amplitude"),
-        resonant_peak("linear_stuck_amplitude"),
+        lin["linear_free_peak_amplitude"],
+        lin["linear_stuck_peak_amplitude"],
+        ds,
     )
 
 
@@ -178,20 +178,28 @@ def test_the_amplification_statistics_equal_a_direct_serial_computation(tmp_path
         level, k = ds["mistuning_level"].values[i], int(ds["mistuning_sample"].values[i])
         data = copy.deepcopy(ring)
         data["chain"]["mistuning"] = list(level * np.random.default_rng([11, k]).standard_normal(6))
-        peak, freq, blade, free, stuck = _direct_peaks(data, responses)
+        peak, freq, blade, free, stuck, direct = _direct_peaks(data, responses)
         assert ds["peak_blade_amplitude"].values[i] == pytest.approx(peak, rel=1e-12)
         assert ds["peak_frequency_Hz"].values[i] == freq and ds["peak_blade"].values[i] == blade
         assert ds["amplification_factor"].values[i] == pytest.approx(peak / tuned[0], rel=1e-12)
-        assert ds["linear_free_amplification_factor"].values[i] == pytest.approx(
-            free / tuned[3], rel=1e-12, nan_ok=True
-        )
-        assert ds["linear_stuck_amplification_factor"].values[i] == pytest.approx(
-            stuck / tuned[4], rel=1e-12, nan_ok=True
-        )
+        for name, lin, ref in (("linear_free", free, tuned[3]), ("linear_stuck", stuck, tuned[4])):
+            assert ds[f"{name}_peak_amplitude"].values[i] == pytest.approx(lin[0], rel=1e-12)
+            assert ds[f"{name}_peak_frequency_Hz"].values[i] == pytest.approx(lin[1], rel=1e-12)
+            assert ds[f"{name}_peak_blade"].values[i] == lin[2]
+            assert ds[f"{name}_amplification_factor"].values[i] == pytest.approx(lin[0] / ref[0], rel=1e-12)
+            # the refined peak is at least the largest value on the FRF's grid (to the FRF's round-off)
+            grid_max = float(direct[f"{name}_amplitude"].max())
+            assert lin[0] >= grid_max * (1 - 1e-12)
+            assert FAST_FRF["start_Hz"] <= lin[1] <= FAST_FRF["stop_Hz"]
         assert ds["mistuning_rms"].values[i] == pytest.approx(np.sqrt(np.mean(np.square(data["chain"]["mistuning"]))))
     # mistuning localises the response: some sample amplifies (AF > 1) the tuned peak
     assert ds["amplification_factor"].max() > 1.0
     assert ds["amplification_factor"].attrs["units"] == "1" and ds["peak_frequency_Hz"].attrs["units"] == "Hz"
+    assert ds["linear_stuck_peak_frequency_Hz"].attrs["units"] == "Hz"
+    assert ds["linear_free_peak_blade"].attrs["units"] == "1"
+    reference = json.loads(ds.attrs["mistuning_reference"])[0]
+    assert reference["linear_stuck_peak_amplitude"] == pytest.approx(tuned[4][0], rel=1e-12)
+    assert reference["linear_stuck_peak_frequency_Hz"] == pytest.approx(tuned[4][1], rel=1e-12)
 
 
 def test_sweep_plot_draws_the_mistuning_figures(tmp_path):
@@ -219,21 +227,140 @@ def test_the_example_file_plans_200_rings():
     assert make_plan(dataclasses.replace(spec, parameters=(small,))).hashes == plan.hashes[:2]
 
 
-def test_a_linear_limit_peaking_on_the_grid_edge_has_no_amplification_factor():
-    """A linear limit whose largest value is on the first or last frequency resonates outside
-    the grid: no peak (NaN, blade -1), so no amplification factor; an interior maximum is kept
-    and the friction response's peak is kept wherever it lies."""
-    from slipstep.sweep.mistuning import peaks
+def _ring(n: int, deltas=(), k=4e5, kc=1.2e4, m=0.1, zeta=0.004, engine_order=1, f0=300.0, sparse=False):
+    """A ring of n one-DOF blades (mass m, stiffness k (1 + delta_j), a coupling spring kc to
+    each neighbour), damping C = c I with c = 2 zeta sqrt(k m), forced by an engine-order
+    travelling wave F_j = sin(w t - 2 pi EO j / n)."""
+    d = np.zeros(n) if len(deltas) == 0 else np.asarray(deltas, float)
+    K = np.diag(k * (1 + d) + 2 * kc)
+    for j in range(n):
+        K[j, (j + 1) % n] -= kc
+        K[(j + 1) % n, j] -= kc
+    M, C = m * np.eye(n), 2 * zeta * np.sqrt(k * m) * np.eye(n)
+    if sparse:
+        M, C, K = (sp.csr_matrix(X) for X in (M, C, K))
+    phase = -2 * np.pi * engine_order * np.arange(n) / n
+    force = ss.Signal(tuple(f"x{j}" for j in range(n)), (ss.Harmonic(f0, np.ones(n), phase),))
+    return ss.System(ss.Structure(M, C, K), (), ss.Excitation(force=force), name="ring")
 
-    f = np.array([100.0, 110.0, 120.0, 130.0])
-    rising = np.array([[1.0, 2.0], [2.0, 3.0], [3.0, 4.0], [4.0, 5.0]])  # peak on the last point
-    interior = np.array([[1.0, 2.0], [5.0, 3.0], [3.0, 4.0], [1.0, 2.0]])
-    p = peaks(
-        {"amplitude": rising, "linear_stuck_amplitude": rising, "linear_free_amplitude": interior},
-        f,
-        ["a", "b"],
-        ["a", "b"],
-    )
-    assert math.isnan(p["linear_stuck_peak_amplitude"][0]) and p["linear_stuck_peak_amplitude"][2] == -1
-    assert p["linear_free_peak_amplitude"] == (5.0, 110.0, 1)
-    assert p["peak_blade_amplitude"] == (5.0, 130.0, 2)
+
+def _brute_force(system, f_min, f_max, points):
+    """(max over blades and frequencies of |X|, its frequency) on a dense grid of ``points``
+    frequencies, by one batched dense solve of (K - w^2 M + i w C) X = F (single harmonic)."""
+    s, h = system.structure, system.excitation.force.harmonics[0]
+    K, M, C = (np.asarray(getattr(X, "toarray", lambda X=X: X)(), float) for X in (s.stiffness, s.mass, s.damping))
+    F = h.amplitude * np.exp(1j * h.phase)
+    f = np.linspace(f_min, f_max, points)
+    w = 2 * np.pi * f[:, None, None]
+    D = K[None] - w**2 * M[None] + 1j * w * C[None]
+    a = np.abs(np.linalg.solve(D, np.broadcast_to(F, (f.size, F.size))[..., None])[..., 0]).max(axis=1)
+    i = int(np.argmax(a))
+    return float(a[i]), float(f[i]), a
+
+
+def test_a_refined_linear_peak_is_the_closed_form_damped_peak():
+    """Two equal masses on springs k, coupled by kc, damping c on each, both forced by the same
+    sine: only the in-phase mode responds, X = F / (k - w^2 m + i w c), whose amplitude peaks at
+    w_p^2 = k/m - c^2 / (2 m^2) with |X| = F / (c w_d), w_d^2 = k/m - c^2 / (4 m^2). The peak lies
+    between the points of an 11-point grid; the refinement finds it to 1e-9."""
+    from slipstep.steady.linear import LinearLimit
+    from slipstep.sweep.mistuning import linear_peak, linear_peaks
+
+    m, k, kc, c = 0.1, 4e5, 3e4, 2.0
+    M, K, C = m * np.eye(2), np.array([[k + kc, -kc], [-kc, k + kc]]), c * np.eye(2)
+    force = ss.Signal(("x0", "x1"), (ss.Harmonic(300.0, np.array([1.0, 1.0]), np.array([0.3, 0.3])),))
+    system = ss.System(ss.Structure(M, C, K), (), ss.Excitation(force=force), name="two")
+    f_peak = np.sqrt(k / m - c**2 / (2 * m**2)) / (2 * np.pi)
+    a_peak = 1.0 / (c * np.sqrt(k / m - c**2 / (4 * m**2)))
+    grid = np.linspace(250.0, 400.0, 11)
+    p = linear_peaks(system, grid, ["x0", "x1"])
+    assert p["linear_free_peak_amplitude"] == p["linear_stuck_peak_amplitude"]  # no contacts: one limit
+    amp, f, blade = p["linear_free_peak_amplitude"]
+    assert f == pytest.approx(f_peak, rel=1e-9) and amp == pytest.approx(a_peak, rel=1e-12) and blade == 1
+    # the grid alone under-estimates it by far (the nearest point is 8.3 Hz away, 5 half-power
+    # half-widths zeta f = 1.6 Hz: 1 / sqrt(1 + 5^2) of the peak)
+    limit = LinearLimit(system, False)
+    assert max(limit.amplitude(x).max() for x in grid) < 0.25 * a_peak
+    # a band without the resonance: its largest value is on the edge nearest it, kept
+    amp, f, blade = linear_peak(limit, [0, 1], 250.0, 310.0)
+    assert f == 310.0 and amp == limit.amplitude(310.0).max() and blade == 1
+    amp, f, _ = linear_peak(limit, [0, 1], 320.0, 330.0)  # between the two modes (341.3 Hz unforced)
+    assert f == 320.0 and amp == limit.amplitude(320.0).max()
+
+
+def test_a_linear_limit_at_any_frequency_equals_the_retuned_linear_response():
+    from slipstep.model.retune import retune
+    from slipstep.steady.linear import LinearLimit, linear_response
+
+    system = _ring(5, deltas=[0.01, -0.02, 0.0, 0.03, 0.01])
+    limit = LinearLimit(system, False)
+    for f in (250.0, 317.3, 333.0):
+        np.testing.assert_allclose(limit.amplitude(f), linear_response(retune(system, f), False)[1], rtol=1e-13)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_refined_linear_peaks_of_a_mistuned_ring_equal_a_brute_force_dense_grid(seed):
+    """Off-grid resonances of a mistuned 6-blade ring (split modes between the 21 grid points):
+    the refined peak equals the largest value on a 150,001-point grid to 1e-6 (the dense grid's
+    own resolution), at the same frequency to the dense grid's spacing."""
+    from slipstep.sweep.mistuning import linear_peaks
+
+    deltas = 0.03 * np.random.default_rng(seed).standard_normal(6)
+    system = _ring(6, deltas)
+    f_min, f_max = 285.0, 335.0
+    amp, f, blade = linear_peaks(system, np.linspace(f_min, f_max, 21), [f"x{j}" for j in range(6)])[
+        "linear_free_peak_amplitude"
+    ]
+    dense, f_dense, a = _brute_force(system, f_min, f_max, 150_001)
+    assert amp == pytest.approx(dense, rel=1e-6) and amp >= dense * (1 - 1e-12)
+    assert abs(f - f_dense) <= (f_max - f_min) / 150_000
+    coarse = a[:: 150_000 // 20]  # the 21-point grid: never above the refined peak
+    assert coarse.size == 21 and coarse.max() <= amp
+
+
+def test_sparse_and_dense_linear_peaks_agree():
+    """A spring chain with contacts (both limits differ) as scipy sparse and as dense matrices;
+    the sparse path finds its modes by shift-invert, from 4 up (doubled until the band is
+    covered)."""
+    from test_hbm_sparse import _chain
+
+    from slipstep.sweep.mistuning import limit_modes, linear_peaks
+    from slipstep.steady.linear import LinearLimit
+
+    grid, tip = np.linspace(20.0, 120.0, 11), ["x29"]
+    sparse_sys, dense_sys = _chain(30, 3, dense=False), _chain(30, 3, dense=True)
+    a = linear_peaks(sparse_sys, grid, tip, modes=4)
+    b = linear_peaks(dense_sys, grid, tip, modes=4)
+    assert a["linear_stuck_peak_amplitude"][1] != pytest.approx(a["linear_free_peak_amplitude"][1], rel=1e-3)
+    for field in ("linear_stuck_peak_amplitude", "linear_free_peak_amplitude"):
+        assert a[field][0] == pytest.approx(b[field][0], rel=1e-12)
+        # the peak's frequency to the flatness of the maximum: A(f) / A_peak - 1 ~ -((f - f_p) / (zeta f_p))^2,
+        # so a round-off difference in A moves it by ~ zeta sqrt(1e-16) = 1e-10 relative and more
+        assert a[field][1] == pytest.approx(b[field][1], rel=1e-7)
+    fs, zs = limit_modes(LinearLimit(sparse_sys, False), 20.0, 120.0, 4)
+    fd, zd = limit_modes(LinearLimit(dense_sys, False), 20.0, 120.0, 4)
+    np.testing.assert_allclose(fs, fd, rtol=1e-10)
+    np.testing.assert_allclose(zs, zd, rtol=1e-8)
+    # the 4 modes nearest the band (M = m I: the eigenvalues of K / m): its 2, then 182.8, 255.2 Hz
+    s = dense_sys.structure
+    f_all = np.sort(np.sqrt(np.linalg.eigvalsh(s.stiffness / s.mass[0, 0])) / (2 * np.pi))
+    np.testing.assert_allclose(fd, f_all[:4], rtol=1e-10)
+    assert f_all[1] < 120.0 < f_all[2]
+
+
+def test_linear_amplification_factors_stay_below_the_whitehead_limit():
+    """Whitehead (1966): the largest blade amplitude of a mistuned one-DOF-per-blade ring is at
+    most (1 + sqrt(N)) / 2 times the tuned ring's. 40 rings of 6 blades, std 0.5 % to 4 %: every
+    refined factor below it, and mistuning does amplify (some factor well above 1)."""
+    from slipstep.sweep.mistuning import linear_peaks
+
+    n, band, dofs = 6, np.linspace(270.0, 350.0, 21), [f"x{j}" for j in range(6)]
+    tuned = linear_peaks(_ring(n), band, dofs)["linear_free_peak_amplitude"][0]
+    limit = (1 + np.sqrt(n)) / 2
+    factors = []
+    for seed in range(40):
+        std = (0.005, 0.01, 0.02, 0.04)[seed % 4]
+        system = _ring(n, std * np.random.default_rng(seed).standard_normal(n))
+        factors.append(linear_peaks(system, band, dofs)["linear_free_peak_amplitude"][0] / tuned)
+    assert max(factors) <= limit
+    assert max(factors) > 1.2

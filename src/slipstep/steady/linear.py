@@ -56,10 +56,11 @@ def _stuck_stiffness(cs, state: np.ndarray) -> np.ndarray:
     return ks
 
 
-def linear_response(system: System, stuck: bool, state: np.ndarray | None = None) -> tuple[dict, np.ndarray]:
-    """Phasors X(w) per excitation frequency and the half peak-to-peak amplitude per DOF of
-    the linear limit (``stuck``: every contact stuck in ``state``, default :func:`stuck_state`;
-    else the contacts removed). A sparse structure is solved by a sparse LU per frequency."""
+def _limit_matrices(system: System, stuck: bool, state: np.ndarray | None = None):
+    """(K, M, C, loads, sparse) of a linear limit: K with K_D added when ``stuck``, the load
+    phasors {excitation frequency [Hz]: (n,) complex} (the forces, and for ``stuck`` the
+    prescribed motions acting through the stuck contacts), ``sparse`` for a structure whose
+    matrices stay scipy sparse (factorised per frequency)."""
     cs = system.compile_for_frequency_domain()
     s = system.structure
     sparse_structure = cs.M.shape[1] == 0
@@ -74,22 +75,62 @@ def linear_response(system: System, stuck: bool, state: np.ndarray | None = None
         KD = A.T @ sp.diags(ks) @ A  # K_D = A^T K(stick) A (paper Eq. 7)
         K = (K + KD).tocsc() if sparse_structure else K + KD.toarray()
         motion_force = cs.A.T @ (ks[:, None] * cs.B)
-    solve = spla.spsolve if sparse_structure else np.linalg.solve
-    X = {}
+    loads = {}
     for f in sorted(set(forces) | set(motions)):
-        w = 2 * np.pi * f
         rhs = forces.get(f, np.zeros(n, complex)).astype(complex)
         if f in motions:
             rhs = rhs + motion_force @ motions[f]
-        X[f] = solve(K - w * w * M + 1j * w * C, rhs)
+        loads[f] = rhs
+    return K, M, C, loads, sparse_structure
+
+
+def _amplitude(X: dict, period: float | None, n: int) -> np.ndarray:
+    """Half the peak-to-peak range over one period of x(t) = sum_f Im(X_f e^{i 2 pi f t})."""
     if len(X) == 0:
-        return X, np.zeros(n)
+        return np.zeros(n)
     if len(X) == 1:
-        return X, np.abs(next(iter(X.values())))
-    T = system.period
-    t = np.linspace(0.0, T, 4096, endpoint=False)
+        return np.abs(next(iter(X.values())))
+    t = np.linspace(0.0, period, 4096, endpoint=False)
     x = sum(np.imag(np.outer(np.exp(2j * np.pi * f * t), Xf)) for f, Xf in X.items())
-    return X, 0.5 * np.ptp(x, axis=0)
+    return 0.5 * np.ptp(x, axis=0)
+
+
+def linear_response(system: System, stuck: bool, state: np.ndarray | None = None) -> tuple[dict, np.ndarray]:
+    """Phasors X(w) per excitation frequency and the half peak-to-peak amplitude per DOF of
+    the linear limit (``stuck``: every contact stuck in ``state``, default :func:`stuck_state`;
+    else the contacts removed). A sparse structure is solved by a sparse LU per frequency."""
+    K, M, C, loads, sparse_structure = _limit_matrices(system, stuck, state)
+    solve = spla.spsolve if sparse_structure else np.linalg.solve
+    X = {}
+    for f, rhs in loads.items():
+        w = 2 * np.pi * f
+        X[f] = solve(K - w * w * M + 1j * w * C, rhs)
+    return X, _amplitude(X, system.period, M.shape[0])
+
+
+class LinearLimit:
+    """One linear limit of ``system`` (``stuck`` as in :func:`linear_response`) at any
+    fundamental frequency f [Hz]: the excitation retuned to f (slipstep.model.retune: every
+    excitation frequency f_h becomes (f_h / f_1) f, amplitudes and phases kept), so
+    ``amplitude(f)`` equals ``linear_response(retune(system, f), stuck, state)[1]`` with the
+    matrices assembled once. ``K``, ``M``, ``C``: the limit's matrices (dense, or scipy sparse
+    when ``sparse``)."""
+
+    def __init__(self, system: System, stuck: bool, state: np.ndarray | None = None):
+        self.K, self.M, self.C, loads, self.sparse = _limit_matrices(system, stuck, state)
+        f1 = system.excitation.fundamental_frequency
+        self.loads = {} if f1 is None else {f / f1: rhs for f, rhs in loads.items()}  # {multiple f_h / f_1: phasor}
+        self.n = self.M.shape[0]
+
+    def amplitude(self, frequency_hz: float) -> np.ndarray:
+        """The half peak-to-peak amplitude per DOF at the fundamental ``frequency_hz``."""
+        f = float(frequency_hz)
+        solve = spla.spsolve if self.sparse else np.linalg.solve
+        X = {}
+        for m, rhs in self.loads.items():
+            w = 2 * np.pi * m * f
+            X[m * f] = solve(self.K - w * w * self.M + 1j * w * self.C, rhs)
+        return _amplitude(X, 1.0 / f, self.n)
 
 
 def linear_limits(system: System, frequencies, responses=None) -> xr.Dataset:

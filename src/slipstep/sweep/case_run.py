@@ -101,7 +101,7 @@ def _case_format(payload: Payload, values, result: dict) -> None:
         result["histories"] = histories(ds, payload.outputs["histories"], payload.outputs["history_points"])
     if payload.outputs.get("frf"):
         result["frf"] = frf_values(system, run, payload.outputs["frf"])
-        result["summary"].update(_mistuning_summary(payload, data, values, result["frf"]))
+        result["summary"].update(_mistuning_summary(payload, data, values, system, result["frf"]))
 
 
 def _finish(result: dict, caught: list, start: float, cpu: float) -> dict:
@@ -155,21 +155,22 @@ def _run_frf_only(payload: Payload, data: dict, values, system, run) -> dict:
     return {
         "status": status,
         "message": message,
-        "summary": _mistuning_summary(payload, data, values, frf),
+        "summary": _mistuning_summary(payload, data, values, system, frf),
         "frf": frf,
         "timing": {"kernel_time_s": math.nan, "wall_time_s": time.perf_counter() - wall},
     }
 
 
-def _mistuning_summary(payload: Payload, data: dict, values, frf: dict) -> dict:
+def _mistuning_summary(payload: Payload, data: dict, values, system, frf: dict) -> dict:
     """The mistuning fields of a case (slipstep.sweep.mistuning), {} for other sweeps."""
-    from slipstep.sweep.mistuning import mistuning_stats, reference_for, summary_of
+    from slipstep.sweep.mistuning import case_peaks, mistuning_stats, reference_for, summary_of
 
     cfg = payload.outputs.get("mistuning")
     if not cfg:
         return {}
     ref = reference_for(payload.reference, payload.parameters, values)
-    return {**summary_of(frf, payload.outputs["frf"], cfg, ref), **mistuning_stats(data)}
+    p = case_peaks(system, frf, payload.outputs["frf"], cfg["responses"])
+    return {**summary_of(p, ref), **mistuning_stats(data)}
 
 
 def _run_options(run, extra: dict) -> dict:

@@ -20,9 +20,13 @@ response DOF x_j (default: the engine-order force's DOF of each blade):
 
     A_peak = max_j max_f A_j(f),   amplification_factor = A_peak / A_peak(tuned)
 
-with the blade j and the frequency f of the maximum, and the same for the two linear limits of
-the FRF (contacts stuck, contacts removed: the ring without dampers), each against the tuned
-ring's own limit. The tuned ring (every delta 0, the other parameters at the case's values)
+with the blade j and the frequency f of the maximum on the FRF's grid, and the same for the
+two linear limits (contacts stuck, contacts removed: the ring without dampers), each against
+the tuned ring's own limit. A linear limit's resonance is narrow (light damping) and falls
+between grid points, so its peak is not read off the grid: the limit's modes nearest the band
+[f_min, f_max] are found (eigenvalues of (K, M)) and the peak near each refined
+(:func:`linear_peak`); the largest value in the band is kept, an edge value too (a resonance
+outside the band does not count; the value on the band's edge then stands for it). The tuned ring (every delta 0, the other parameters at the case's values)
 is computed once per sweep (per combination of the other parameters) by the client.
 """
 
@@ -36,27 +40,47 @@ from slipstep.errors import InputError
 
 LEVEL, SAMPLE = "level", "sample"  # the two store coordinates of a mistuning parameter: <name>_level, <name>_sample
 
+AMPLITUDE_UNIT = "m or rad (see frf response_unit)"
 MISTUNING_FIELDS: dict[str, tuple[str, str]] = {
-    "peak_blade_amplitude": ("m or rad (see frf response_unit)", "largest blade amplitude over blades and frequencies"),
+    "peak_blade_amplitude": (AMPLITUDE_UNIT, "largest blade amplitude over blades and grid frequencies"),
     "peak_frequency_Hz": ("Hz", "frequency of the largest blade amplitude"),
     "peak_blade": ("1", "blade of the largest amplitude (1-based, in blade order)"),
     "amplification_factor": ("1", "largest blade amplitude / the tuned assembly's"),
-    "linear_stuck_peak_amplitude": ("m or rad (see frf response_unit)", "largest blade amplitude, contacts stuck"),
+    "linear_stuck_peak_amplitude": (
+        AMPLITUDE_UNIT,
+        "largest blade amplitude in [f_min, f_max], contacts stuck (resonances refined off the grid)",
+    ),
+    "linear_stuck_peak_frequency_Hz": ("Hz", "frequency of the largest stuck-contact blade amplitude"),
+    "linear_stuck_peak_blade": ("1", "blade of the largest stuck-contact amplitude (1-based)"),
     "linear_stuck_amplification_factor": ("1", "largest stuck-contact amplitude / the tuned assembly's"),
     "linear_free_peak_amplitude": (
-        "m or rad (see frf response_unit)",
-        "largest blade amplitude, contacts removed (no dampers)",
+        AMPLITUDE_UNIT,
+        "largest blade amplitude in [f_min, f_max], contacts removed (no dampers; resonances refined off the grid)",
     ),
+    "linear_free_peak_frequency_Hz": ("Hz", "frequency of the largest blade amplitude without dampers"),
+    "linear_free_peak_blade": ("1", "blade of the largest amplitude without dampers (1-based)"),
     "linear_free_amplification_factor": ("1", "largest amplitude without dampers / the tuned assembly's"),
     "mistuning_rms": ("1", "root mean square of the case's blade deltas"),
     "mistuning_max_abs": ("1", "largest |delta_j| of the case"),
 }
-# summary field of the peak -> (FRF variable, field of its amplification factor)
+# summary field of the peak -> (FRF variable, its amplification factor, its frequency, its blade)
 PEAKS = {
-    "peak_blade_amplitude": ("amplitude", "amplification_factor"),
-    "linear_stuck_peak_amplitude": ("linear_stuck_amplitude", "linear_stuck_amplification_factor"),
-    "linear_free_peak_amplitude": ("linear_free_amplitude", "linear_free_amplification_factor"),
+    "peak_blade_amplitude": ("amplitude", "amplification_factor", "peak_frequency_Hz", "peak_blade"),
+    "linear_stuck_peak_amplitude": (
+        "linear_stuck_amplitude",
+        "linear_stuck_amplification_factor",
+        "linear_stuck_peak_frequency_Hz",
+        "linear_stuck_peak_blade",
+    ),
+    "linear_free_peak_amplitude": (
+        "linear_free_amplitude",
+        "linear_free_amplification_factor",
+        "linear_free_peak_frequency_Hz",
+        "linear_free_peak_blade",
+    ),
 }
+LIMITS = {"linear_stuck_peak_amplitude": True, "linear_free_peak_amplitude": False}  # peak field -> stuck
+MODES = 24  # the modes of a linear limit nearest the FRF band whose peaks are refined (linear_peak)
 WHITEHEAD = "(1 + sqrt(N)) / 2"  # the largest amplification factor of a linear ring of N blades (Whitehead 1966)
 
 
@@ -143,37 +167,149 @@ def mistuning_stats(data: dict) -> dict:
 
 def peaks(frf: dict, frequencies, responses: list[str], blade_dofs: list[str]) -> dict:
     """{peak field: (A_peak, f_peak, blade 1-based)} of the FRF arrays (frequency, response) for
-    each PEAKS variable; NaN (blade -1) where the FRF holds no finite value, and for a linear
-    limit whose largest value lies on the first or last frequency of the grid: its resonance is
-    outside the grid (the grid is set around the damped response; the stuck ring resonates
-    higher), so that value is no peak and its amplification factor would mean nothing (the
-    Whitehead limit bounds peak ratios, not ratios of grid-edge values)."""
+    each PEAKS variable: the largest value on the grid (an edge value too); NaN (blade -1) where
+    the FRF holds no finite value."""
     cols = [responses.index(r) for r in blade_dofs]
     f = np.asarray(frequencies, float)
     out = {}
-    for field, (name, _) in PEAKS.items():
+    for field, (name, *_) in PEAKS.items():
         a = np.asarray(frf.get(name, np.full((f.size, len(responses)), np.nan)), float)[:, cols]
         if not np.isfinite(a).any():
             out[field] = (math.nan, math.nan, -1)
             continue
         i, j = np.unravel_index(np.nanargmax(a), a.shape)
-        if name.startswith("linear_") and f.size > 2 and i in (0, f.size - 1):
-            out[field] = (math.nan, math.nan, -1)
-            continue
         out[field] = (float(a[i, j]), float(f[i]), int(j) + 1)
     return out
 
 
-def summary_of(frf: dict, cfg: dict, mistuning: dict, reference: dict | None) -> dict:
-    """The MISTUNING_FIELDS (but the delta statistics) of one case from its FRF arrays and the
-    tuned reference {peak field: A_peak(tuned)} (None: the amplification factors are NaN)."""
-    p = peaks(frf, cfg["frequencies_Hz"], list(cfg["responses"]), mistuning["responses"])
+def limit_modes(limit, f_min: float, f_max: float, modes: int = MODES) -> tuple[np.ndarray, np.ndarray]:
+    """(f_n [Hz], zeta_n) of the ``modes`` undamped modes of a linear limit
+    (slipstep.steady.linear.LinearLimit) nearest the band [f_min, f_max], ascending:
+
+        K phi = w_n^2 M phi,   phi^T M phi = 1,   zeta_n = phi^T C phi / (2 w_n)
+
+    (the modal damping ratio of the mode's diagonal term; C need not be modal). Dense (or a
+    sparse structure of at most 3 ``modes`` + 2 DOFs): scipy.linalg.eigh of (K, M), every mode.
+    Sparse: scipy.sparse.linalg.eigsh by shift-invert
+    about the band's centre, sigma = (2 pi (f_min + f_max) / 2)^2, the count doubled until the
+    eigenvalues found (the nearest sigma) reach beyond both band edges' (or n - 2 are found).
+    Zero and rigid-body modes (w_n^2 <= 0) are left out."""
+    K, M, C = limit.K, limit.M, limit.C
+    n = limit.n
+    if limit.sparse and n > 3 * modes + 2:
+        import scipy.sparse.linalg as spla
+
+        sigma = (np.pi * (f_min + f_max)) ** 2
+        k = min(max(modes, 6), n - 2)
+        start = np.random.default_rng(0).standard_normal(n)  # a fixed start: a case's numbers are reproducible
+        radius = max(sigma - (2 * np.pi * f_min) ** 2, (2 * np.pi * f_max) ** 2 - sigma)
+        while True:  # the k eigenvalues nearest sigma: every one within max |w2 - sigma| of it
+            w2, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", v0=start)
+            if k >= n - 2 or np.abs(w2 - sigma).max() >= radius:
+                break
+            k = min(2 * k, n - 2)
+        V = V / np.sqrt(np.einsum("ij,ij->j", V, M @ V))  # M-normalised (eigsh's are already, up to round-off)
+        CV = C @ V
+    else:
+        import scipy.linalg
+
+        K, M, C = (X.toarray() if hasattr(X, "toarray") else np.asarray(X) for X in (K, M, C))
+        w2, V = scipy.linalg.eigh(K, M)
+        CV = C @ V
+    keep = w2 > 0.0
+    w2, V, CV = w2[keep], V[:, keep], CV[:, keep]
+    wn = np.sqrt(w2)
+    fn = wn / (2 * np.pi)
+    zeta = np.einsum("ij,ij->j", V, CV) / (2 * wn)
+    distance = np.maximum(f_min - fn, 0.0) + np.maximum(fn - f_max, 0.0)
+    nearest = np.sort(np.argsort(distance, kind="stable")[:modes])
+    return fn[nearest], zeta[nearest]
+
+
+def linear_peak(limit, cols, f_min: float, f_max: float, modes: int = MODES) -> tuple[float, float, int]:
+    """(A_peak, f_peak [Hz], blade 1-based) of a linear limit in the band [f_min, f_max]:
+
+        A_peak = max over f in [f_min, f_max] of g(f),   g(f) = max_j A_j(f)
+
+    with A_j(f) the limit's blade amplitudes (LinearLimit.amplitude, columns ``cols``). The
+    candidates: the band's edges (a resonance outside the band leaves its largest value on an
+    edge: that value is kept), and around each of the ``modes`` modes nearest the band
+    (:func:`limit_modes`: f_n, zeta_n) the maximum of g on a local grid of 33 frequencies over
+    f_n +- 4 half-power widths (width 2 zeta_n f_n, at least 1e-6 f_n), clipped to the band,
+    then refined by scipy.optimize.minimize_scalar (bounded) on -g between the best local point's
+    neighbours. A resonance thus counts with its true peak, wherever it lies between the FRF's
+    grid points; the grid's points need not be near it."""
+    from scipy.optimize import minimize_scalar
+
+    cols = np.asarray(cols, int)
+
+    def g(f):
+        return float(np.max(limit.amplitude(f)[cols]))
+
+    best = max(((g(f), f) for f in (f_min, f_max)), key=lambda c: c[0])
+    for fn, zeta in zip(*limit_modes(limit, f_min, f_max, modes)):
+        half = 4.0 * max(2.0 * abs(zeta) * fn, 1e-6 * fn)
+        lo, hi = max(fn - half, f_min), min(fn + half, f_max)
+        if lo >= hi:
+            continue
+        grid = np.linspace(lo, hi, 33)
+        values = np.array([g(f) for f in grid])
+        i = int(np.argmax(values))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        centre, scale = 0.5 * (a + b), 0.5 * (b - a)  # solved in u = (f - centre) / scale in [-1, 1]:
+        # the bounded method's tolerance is relative to |u| (1.5e-8 |u|), not to |f|
+        res = minimize_scalar(
+            lambda u, c=centre, w=scale: -g(c + w * u), bounds=(-1.0, 1.0), method="bounded", options={"xatol": 1e-12}
+        )
+        candidates = [(values[i], grid[i]), (-float(res.fun), centre + scale * float(res.x))]
+        best = max([best, *candidates], key=lambda c: c[0])
+    amp, f = best
+    blade = int(np.argmax(limit.amplitude(f)[cols])) + 1
+    return float(amp), float(f), blade
+
+
+def linear_peaks(system, frequencies, blade_dofs: list[str], modes: int = MODES) -> dict:
+    """{linear peak field: (A_peak, f_peak, blade)} of both linear limits of ``system`` (contacts
+    stuck at the static preload's state, contacts removed) in the band of the FRF's grid
+    ``frequencies`` (:func:`linear_peak`); a system without contacts has one limit (both
+    fields equal). NaN (blade -1) where a limit is singular."""
+    from slipstep.steady.linear import LinearLimit, stuck_state
+
+    names = list(system.structure.dof_names)
+    cols = [names.index(r) for r in blade_dofs]
+    f = np.asarray(frequencies, float)
+    f_min, f_max = float(f.min()), float(f.max())
+    state = stuck_state(system) if system.contacts else None
+    out = {}
+    for field, stuck in LIMITS.items():
+        try:
+            limit = LinearLimit(system, stuck and state is not None, state)
+            out[field] = linear_peak(limit, cols, f_min, f_max, modes)
+        except np.linalg.LinAlgError:
+            out[field] = (math.nan, math.nan, -1)
+    return out
+
+
+def case_peaks(system, frf: dict, cfg: dict, blade_dofs: list[str]) -> dict:
+    """{peak field: (A_peak, f_peak, blade)} of a case: the friction response's largest value
+    on the FRF's grid (:func:`peaks`), the linear limits' peaks in the grid's band refined off
+    the grid (:func:`linear_peaks`)."""
+    p = peaks(frf, cfg["frequencies_Hz"], list(cfg["responses"]), blade_dofs)
+    p.update(linear_peaks(system, cfg["frequencies_Hz"], blade_dofs))
+    return p
+
+
+def summary_of(p: dict, reference: dict | None) -> dict:
+    """The MISTUNING_FIELDS (but the delta statistics) of one case from its peaks
+    (:func:`case_peaks`) and the tuned reference {peak field: A_peak(tuned)} (None: the
+    amplification factors are NaN)."""
     out = {}
     for field, (amp, freq, blade) in p.items():
-        out[field] = amp
+        _, af, freq_field, blade_field = PEAKS[field]
         tuned = (reference or {}).get(field, math.nan)
-        out[PEAKS[field][1]] = amp / tuned if tuned and math.isfinite(tuned) else math.nan
-    out["peak_frequency_Hz"], out["peak_blade"] = p["peak_blade_amplitude"][1:]
+        out[field] = amp
+        out[af] = amp / tuned if tuned and math.isfinite(tuned) else math.nan
+        out[freq_field], out[blade_field] = freq, blade
     return out
 
 

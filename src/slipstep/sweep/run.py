@@ -164,11 +164,12 @@ def _mistuning_reference(plan: Plan, store: SweepStore) -> list[dict]:
 
 def tuned_references(plan, frf_values) -> list[dict]:
     """The tuned assembly's peaks, once per combination of the non-mistuning parameters:
-    [{"values": [...], "<peak field>": A_peak, ..., "peak_frequency_Hz", "peak_blade"}]. ``frf_values(system, run, cfg)`` computes the
-    FRF arrays (slipstep.sweep.execute.frf_values). A tuned case that cannot be built or solved
+    [{"values": [...], "<peak field>": A_peak, its frequency and blade fields, ...}] (the linear
+    limits' peaks refined off the grid as the cases': slipstep.sweep.mistuning.case_peaks).
+    ``frf_values(system, run, cfg)`` computes the FRF arrays (slipstep.sweep.execute.frf_values). A tuned case that cannot be built or solved
     is an error of the sweep (its amplification factors would have no reference)."""
     from slipstep.sweep.cases import apply_values, build_case
-    from slipstep.sweep.mistuning import apply_mistuning, peaks, reference_key
+    from slipstep.sweep.mistuning import apply_mistuning, case_peaks, reference_key, summary_of
 
     m = next(p.mistuning for p in plan.parameters if p.mistuning is not None)
     seen: dict[tuple, int] = {}
@@ -184,9 +185,9 @@ def tuned_references(plan, frf_values) -> list[dict]:
             raise InputError(exc.field, f"{exc.problem} (the tuned case of the sweep)", exc.fix) from None
         frf = frf_values(system, run, plan.outputs["frf"])
         cfg = plan.outputs["frf"]
-        p = peaks(frf, cfg["frequencies_Hz"], cfg["responses"], plan.outputs["mistuning"]["responses"])
-        entry = {"values": list(key), **{field: v[0] for field, v in p.items()}}
-        entry["peak_frequency_Hz"], entry["peak_blade"] = p["peak_blade_amplitude"][1:]
+        p = case_peaks(system, frf, cfg, plan.outputs["mistuning"]["responses"])
+        entry = {"values": list(key), **summary_of(p, None)}
+        entry = {k: v for k, v in entry.items() if not k.endswith("amplification_factor")}
         out.append(entry)
     return out
 
