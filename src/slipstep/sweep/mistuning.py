@@ -23,10 +23,10 @@ response DOF x_j (default: the engine-order force's DOF of each blade):
 with the blade j and the frequency f of the maximum on the FRF's grid, and the same for the
 two linear limits (contacts stuck, contacts removed: the ring without dampers), each against
 the tuned ring's own limit. A linear limit's resonance is narrow (light damping) and falls
-between grid points, so its peak is not read off the grid: the limit's modes nearest the band
-[f_min, f_max] are found (eigenvalues of (K, M)) and the peak near each refined
-(:func:`linear_peak`); the largest value in the band is kept, an edge value too (a resonance
-outside the band does not count; the value on the band's edge then stands for it). The tuned ring (every delta 0, the other parameters at the case's values)
+between grid points, or beside the band (the stuck ring resonates above the damped response,
+the ring without dampers below), so its peak is not read off the grid: the limit's modes in
+the band widened by its width on each side are found (eigenvalues of (K, M)) and the peak near
+each refined (:func:`linear_peak`). The tuned ring (every delta 0, the other parameters at the case's values)
 is computed once per sweep (per combination of the other parameters) by the client.
 """
 
@@ -48,14 +48,16 @@ MISTUNING_FIELDS: dict[str, tuple[str, str]] = {
     "amplification_factor": ("1", "largest blade amplitude / the tuned assembly's"),
     "linear_stuck_peak_amplitude": (
         AMPLITUDE_UNIT,
-        "largest blade amplitude in [f_min, f_max], contacts stuck (resonances refined off the grid)",
+        "largest resonance peak of the blade amplitudes near [f_min, f_max] (the band widened by its width "
+        "each side), contacts stuck (refined off the grid)",
     ),
     "linear_stuck_peak_frequency_Hz": ("Hz", "frequency of the largest stuck-contact blade amplitude"),
     "linear_stuck_peak_blade": ("1", "blade of the largest stuck-contact amplitude (1-based)"),
     "linear_stuck_amplification_factor": ("1", "largest stuck-contact amplitude / the tuned assembly's"),
     "linear_free_peak_amplitude": (
         AMPLITUDE_UNIT,
-        "largest blade amplitude in [f_min, f_max], contacts removed (no dampers; resonances refined off the grid)",
+        "largest resonance peak of the blade amplitudes near [f_min, f_max] (the band widened by its width "
+        "each side), contacts removed (no dampers; refined off the grid)",
     ),
     "linear_free_peak_frequency_Hz": ("Hz", "frequency of the largest blade amplitude without dampers"),
     "linear_free_peak_blade": ("1", "blade of the largest amplitude without dampers (1-based)"),
@@ -226,19 +228,29 @@ def limit_modes(limit, f_min: float, f_max: float, modes: int = MODES) -> tuple[
     return fn[nearest], zeta[nearest]
 
 
+def resonance_window(f_min: float, f_max: float) -> tuple[float, float]:
+    """The frequencies [Hz] whose resonances count as the band's: the band [f_min, f_max]
+    widened by its own width W = f_max - f_min on each side (above 0). The FRF's band is set
+    around the damped response, and the linear limits resonate beside it (the stuck ring higher,
+    the ring without dampers lower), so their peaks are taken there, not on the band's edges
+    (the ratio of two edge values is no amplification factor: Whitehead's limit bounds peaks)."""
+    width = f_max - f_min
+    return max(f_min - width, 0.0), f_max + width
+
+
 def linear_peak(limit, cols, f_min: float, f_max: float, modes: int = MODES) -> tuple[float, float, int]:
-    """(A_peak, f_peak [Hz], blade 1-based) of a linear limit in the band [f_min, f_max]:
+    """(A_peak, f_peak [Hz], blade 1-based) of a linear limit near the band [f_min, f_max]:
 
-        A_peak = max over f in [f_min, f_max] of g(f),   g(f) = max_j A_j(f)
+        A_peak = max over the resonances f_n in the window of max over f near f_n of g(f),
+        g(f) = max_j A_j(f)
 
-    with A_j(f) the limit's blade amplitudes (LinearLimit.amplitude, columns ``cols``). The
-    candidates: the band's edges (a resonance outside the band leaves its largest value on an
-    edge: that value is kept), and around each of the ``modes`` modes nearest the band
-    (:func:`limit_modes`: f_n, zeta_n) the maximum of g on a local grid of 33 frequencies over
-    f_n +- 4 half-power widths (width 2 zeta_n f_n, at least 1e-6 f_n), clipped to the band,
-    then refined by scipy.optimize.minimize_scalar (bounded) on -g between the best local point's
-    neighbours. A resonance thus counts with its true peak, wherever it lies between the FRF's
-    grid points; the grid's points need not be near it."""
+    with A_j(f) the limit's blade amplitudes (LinearLimit.amplitude, columns ``cols``) and the
+    window :func:`resonance_window` (the band widened by its width each side; the nearest mode
+    alone when none lies there). Around each of the ``modes`` modes nearest the band in the
+    window (:func:`limit_modes`: f_n, zeta_n), the maximum of g on a local grid of 33 frequencies
+    over f_n +- 4 half-power widths (width 2 zeta_n f_n, at least 1e-6 f_n), then refined by
+    scipy.optimize.minimize_scalar (bounded) on -g between the best local point's neighbours. A
+    resonance thus counts with its true peak, wherever it lies between the FRF's grid points."""
     from scipy.optimize import minimize_scalar
 
     cols = np.asarray(cols, int)
@@ -246,13 +258,17 @@ def linear_peak(limit, cols, f_min: float, f_max: float, modes: int = MODES) -> 
     def g(f):
         return float(np.max(limit.amplitude(f)[cols]))
 
-    best = max(((g(f), f) for f in (f_min, f_max)), key=lambda c: c[0])
-    for fn, zeta in zip(*limit_modes(limit, f_min, f_max, modes)):
-        half = 4.0 * max(2.0 * abs(zeta) * fn, 1e-6 * fn)
-        lo, hi = max(fn - half, f_min), min(fn + half, f_max)
-        if lo >= hi:
-            continue
-        grid = np.linspace(lo, hi, 33)
+    fn, zeta = limit_modes(limit, f_min, f_max, modes)
+    if fn.size == 0:
+        return math.nan, math.nan, -1
+    low, high = resonance_window(f_min, f_max)
+    inside = (fn >= low) & (fn <= high)
+    if not inside.any():
+        inside = np.abs(fn - 0.5 * (f_min + f_max)) == np.abs(fn - 0.5 * (f_min + f_max)).min()
+    best = (-math.inf, math.nan)
+    for f_n, z in zip(fn[inside], zeta[inside]):
+        half = 4.0 * max(2.0 * abs(z) * f_n, 1e-6 * f_n)
+        grid = np.linspace(max(f_n - half, 1e-3 * f_n), f_n + half, 33)
         values = np.array([g(f) for f in grid])
         i = int(np.argmax(values))
         a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
@@ -270,7 +286,7 @@ def linear_peak(limit, cols, f_min: float, f_max: float, modes: int = MODES) -> 
 
 def linear_peaks(system, frequencies, blade_dofs: list[str], modes: int = MODES) -> dict:
     """{linear peak field: (A_peak, f_peak, blade)} of both linear limits of ``system`` (contacts
-    stuck at the static preload's state, contacts removed) in the band of the FRF's grid
+    stuck at the static preload's state, contacts removed) near the band of the FRF's grid
     ``frequencies`` (:func:`linear_peak`); a system without contacts has one limit (both
     fields equal). NaN (blade -1) where a limit is singular."""
     from slipstep.steady.linear import LinearLimit, stuck_state
@@ -292,8 +308,8 @@ def linear_peaks(system, frequencies, blade_dofs: list[str], modes: int = MODES)
 
 def case_peaks(system, frf: dict, cfg: dict, blade_dofs: list[str]) -> dict:
     """{peak field: (A_peak, f_peak, blade)} of a case: the friction response's largest value
-    on the FRF's grid (:func:`peaks`), the linear limits' peaks in the grid's band refined off
-    the grid (:func:`linear_peaks`)."""
+    on the FRF's grid (:func:`peaks`), the linear limits' resonance peaks near the grid's band
+    refined off the grid (:func:`linear_peaks`)."""
     p = peaks(frf, cfg["frequencies_Hz"], list(cfg["responses"]), blade_dofs)
     p.update(linear_peaks(system, cfg["frequencies_Hz"], blade_dofs))
     return p
