@@ -24,9 +24,10 @@ rate of OK results more than rtol of the range from them.
 The issue-29 item-3 mode: the generators of slipstep.study.trust_systems (stick-1dof, shared-dof,
 lever-map, broad), Method 1 ('newmark') at its defaults against full Newton and the piecewise-linear
 solve at 1e-13 (study.trust_systems.newmark_check); per generator the decidable systems, the silent
-failures (OK, no per-step flag, more than rtol of the range off; those whose references are
+failures (OK, no trust flag, more than rtol of the range off; those whose references are
 sensitive, a round-off spread above 1e-12 or a 1e-10 load change moving them by rtol, counted
-apart), the flagged and the non-OK results.
+apart), the flagged results (slipstep.methods.invariants.flagged: the step audit or the tolerance
+flag), the false alarms (flagged, decidable and within rtol) and the non-OK results.
 """
 
 from __future__ import annotations
@@ -87,11 +88,11 @@ def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark
     print("  silent: OK, unflagged, more than rtol of the range off the two agreeing tight references")
     print(
         f"  {'generator':11s} {'systems':>7s} {'decidable':>9s} {'silent':>15s} {'of them sensitive':>17s} "
-        f"{'flagged':>7s} {'non-OK':>6s}  worst silent, not sensitive"
+        f"{'flagged':>7s} {'false alarms':>12s} {'non-OK':>6s}  worst silent, not sensitive"
     )
-    total = np.zeros(6, int)
+    total = np.zeros(7, int)
     for g, generator in enumerate(GENERATORS):
-        c = np.zeros(6, int)  # systems, decidable, silent, silent and sensitive, flagged, non-OK
+        c = np.zeros(7, int)  # systems, decidable, silent, silent and sensitive, flagged, non-OK, false alarms
         worst = (0.0, -1)
         for i in range(n):
             system = trust_system(np.random.default_rng([seed, g, i]), generator)
@@ -102,6 +103,7 @@ def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark
             c[1] += row["decidable"]
             c[4] += row["flagged"]
             c[5] += row["status"] != "OK"
+            c[6] += row["flagged"] and row["error"] <= rtol  # a flag on a result that agrees
             if row["error"] > rtol and not row["flagged"]:
                 c[2] += 1
                 sensitive = reference_sensitive(system, periods=periods, rtol=rtol)
@@ -111,12 +113,12 @@ def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark
         total += c
         print(
             f"  {generator:11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
-            f"{c[4]:7d} {c[5]:6d}  {worst[0]:.2g} (system {worst[1]})"
+            f"{c[4]:7d} {c[6]:12d} {c[5]:6d}  {worst[0]:.2g} (system {worst[1]})"
         )
     c = total
     print(
         f"  {'all':11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
-        f"{c[4]:7d} {c[5]:6d}"
+        f"{c[4]:7d} {c[6]:12d} {c[5]:6d}"
     )
     print(f"  {time.perf_counter() - start:.0f} s")
 

@@ -343,6 +343,8 @@ def run(
             armed=ds.attrs["status"] == "INTERRUPTED",
         ):
             save(ds, path)
+    from slipstep.methods.invariants import flagged
+
     a = ds.attrs
     keys = (
         "case",
@@ -363,8 +365,12 @@ def run(
         "wall_time_s",
         "energy_error_estimate",
         "peak_force_error_estimate",
+        "tolerance_over_range",
     )
     summary = {k: _json_value(a[k]) for k in keys if k in a}
+    trusted = "tolerance_over_range" in a or "steps_above_tolerance" in a  # Methods 1 and 2 (invariants)
+    if trusted:
+        summary["trust_flags"] = flagged(a)  # why the result may be off its discrete solution ([] none)
     summary["output"] = str(path)
     if as_json:
         print(json.dumps(summary))
@@ -382,6 +388,12 @@ def run(
             ("dt", f"{a['dt_s'] * 1e6:.4g} us"),
             ("T_min (full stick)", f"{a['t_min_s'] * 1e6:.4g} us"),
             ("est. error, loop energy / peak force", _error_estimate_text(a)),
+            *(
+                [("tolerance / response range", _fmt(float(a["tolerance_over_range"]), 2))]
+                if "tolerance_over_range" in a
+                else []
+            ),
+            *([("trust flag", "; ".join(flagged(a)) or "none")] if trusted else []),
             ("kernel time", f"{a['kernel_time_s'] * 1e3:.4g} ms"),
             ("wall time", f"{a['wall_time_s'] * 1e3:.4g} ms"),
             ("output", str(path)),

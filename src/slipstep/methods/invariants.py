@@ -30,6 +30,7 @@ the step, the time and the contact or direction (Simulation.march turns it into 
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -149,13 +150,13 @@ def check_march(runner):
     from slipstep.methods.buffers import saved_rows
 
     runner.broken_invariant = None
-    runner.step_audit = {}
+    runner.step_audit = {}  # audit_steps and tolerance_check: the result attrs of the trust flags
     if runner.status != Status.OK:
         return runner.status
     out = runner.out
     found = check_outputs(runner.compiled, out, saved_rows(out, int(out.counters[C_STEPS])))
     if found is None and hasattr(runner, "method"):
-        runner.step_audit = audit_steps(runner)
+        runner.step_audit = {**audit_steps(runner), **tolerance_check(runner)}
     if found is not None:
         runner.status = Status.INVARIANT
         runner.broken_invariant = found
@@ -246,3 +247,85 @@ def audit_steps(runner) -> dict:
             stacklevel=3,
         )
     return attrs
+
+
+#: a Newton march whose increment tolerance is above this fraction of its response range is flagged
+#: (issue 29 item 3: the result may then be that far off the discrete solution, and no residual shows it)
+TOLERANCE_RANGE_FLAG = 1e-8
+
+
+def tolerance_over_range(runner) -> float | None:
+    """The Newton increment tolerance of a march against the response it marched:
+
+        tolerance_over_range = tol L / R,   R = max_j (max_t x_j - min_t x_j)
+
+    with tol the ``tolerance`` option, L the system's length scale (``length_scale_m``; the
+    Newton test accepts a step whose last increment is below tol L in the contact coordinates,
+    kernels/step_solvers.py CV_TOL_Q) and R the largest DOF range over the saved rows (the
+    denominator of study.verification.agreement_error). A step's solution may then be off the
+    discrete one by about tol L, so the result by about that fraction of its range (more where
+    the steps' errors accumulate, or on a system that amplifies them: measured 2.3 times it on
+    tests/test_trust_flag.py's clamped oscillator). inf when nothing moved (R = 0); None when no DOF or
+    fewer than two rows were saved."""
+    from slipstep.kernels.codes import C_STEPS
+    from slipstep.methods.buffers import saved_rows
+
+    rows = saved_rows(runner.out, int(runner.out.counters[C_STEPS]))
+    x = np.asarray(runner.out.x[:rows])
+    if rows < 2 or x.ndim != 2 or x.shape[1] == 0:
+        return None
+    span = float(np.ptp(x, axis=0).max())
+    tol_q = float(runner.options.tolerance) * float(runner.compiled.length_scale)
+    return tol_q / span if span > 0.0 else math.inf
+
+
+def tolerance_check(runner) -> dict:
+    """The tolerance flag of an OK modified-Newton march (Methods 1 and 2): the attr
+    ``tolerance_over_range`` (:func:`tolerance_over_range`) and, above TOLERANCE_RANGE_FLAG, a
+    RuntimeWarning saying how far off the result may be and how to tighten; {} for another
+    solver or a failed march."""
+    import warnings
+
+    from slipstep.errors import Status
+    from slipstep.kernels.codes import MODIFIED_NEWTON, MODIFIED_NEWTON_STATE
+
+    if runner.status != Status.OK or runner.method.quasi_static:
+        return {}
+    if getattr(runner.method, "solver", None) not in (MODIFIED_NEWTON, MODIFIED_NEWTON_STATE):
+        return {}
+    ratio = tolerance_over_range(runner)
+    if ratio is None:
+        return {}
+    if ratio > TOLERANCE_RANGE_FLAG:
+        tol = float(runner.options.tolerance)
+        warnings.warn(tolerance_text(ratio, tol), RuntimeWarning, stacklevel=3)
+    return {"tolerance_over_range": ratio}
+
+
+def tolerance_text(ratio: float, tolerance: float) -> str:
+    """The words of the tolerance flag (the warning, and the reason :func:`flagged` gives)."""
+    tighter = tolerance * TOLERANCE_RANGE_FLAG / ratio if math.isfinite(ratio) and ratio > 0 else 0.0
+    tighter = 10.0 ** math.floor(math.log10(tighter)) if tighter > 0 else 0.0  # the power of ten below
+    fix = f"tolerance={tighter:.0e}" if tighter >= 1e-15 else "a tighter tolerance"
+    return (
+        f"the Newton tolerance x length scale is {ratio:.2g} of the response range (above {TOLERANCE_RANGE_FLAG:g}): "
+        f"the result may differ from the discrete solution by about that fraction of the range, more where "
+        f"the steps' errors accumulate. Tighten it with the tolerance option ({fix}; now {tolerance:g}) or use "
+        "method='piecewise-linear', which has no Newton tolerance"
+    )
+
+
+def flagged(attrs) -> list[str]:
+    """The reasons a status-OK result may be off its discrete solution (issue 29 item 3), from
+    its attrs: steps accepted far above their tolerance (:func:`audit_steps`), a Newton tolerance
+    above TOLERANCE_RANGE_FLAG of the response range (:func:`tolerance_check`); [] when none."""
+    reasons = []
+    if attrs.get("steps_above_tolerance", 0) > 0:
+        reasons.append(
+            f"{attrs['steps_above_tolerance']} steps accepted with a balance residual above "
+            f"{RESIDUAL_FLAG_FACTOR:g} x tolerance (largest {attrs.get('max_step_residual', math.nan):.2g})"
+        )
+    ratio = attrs.get("tolerance_over_range", 0.0)
+    if ratio > TOLERANCE_RANGE_FLAG:  # NaN (not computed) is not flagged
+        reasons.append(tolerance_text(float(ratio), float(attrs.get("tolerance", math.nan))))
+    return reasons

@@ -143,6 +143,12 @@ ATTRS: dict[str, tuple[str, str]] = {
     ),
     "max_step_residual": ("1", "Methods 1 and 2: the largest balance residual of a step, relative to its forces"),
     "first_step_above_tolerance": ("1", "the first step counted in steps_above_tolerance"),
+    "tolerance_over_range": (
+        "1",
+        "Methods 1 and 2 (OK runs): tolerance x length_scale_m / the largest DOF range of the run, about how far "
+        "off the discrete solution the Newton stop may leave the result, as a fraction of the range; above 1e-8 "
+        "the run warns (slipstep.methods.invariants.TOLERANCE_RANGE_FLAG, flagged)",
+    ),
     "steps_over_planned": (
         "1",
         "steps taken over the steps of the planned step dt_s for the duration (slipstep.run; above 50 the step "

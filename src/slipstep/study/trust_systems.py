@@ -140,11 +140,12 @@ def newmark_check(system: System, method: str = "newmark", periods: float = 2.0,
     Newton at tolerance 1e-13 and the piecewise-linear solve at state tolerance 1e-13 on the same
     grid. Returns {'decidable': the references are OK and agree to DECIDABLE_RTOL of the range,
     'status', 'error': max |x - x_ref| / range (NaN unless decidable and OK), 'flagged': the result
-    carries a per-step flag (``steps_above_tolerance`` > 0), 'steps'}; None when the system cannot
+    carries a trust flag (``invariants.flagged``: steps above tolerance, tolerance_over_range), 'steps'}; None when the system cannot
     be set up (no static equilibrium)."""
     import warnings
 
     from slipstep.errors import SolverError
+    from slipstep.methods.invariants import flagged
     from slipstep.methods.simulation import run
     from slipstep.study.verification import agreement_error
 
@@ -163,7 +164,7 @@ def newmark_check(system: System, method: str = "newmark", periods: float = 2.0,
         "decidable": bool(decidable),
         "status": ds.attrs["status"],
         "error": agreement_error(ds, ref) if ok and decidable else math.nan,
-        "flagged": ds.attrs.get("steps_above_tolerance", 0) > 0,
+        "flagged": bool(flagged(ds.attrs)),
         "steps": int(ds.attrs.get("steps", 0)),
     }
 

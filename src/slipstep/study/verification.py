@@ -234,6 +234,7 @@ def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0
     solve, both at 1e-13, agree to DECIDABLE_RTOL of the range (else NaN), and whether the
     result was flagged by the step audit (invariants.audit_steps). Returns
     {method: {'status', 'invariant', 'error', 'flagged'}, 'decidable': bool}."""
+    from slipstep.methods.invariants import flagged
     from slipstep.methods.simulation import run
 
     rows: dict = {"decidable": False}
@@ -260,7 +261,7 @@ def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0
                 "status": ds.attrs["status"],
                 "invariant": ds.attrs.get("broken_invariant", ""),
                 "error": error,
-                "flagged": ds.attrs.get("steps_above_tolerance", 0) > 0,  # invariants.audit_steps
+                "flagged": bool(flagged(ds.attrs)),  # invariants.flagged: the step audit, the tolerance flag
             }
     return rows
 
