@@ -186,3 +186,19 @@ def test_the_paper_case_marches_the_papers_steps_from_the_command_line(tmp_path)
     assert steps() == (187, "t-min")  # [run] step_rule = "t-min" of the built-in case
     n, rule = steps("--step-rule", "accuracy")  # the flag wins over the case key
     assert rule == "accuracy" and n < 187
+
+
+def test_without_an_estimate_method_3_keeps_t_min_where_the_cap_alone_diverges():
+    """A seeded random system (issue 8's generator) on which Method 3 at T / 50 with no error
+    estimate diverges: the default rule without error control is the paper's, and agrees with
+    a tight full-Newton reference on its grid."""
+    from slipstep.study.verification import agreement_error, random_system
+
+    system = random_system(np.random.default_rng([8, 170]))
+    unchecked = ss.run(system, "piecewise-linear", periods=1, error_estimate=False, step_rule="accuracy")
+    assert unchecked.attrs["status"] == "DIVERGED"
+    default = ss.run(system, "piecewise-linear", periods=1, error_estimate=False)
+    ref = ss.run(system, "full-newton", periods=1, tolerance=1e-13, error_estimate=False)
+    assert default.attrs["step_rule"] == "t-min" and default.attrs["status"] == "OK"
+    assert default.attrs["dt_s"] == ref.attrs["dt_s"]
+    assert agreement_error(default, ref) <= 1e-6
