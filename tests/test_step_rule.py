@@ -202,3 +202,16 @@ def test_without_an_estimate_method_3_keeps_t_min_where_the_cap_alone_diverges()
     assert default.attrs["step_rule"] == "t-min" and default.attrs["status"] == "OK"
     assert default.attrs["dt_s"] == ref.attrs["dt_s"]
     assert agreement_error(default, ref) <= 1e-6
+
+
+def test_a_retuned_plan_follows_the_rule_of_its_options(paper):
+    """RunPlan.retuned keeps the step limits only when the rule stays: giving max_step to a
+    Method 3 plan without an estimate turns the default to 'accuracy' (its step is the cap)."""
+    plan = plan_run(paper, "piecewise-linear", error_estimate=False)
+    assert plan.step_rule == "t-min"
+    cap = 1 / 150 / 60
+    capped = plan.retuned(150.0, max_step=cap)
+    assert capped.step_rule == "accuracy" and capped.dt == pytest.approx(cap, rel=1e-12)
+    same = plan.retuned(150.0)
+    assert same.step_rule == "t-min" and same.t_min_stick == plan.t_min_stick
+    assert same.dt == pytest.approx(SC.whole_steps(1 / 150, plan.dt_limit), rel=1e-12)

@@ -357,6 +357,8 @@ def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = Non
     opt = replace(plan.options, **option_changes).validated()
     cs = _retuned_compiled(plan, system)
     layout_same = all(_same(getattr(opt, k), getattr(plan.options, k)) for k in _LAYOUT_OPTIONS)
+    # the default rule follows error_estimate, max_step and the period: the step limits go with it
+    layout_same = layout_same and step_rule_of(plan.method, opt, system.period) == plan.step_rule
     if cs is None or not layout_same or (opt.dt is None) != (plan.options.dt is None):
         fields = {name: getattr(opt, name) for name in RunOptions.__dataclass_fields__}
         return plan_run(system, plan.method, **fields)
