@@ -65,6 +65,7 @@ def main():
     )
     for f in (float(v) for v in args.frequencies.split(",")):
         step = {} if args.steps_per_period is None else {"dt": 1 / f / args.steps_per_period}
+        step = {"step_rule": "t-min", **step}  # the paper's T_min rule: the methods on the same steps
         sims = {m: ss.Simulation(retuned(system, f), m, periods=periods, **step) for m in METHODS}
         for s in sims.values():
             s.march()  # warm-up

@@ -70,7 +70,7 @@ def paper_system(frequency_hz: float | None = None) -> slipstep.System:
 def bench_case(label: str, system: slipstep.System, periods: float, repeats: int) -> list[dict]:
     sims = []
     for name, paper_label, paper_ratio, goal in METHODS:
-        opts = {"periods": periods}
+        opts = {"periods": periods, "step_rule": "t-min"}  # the paper's steps for every method (Figure 8)
         if name == "quasi-static":
             opts["steps_per_period"] = QS_STEPS_PER_PERIOD
         sim = slipstep.Simulation(system, name, **opts)

@@ -56,7 +56,7 @@ import warnings
 import slipstep as ss
 from slipstep.post import plots
 system = ss.load_system("paper")
-ds = ss.run(system, "piecewise-linear", periods=3)
+ds = ss.run(system, "piecewise-linear", periods=3, step_rule="t-min")  # the paper's steps
 reference = ss.run(system, "quasi-static", periods=3)
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # the filter warns only when it cannot separate the ringing

@@ -144,6 +144,15 @@ class Bad:
 SECOND_MOTION = '[[motion]]\ncomponent = "right.x"\namplitude = 5.0\nfrequency_Hz = 200.0\n\n[run]'
 MOTION_TABLE = '[[motion_table]]\ncomponent = "base.x"\ntimes_s = [0.0, 1.0]\nvalues = [0.0, 1.0e-6]\n'
 
+CASE_FILE = "bad_case.toml"
+
+# a case driven by a motion table only (no period) asking for the 'accuracy' step rule
+TABLES_ONLY_ACCURACY = (
+    STRUCTURE.split("[[motion]]")[0]
+    + MOTION_TABLE
+    + '\n[run]\nmethod = "piecewise-linear"\nduration_s = 0.5\nstep_rule = "accuracy"\n'
+)
+
 CASES = [
     # -- Python API: model -----------------------------------------------------------------
     Bad("negative-mass", "`Structure(mass=[[-1.0]])`", "structure.mass", api=lambda: ss.Structure(mass=[[-1.0]])),
@@ -835,9 +844,40 @@ CASES = [
         "--save-times",
         cli=("run", "paper", "--save-times", "0:0.01"),
     ),
+    # -- the step rule (issue 26) ----------------------------------------------------------
+    Bad(
+        "toml-run-unknown-step-rule",
+        '`[run] step_rule = "cfl"`',
+        "[run] step_rule",
+        toml=edit(PAPER, 'step_rule = "t-min"', 'step_rule = "cfl"'),
+    ),
+    Bad(
+        "cli-case-accuracy-newton",
+        '`[run] step_rule = "accuracy"` with the default method newmark (it iterates)',
+        "[run] step_rule",
+        cli=("run", CASE_FILE),
+        files=((CASE_FILE, edit(PAPER, 'step_rule = "t-min"', 'step_rule = "accuracy"').encode()),),
+    ),
+    Bad(
+        "cli-unknown-step-rule",
+        "`slipstep run paper --step-rule cfl`",
+        "--step-rule",
+        cli=("run", "paper", "--step-rule", "cfl"),
+    ),
+    Bad(
+        "cli-accuracy-newton",
+        "`slipstep run paper -m 1 --step-rule accuracy`",
+        "--step-rule",
+        cli=("run", "paper", "-m", "1", "--step-rule", "accuracy"),
+    ),
+    Bad(
+        "cli-case-accuracy-tables-only",
+        '`[run] step_rule = "accuracy"` on a case driven by tables only (no period, no max_step)',
+        "[run] step_rule",
+        cli=("run", CASE_FILE),
+        files=((CASE_FILE, TABLES_ONLY_ACCURACY.encode()),),
+    ),
 ]
-
-CASE_FILE = "bad_case.toml"
 
 
 def api_message(case: Bad, directory: Path) -> str:
@@ -851,7 +891,8 @@ def api_message(case: Bad, directory: Path) -> str:
             path = directory / CASE_FILE
             path.write_text(case.toml)
             system, spec = ss.load_case(path)
-            options = {k: v for k, v in (("periods", spec.periods), ("step_ratio", spec.step_ratio)) if v is not None}
+            given = (("periods", spec.periods), ("step_ratio", spec.step_ratio), ("step_rule", spec.step_rule))
+            options = {k: v for k, v in given + (("duration", spec.duration_s),) if v is not None}
             ss.Simulation(system, spec.method or "newmark", **options)
     return str(info.value)
 

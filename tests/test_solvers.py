@@ -139,8 +139,14 @@ def test_jenkins_loop_energy_quasi_static_is_exact():
 @pytest.mark.parametrize("method", ["newmark", "piecewise-linear"])
 def test_jenkins_loop_energy_dynamic_large_mass_ratio(method):
     """A sliding mass m = 1000 kg (m omega^2 / k_t = 395): the mass barely follows, u ~ -p.
-    Measured: relative error 6.8e-4, about 0.27 k_t / (m omega^2); bound 2e-3."""
-    ds = ss.run(jenkins(1000.0), method, periods=3, raise_on_failure=True)
+    Measured: relative error 6.8e-4, about 0.27 k_t / (m omega^2); bound 2e-3 (on the T_min
+    rule; Method 3's default 'accuracy' rule: 3.9e-3, within its 0.5 % target, checked below)."""
+    ds = ss.run(jenkins(1000.0), method, periods=3, step_rule="t-min", raise_on_failure=True)
+    if method == "piecewise-linear":
+        default = ss.run(jenkins(1000.0), method, periods=3, raise_on_failure=True)
+        assert default.attrs["step_rule"] == "accuracy"
+        d = float(friction_energy_per_period(default).sel(contact="J"))
+        assert d == pytest.approx(LOOP_ENERGY, rel=5e-3)
     assert np.allclose(ds.normal_force.values, FN_J, rtol=1e-9)
     d = float(friction_energy_per_period(ds).sel(contact="J"))
     assert d == pytest.approx(LOOP_ENERGY, rel=2e-3)
@@ -170,9 +176,9 @@ def paper():
 
 @pytest.fixture(scope="module")
 def paper_runs(paper):
-    return {
-        m: ss.run(paper, m, periods=3, raise_on_failure=True) for m in ("newmark", "piecewise-linear", "quasi-static")
-    }
+    # the paper's T_min rule for every method: Methods 1 and 3 on the same steps
+    methods = ("newmark", "piecewise-linear", "quasi-static")
+    return {m: ss.run(paper, m, periods=3, step_rule="t-min", raise_on_failure=True) for m in methods}
 
 
 @pytest.mark.parametrize("method, bound", [("newmark", 1e-6), ("piecewise-linear", 1e-10), ("quasi-static", 1e-10)])
@@ -266,7 +272,8 @@ def chain_system():
 
 @pytest.fixture(scope="module")
 def chain_runs(chain_system):
-    return {m: ss.run(chain_system, m, periods=3, raise_on_failure=True) for m in ALL_METHODS}
+    # the paper's T_min rule for every method: the same-step comparisons with Method 1
+    return {m: ss.run(chain_system, m, periods=3, step_rule="t-min", raise_on_failure=True) for m in ALL_METHODS}
 
 
 def test_chain_runs_and_exercises_the_law(chain_runs):

@@ -478,6 +478,13 @@ def _check_run(c: _Checker, data: dict) -> None:
     for key in ("periods", "duration_s", "step_ratio"):
         c.number(("run", key), ">0")
     c.number(("run", "ramp_time_s"), ">=0")
+    if "step_rule" in run:
+        from slipstep.methods.options import STEP_RULES
+
+        if run["step_rule"] not in STEP_RULES:
+            raise InputError(
+                c.path("run", "step_rule"), f"is {run['step_rule']!r}", "use 'accuracy' or 't-min' (or leave it out)"
+            )
     if "steps_per_period" in run and run["steps_per_period"] < 1:
         raise InputError(c.path("run", "steps_per_period"), f"is {run['steps_per_period']}", "give a whole number >= 1")
     save = run.get("save") or {}

@@ -292,6 +292,13 @@ class RunSpec(_Strict):
     steps_per_period: Optional[int] = Field(
         None, description="steps per period of the quasi-static method (default 300)", json_schema_extra={"unit": "1"}
     )
+    step_rule: Optional[str] = Field(
+        None,
+        description="what sets the step of a dynamic run: `accuracy` (the cap T / 50 refined by the error estimate; "
+        "default of the piecewise-linear methods) or `t-min` (the paper's T_min rule; default of the others); "
+        "command line `--step-rule`",
+        json_schema_extra={"unit": "-"},
+    )
     ramp_time_s: Optional[float] = Field(None, description="smooth start (1 - cos) / 2 of forces and motions")
     save: Optional[SaveSpec] = Field(
         None,

@@ -158,6 +158,10 @@ def _run_options(
 
         opts["max_memory"] = parse_size("--max-memory", max_memory)
     origin["max_memory"] = "--max-memory"
+    if spec.step_rule is not None:  # `slipstep run --step-rule` wins
+        opts["step_rule"], origin["step_rule"] = spec.step_rule, "[run] step_rule"
+    else:
+        origin["step_rule"] = "--step-rule"
     _save_options(spec, save or {}, opts, origin)
     return opts, origin
 

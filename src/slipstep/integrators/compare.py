@@ -73,6 +73,7 @@ def compare_schemes(
             raise InputError("variants", f"unknown variant {v!r}", f"use {', '.join(VARIANTS)}")
     if reference is None:
         ref_opts = {k: v for k, v in options.items() if k != "step_ratio"}
+        ref_opts["step_rule"] = "t-min"  # the reference's step is reference_step_ratio T_min (the paper's rule)
         reference = Simulation(
             system, "piecewise-linear", periods=periods, step_ratio=reference_step_ratio, **ref_opts
         ).run()
@@ -81,7 +82,9 @@ def compare_schemes(
     t_from = t_end - period if period is not None and period < t_end else 0.0
 
     def timed(integrator, variant):
-        sim = integrator.simulation(system, variant, periods=periods, **options)
+        # the implicit schemes on the paper's T_min rule, each with its own step limit factor
+        rule = {"step_rule": "t-min"} if integrator.kind == "implicit" else {}
+        sim = integrator.simulation(system, variant, periods=periods, **{**options, **rule})
         times = []
         for _ in range(int(repeats) + 1):  # the first march is the warm-up (compilation, caches)
             sim.march()

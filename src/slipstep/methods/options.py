@@ -55,9 +55,11 @@ class RunOptions:
         limit r T_min(stick) / (2 pi sqrt(beta)), the cap max_step and the stability limit) or
         'accuracy' (the solves that do not iterate, the piecewise-linear methods only: the cap
         max_step refined by the step-doubling error estimate, and the stability limit; T_min
-        plays no part; with a period or max_step only). None: 't-min' for now
-        (methods/plan.py DEFAULT_STEP_RULE); ``slipstep compare`` passes 't-min' so that
-        Methods 1 and 3 march the same steps.
+        plays no part; with a period or max_step only). None: the method's default
+        (methods/plan.py ``step_rule_of``): 'accuracy' for the dynamic piecewise-linear
+        methods with a period or max_step and an error control (error_estimate, rtol or
+        max_step), else 't-min'; ``slipstep compare`` and the built-in paper case pass 't-min'
+        so that Methods 1 and 3 march the paper's steps.
     error_estimate: compute the step-doubling error estimate (attrs energy_error_estimate,
         peak_force_error_estimate; one coarse piecewise-linear twin march) and let the default
         step rule refine the step when the estimate exceeds 0.5 % (methods/accuracy.py).

@@ -8,10 +8,11 @@
 compiles the system for its backend, and applies the step rule (methods/step_control.py):
 
     dt0 = min(r T_min(stick) / pi, T / 50, stability limit),   whole steps per period
-          (step_rule 't-min', the paper's; the default)
+          (step_rule 't-min', the paper's; the default of the methods that iterate)
     dt0 = min(T / 50, stability limit),                        whole steps per period
-          (step_rule 'accuracy', piecewise-linear methods only: nothing iterates within a
-          linear phase, so T_min sets nothing; :func:`step_rule_of`)
+          (step_rule 'accuracy', piecewise-linear methods only, their default where a period
+          or max_step caps the step and an error estimate checks it: nothing iterates within
+          a linear phase, so T_min sets nothing; :func:`step_rule_of`)
 
 (quasi-static: T / steps_per_period; ``dt`` given: that step), the step capacity of the run
 and its memory estimate, checked before any allocation. The default rule's step-doubling
@@ -95,7 +96,7 @@ class RunPlan:
     @property
     def step_rule(self) -> str:
         """The step rule of the run, 'accuracy' or 't-min' (:func:`step_rule_of`)."""
-        return step_rule_of(self.method, self.options)
+        return step_rule_of(self.method, self.options, self.period)
 
     @property
     def stick(self) -> np.ndarray:
@@ -197,12 +198,12 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
             f"is only used by the quasi-static-dofs method, not {method.name}",
             "use method quasi-static-dofs or drop the option",
         )
-    if is_sparse(cs) and not sparse_t_min_needed(cs, method, opt):
+    if is_sparse(cs) and not sparse_t_min_needed(cs, method, opt, system.period):
         t_min_stick = math.nan  # not computed: neither the step rule nor the given dt uses it (methods/sparse.py)
-        dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, math.inf, system.period)
     else:
         t_min_stick = state_t_min(cs, stick)  # massless DOFs (zero rows of M) condensed
-        dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick)
+        dt_limit, dt_stability = _step_limits(cs, method, opt, t_min_stick, system.period)
     plan = _timed_plan(system, method, opt, cs, massless, t_min_stick, dt_limit, dt_stability)
     if is_sparse(cs):
         SB.check_adaptive(plan)
@@ -218,42 +219,56 @@ def _backend_of(system: System, method: Method, opt: RunOptions) -> str:
     return compile_backend(opt.linear_solver)
 
 
-#: the rule when step_rule is not given. Issue 26 asks for 'accuracy' as the default of the
-#: piecewise-linear methods; the flip waits for the tests that pin the paper's steps of Methods
-#: 3 and 2+3 to pass step_rule='t-min' and for the no-period case (no cap T / 50) to be settled
-DEFAULT_STEP_RULE = "t-min"
-
-
-def sparse_t_min_needed(cs, method, opt) -> bool:
+def sparse_t_min_needed(cs, method, opt, period: float | None) -> bool:
     """Does a plan on the sparse backend need T_min of full stick? Always up to DENSE_EIGEN_MAX_N DOFs (cheap, and
     the dense backend's value); beyond, only under the 't-min' step rule without a given dt
     (the 'accuracy' rule's step and a given dt do not use it, and the eigen-solve of a large
     mesh costs more than its march)."""
     if cs.M.shape[0] <= SB.DENSE_EIGEN_MAX_N:
         return True
-    return step_rule_of(method, opt) != "accuracy" and opt.dt is None
+    return step_rule_of(method, opt, period) != "accuracy" and opt.dt is None
 
 
-def step_rule_of(method: Method, opt: RunOptions) -> str:
-    """The step rule of ``method`` under ``opt``: opt.step_rule when given, else
-    DEFAULT_STEP_RULE ('t-min', the paper's rule, paper 4.2). 'accuracy' (the piecewise-linear
-    solve does not iterate within a linear phase: the step is set by the cap max_step, the
-    step-doubling refinement and the stability limit alone) for a method that iterates is
-    refused: its fixed-point iteration converges only below the T_min limit."""
-    if opt.step_rule is None:
-        return DEFAULT_STEP_RULE
-    if opt.step_rule == "accuracy" and method.solver != K.PIECEWISE_LINEAR and not method.quasi_static:
-        raise InputError(
-            "step_rule",
-            f"is 'accuracy', but {method.name} iterates within a step and converges only below the T_min limit",
-            "use step_rule 't-min' (the default of this method) or a piecewise-linear method",
-        )
-    return opt.step_rule
+def step_rule_of(method: Method, opt: RunOptions, period: float | None) -> str:
+    """The step rule of ``method`` under ``opt`` for an excitation of period ``period`` [s]
+    (None: tables only); the one place of the rule.
+
+    Given (opt.step_rule), it wins; 'accuracy' for a method that iterates within a step
+    (Methods 1, 2, full Newton, the event-driven ones) is refused: its fixed-point iteration
+    converges only below the T_min limit. Not given:
+
+        'accuracy'  the dynamic piecewise-linear methods (Methods 3, 2+3, 3+4: nothing iterates
+                    within a linear phase, so T_min sets nothing) when something caps the step
+                    (the period's T / 50 or max_step) and something controls the error (the
+                    step-doubling estimate, rtol, or the user's max_step): dt = min(cap,
+                    stability limit), refined by the estimate;
+        't-min'     every other case (paper 4.2): the methods that iterate, Method 4 (its step
+                    is T / steps_per_period), runs driven by tables without a period or
+                    max_step, and runs with error_estimate off and neither rtol nor max_step,
+                    where T / 50 unchecked by any estimate is not safe (a random system marched
+                    by Method 3 at T / 50 without the estimate diverged).
+    """
+    iterates = method.solver != K.PIECEWISE_LINEAR and not method.quasi_static
+    if opt.step_rule is not None:
+        if opt.step_rule == "accuracy" and iterates:
+            raise InputError(
+                "step_rule",
+                f"is 'accuracy', but {method.name} iterates within a step and converges only below the T_min limit",
+                "use step_rule 't-min' (the default of this method) or a piecewise-linear method",
+            )
+        return opt.step_rule
+    if method.solver != K.PIECEWISE_LINEAR or method.quasi_static:
+        return "t-min"
+    capped = period is not None or opt.max_step is not None
+    controlled = opt.error_estimate or opt.rtol is not None or opt.max_step is not None
+    return "accuracy" if capped and controlled else "t-min"
 
 
-def _step_limits(cs: CompiledSystem, method: Method, opt: RunOptions, t_min_stick: float) -> tuple[float, float]:
+def _step_limits(
+    cs: CompiledSystem, method: Method, opt: RunOptions, t_min_stick: float, period: float | None
+) -> tuple[float, float]:
     """(dt_limit, dt_stability) of the step rule: :func:`slipstep.methods.step_control.step_limits`."""
-    no_t_min = opt.rtol is not None or step_rule_of(method, opt) == "accuracy"
+    no_t_min = opt.rtol is not None or step_rule_of(method, opt, period) == "accuracy"
     iterates = not (no_t_min and method.solver == K.PIECEWISE_LINEAR)
     return SC.step_limits(
         cs, opt.scheme, t_min_stick, opt.step_ratio, method.quasi_static, iterates, opt.dt is not None
@@ -298,7 +313,7 @@ def _timed_plan(
         )
     save_plan = SV.resolve(opt.save, system, cs, 0.0, t_end, period)
     scheme = opt.scheme
-    if period is None and opt.max_step is None and step_rule_of(method, opt) == "accuracy" and opt.dt is None:
+    if period is None and opt.max_step is None and step_rule_of(method, opt, period) == "accuracy" and opt.dt is None:
         raise InputError(
             "step_rule",
             "is 'accuracy', but the excitation has no period, so there is no accuracy cap T / 50",
@@ -330,7 +345,7 @@ def replanned(plan: RunPlan, compiled: CompiledSystem) -> RunPlan:
     if plan.massless is not None or plan.pilot_allowed:
         raise ValueError("replanned: a plan with massless DOFs or a pilot refinement is planned by plan_run")
     t_min_stick = state_t_min(compiled, plan.stick)
-    dt_limit, dt_stability = _step_limits(compiled, plan.method, plan.options, t_min_stick)
+    dt_limit, dt_stability = _step_limits(compiled, plan.method, plan.options, t_min_stick, plan.period)
     return _timed_plan(plan.system, plan.method, plan.options, compiled, None, t_min_stick, dt_limit, dt_stability)
 
 
@@ -342,6 +357,8 @@ def retuned_plan(plan: RunPlan, frequency_hz: float, system: System | None = Non
     opt = replace(plan.options, **option_changes).validated()
     cs = _retuned_compiled(plan, system)
     layout_same = all(_same(getattr(opt, k), getattr(plan.options, k)) for k in _LAYOUT_OPTIONS)
+    # the default rule follows error_estimate, max_step and the period: the step limits go with it
+    layout_same = layout_same and step_rule_of(plan.method, opt, system.period) == plan.step_rule
     if cs is None or not layout_same or (opt.dt is None) != (plan.options.dt is None):
         fields = {name: getattr(opt, name) for name in RunOptions.__dataclass_fields__}
         return plan_run(system, plan.method, **fields)

@@ -354,13 +354,15 @@ DENSE_EIGEN_MAX_N = 2000
 
 def serves(system, method, opt) -> bool:
     """Can the sparse backend march ``method`` with ``opt`` on ``system`` (check_method,
-    check_contacts; Method 2+3 only under the 'accuracy' rule)?"""
+    check_contacts; Method 2+3 only under the 'accuracy' rule, its default with a period)?"""
     try:
         check_method(method, opt)
         check_contacts(system)
     except InputError:
         return False
-    return not method.adaptive or opt.step_rule == "accuracy"
+    from slipstep.methods.plan import step_rule_of  # (plan imports this module)
+
+    return not method.adaptive or step_rule_of(method, opt, system.period) == "accuracy"
 
 
 def auto_chooses(system, method, opt) -> bool:

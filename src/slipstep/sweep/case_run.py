@@ -178,8 +178,8 @@ def _run_options(run, extra: dict) -> dict:
     opts = {}
     if run.duration_s is not None:
         opts["duration"] = run.duration_s
-    for key in ("periods", "step_ratio", "steps_per_period"):
-        if getattr(run, key) is not None:
+    for key in ("periods", "step_ratio", "steps_per_period", "step_rule"):
+        if getattr(run, key, None) is not None:
             opts[key] = getattr(run, key)
     if getattr(run, "save", None) is not None:  # [run.save]: what the march stores (as `slipstep run`)
         opts["save"] = run.save.options()

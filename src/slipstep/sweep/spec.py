@@ -79,7 +79,16 @@ EXTRA_RUN_OPTIONS = {
     "max_state_iterations": int,
     "linear_solver": str,
 }
-CASE_RUN_KEYS = ("method", "periods", "duration_s", "step_ratio", "steps_per_period", "ramp_time_s", "save")
+CASE_RUN_KEYS = (
+    "method",
+    "periods",
+    "duration_s",
+    "step_ratio",
+    "steps_per_period",
+    "step_rule",
+    "ramp_time_s",
+    "save",
+)
 HISTORY_VARIABLES = (
     "displacement",
     "velocity",
