@@ -139,9 +139,9 @@ def sweep(
     Each converged point is refined by step doubling (slipstep.frequency.error_estimate); with
     ``retry_steps``, a point whose steady state did not converge is solved once more from the
     same start with that many steps per period (its periods counted in both). hbm_start (solver
-    "shoot"): a point still not converged is shot once more from the harmonic balance solution
-    continued from the previous frequency (slipstep.frequency.hbm_seed: an unstable orbit, on
-    which marching never settles)."""
+    "shoot"): before that retry, a point not converged is shot from the harmonic balance solution
+    continued from the previous frequency, with the retry's steps (slipstep.frequency.hbm_seed: an
+    unstable orbit, on which marching never settles; a failed solve costs up to max_periods)."""
     if solver not in STEADY_SOLVERS:
         raise InputError("solver", f"is {solver!r}", f"use one of {sorted(SOLVERS)}")
     names = list(system.structure.dof_names)
@@ -160,16 +160,18 @@ def sweep(
         start = time.perf_counter()
         system_f = retune(system, float(f))
         try:
-            steady = steady_solver(system_f, initial=prev, **options)
-            if steady.status != "OK" and retry_steps is not None:
-                retry = steady_solver(system_f, initial=prev, **{**options, "steps_per_period": retry_steps})
-                steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
             solve = steady_solver
             if seeder is not None:
                 solve = _WithHbmStart(steady_solver, seeder, float(frequencies[i - 1]) if i else None, float(f))
-                if steady.status != "OK":
-                    steps = {} if retry_steps is None else {"steps_per_period": retry_steps}
-                    steady = solve(system_f, failed=steady, **{**options, **steps})
+            # with a harmonic balance start to try, a failed Newton is not marched (up to max_periods)
+            first = options if seeder is None else {**options, "march_fallback": False}
+            steady = steady_solver(system_f, initial=prev, **first)
+            steps = {} if retry_steps is None else {"steps_per_period": retry_steps}
+            if steady.status != "OK" and seeder is not None:
+                steady = solve(system_f, failed=steady, **{**options, **steps})
+            if steady.status != "OK" and retry_steps is not None:
+                retry = steady_solver(system_f, initial=prev, **{**options, **steps})
+                steady = dataclasses.replace(retry, periods=steady.periods + retry.periods)
             if steady.status != "OK":
                 steady = dataclasses.replace(steady, message=steady.message + turning_point_hint(prev))
             values = _point(solve, system_f, steady, responses, n_harmonics, options, rtol, max_refinements)

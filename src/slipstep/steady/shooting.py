@@ -302,6 +302,7 @@ def shoot(
     max_backtracks: int = 3,
     warmup_periods: int = 5,
     predictor: bool = True,
+    march_fallback: bool = True,
     **run_options,
 ):
     """Periodic steady state by shooting (see the module docstring); returns a SteadyState
@@ -312,7 +313,9 @@ def shoot(
     (:func:`predicted_start`; the previous orbit if the predicted period fails). When Newton
     from a given start has not converged after half of ``max_iterations``, the search starts
     afresh from the static preload (``warmup_periods`` marched first): the orbit of a distant
-    frequency can be a worse start than the preload. method "events": the exact periodic orbit
+    frequency can be a worse start than the preload. After max_iterations, the last iterate is
+    marched up to max_periods (march_fallback; False: the solve ends NOT_STEADY there, for a
+    caller with a better start to try). method "events": the exact periodic orbit
     (steady/exact_orbit.steady_state; the step and march options do not apply)."""
     wall = time.perf_counter()
     check_tolerance(tolerance, max_periods)
@@ -437,6 +440,10 @@ def shoot(
         dz = newton_step(phi, _unknowns(end, quasi) - z0, scales.vector(quasi, nd), free)
         best, backtracks = (e, z0, dz, end), 0
         state = _from_unknowns(z0 + dz, n, quasi, end.states)
+    if not march_fallback:  # the caller has a better start than marching (an FRF's harmonic balance)
+        result = stop("NOT_STEADY", state)
+        result.message = f"Newton did not converge in {max_iterations} iterations (no marching fallback asked)"
+        return result
     # fallback: plain marching from the last iterate
     start(sim, state, t0)
     status, k, ch, end, kt_ = march_periods(sim, 0, tolerance, max(max_periods - periods, 1))
