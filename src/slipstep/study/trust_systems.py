@@ -147,22 +147,14 @@ def newmark_check(system: System, method: str = "newmark", periods: float = 2.0,
     from slipstep.errors import SolverError
     from slipstep.methods.invariants import flagged
     from slipstep.methods.simulation import run
-    from slipstep.study.verification import agreement_error
+    from slipstep.study.verification import agreement_error, tight_references
 
     options.setdefault("error_estimate", False)
     options.setdefault("step_rule", "t-min")  # the paper's grid for every method (the agreement is on one grid)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False, step_rule="t-min")
-            pl = run(
-                system,
-                "piecewise-linear",
-                periods=periods,
-                state_tolerance=1e-13,
-                error_estimate=False,
-                step_rule="t-min",
-            )
+            ref, pl = tight_references(system, periods)
             ds = run(system, method, periods=periods, **options)
         except (InputError, SolverError):
             return None

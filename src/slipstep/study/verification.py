@@ -228,6 +228,19 @@ INVARIANT_METHODS = (
 DECIDABLE_RTOL = 1e-8
 
 
+def tight_references(system, periods):
+    """(full Newton at tolerance 1e-13, the piecewise-linear solve at state tolerance 1e-13), both
+    on the paper's T_min grid without the error estimate: the two references of an agreement
+    check (a system is decidable where they agree to DECIDABLE_RTOL)."""
+    from slipstep.methods.simulation import run
+
+    ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False, step_rule="t-min")
+    pl = run(
+        system, "piecewise-linear", periods=periods, state_tolerance=1e-13, error_estimate=False, step_rule="t-min"
+    )
+    return ref, pl
+
+
 def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0, rtol: float = 1e-6) -> dict:
     """Issue 29's check of one system: every method's status and broken invariant (``invariant_check``),
     and for the fixed-step dynamic methods (CHECK_METHODS) the agreement error with full Newton
@@ -243,15 +256,7 @@ def family_check(system: System, methods=INVARIANT_METHODS, periods: float = 2.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False, step_rule="t-min")
-            pl = run(
-                system,
-                "piecewise-linear",
-                periods=periods,
-                state_tolerance=1e-13,
-                error_estimate=False,
-                step_rule="t-min",
-            )
+            ref, pl = tight_references(system, periods)
             rows["decidable"] = (
                 ref.attrs["status"] == pl.attrs["status"] == "OK" and agreement_error(pl, ref) <= DECIDABLE_RTOL
             )
