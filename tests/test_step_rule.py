@@ -74,7 +74,7 @@ def test_compare_marches_methods_1_and_3_on_the_same_steps(paper):
     assert datasets["newmark"].attrs["dt_s"] == datasets["piecewise-linear"].attrs["dt_s"]
 
 
-# ---- the default rule (methods/plan.py step_rule_of) --------------------------------------
+# ---- the default rule (methods/step_rule.py step_rule_of) --------------------------------------
 
 
 @pytest.mark.parametrize(

@@ -18,7 +18,7 @@ from slipstep.model.validate import positive
 
 #: the values of RunOptions.linear_solver
 LINEAR_SOLVERS = ("auto", "direct", "low-rank", "banded", "sparse")
-#: the values of RunOptions.step_rule (None: the method's default, methods/plan.py ``step_rule_of``)
+#: the values of RunOptions.step_rule (None: the method's default, methods/step_rule.py ``step_rule_of``)
 STEP_RULES = ("accuracy", "t-min")
 
 
@@ -56,7 +56,7 @@ class RunOptions:
         'accuracy' (the solves that do not iterate, the piecewise-linear methods only: the cap
         max_step refined by the step-doubling error estimate, and the stability limit; T_min
         plays no part; with a period or max_step only). None: the method's default
-        (methods/plan.py ``step_rule_of``): 'accuracy' for the dynamic piecewise-linear
+        (methods/step_rule.py ``step_rule_of``): 'accuracy' for the dynamic piecewise-linear
         methods with a period or max_step and an error control (error_estimate, rtol or
         max_step), else 't-min'; ``slipstep compare`` and the built-in paper case pass 't-min'
         so that Methods 1 and 3 march the paper's steps.

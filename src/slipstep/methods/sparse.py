@@ -30,6 +30,7 @@ from slipstep.model.contact import without_piecewise_linear_form
 from slipstep.errors import InputError
 from slipstep.kernels import march as K
 from slipstep.kernels import sparse as KS
+from slipstep.methods.step_rule import step_rule_of
 
 #: the state cache holds at most about this many bytes of condensed LUs (nq x nq per slot)
 STATE_CACHE_BYTES = 2e8
@@ -360,8 +361,6 @@ def serves(system, method, opt) -> bool:
         check_contacts(system)
     except InputError:
         return False
-    from slipstep.methods.plan import step_rule_of  # (plan imports this module)
-
     return not method.adaptive or step_rule_of(method, opt, system.period) == "accuracy"
 
 
