@@ -16,7 +16,7 @@ from hbm_cases import gap_oscillator
 import slipstep as ss
 
 from slipstep.frequency.hbm_seed import HbmSeeder
-from slipstep.frequency.response import frf
+from slipstep.frequency.response import _WithHbmStart, frf, sweep
 from slipstep.model.retune import retune
 from slipstep.steady import march_to_steady, shoot
 
@@ -75,3 +75,39 @@ def test_a_law_without_harmonic_balance_gives_the_reason():
     circle = dataclasses.replace(system, contacts=(contact,))
     start, text = HbmSeeder(circle).start(19.0, 20.0)
     assert start is None and "piecewise-linear" in text
+
+
+@pytest.fixture(scope="module")
+def upper_branch_orbit():
+    """The orbit at 19 Hz (the point before the fold) of a sweep stepping up the upper branch."""
+    _, last = sweep(gap_oscillator(), FREQUENCIES[:FOLD_POINT], solver="shoot", rtol=None)
+    assert last.status == "OK"
+    return last
+
+
+FEW_ITERATIONS = dict(max_iterations=16, max_periods=200, march_fallback=True)
+
+
+def test_a_resolve_with_a_balance_start_to_come_is_not_marched(upper_branch_orbit):
+    """The error estimate's re-solves go through _WithHbmStart: when the balance can start the
+    point, the failed Newton is not marched up to max_periods first (which cost the blade pair's
+    FRF 11 s at one point)."""
+    system, f = gap_oscillator(), float(FREQUENCIES[FOLD_POINT])
+    failed = shoot(retune(system, f), initial=upper_branch_orbit, **FEW_ITERATIONS)
+    assert failed.status != "OK" and failed.periods >= 200  # the march this saves
+    solve = _WithHbmStart(shoot, HbmSeeder(system), float(FREQUENCIES[FOLD_POINT - 1]), f)
+    steady = solve(retune(system, f), initial=upper_branch_orbit, **FEW_ITERATIONS)
+    assert steady.status == "OK" and solve.used
+    assert steady.periods < 60  # Newton's periods from both starts, no marching fallback
+
+
+def test_without_a_balance_start_the_resolve_keeps_its_marching_fallback(upper_branch_orbit):
+    system, f = gap_oscillator(), float(FREQUENCIES[FOLD_POINT])
+    seeder = HbmSeeder(system)
+    seeder.unavailable = "no balance for this test"
+    solve = _WithHbmStart(shoot, seeder, float(FREQUENCIES[FOLD_POINT - 1]), f)
+    steady = solve(retune(system, f), initial=upper_branch_orbit, **FEW_ITERATIONS)
+    alone = shoot(retune(system, f), initial=upper_branch_orbit, **FEW_ITERATIONS)
+    assert not solve.used
+    assert (steady.status, steady.periods) == (alone.status, alone.periods)  # the same solve, marched
+    assert "no balance for this test" in steady.message

@@ -198,18 +198,28 @@ class _WithHbmStart:
     """``steady_solver`` that, when a solve does not converge (or given the ``failed`` one), shoots
     again from the harmonic balance start at ``f`` [Hz] continued from ``f_previous``
     (HbmSeeder.start); the periods of both attempts are counted, the message keeps the first
-    attempt's status, and ``used`` says whether a start was taken from the balance."""
+    attempt's status, and ``used`` says whether a start was taken from the balance. Its own first
+    attempt (the error estimate's re-solves) is not marched after a failed Newton (march_fallback
+    False: up to max_periods, on an orbit marching may never settle on); when the balance then
+    gives no start, that attempt is made again with the marching fallback."""
 
     def __init__(self, steady_solver, seeder, f_previous, f):
         self.steady_solver, self.seeder, self.f_previous, self.f = steady_solver, seeder, f_previous, f
         self.used = False
 
     def __call__(self, system_f, initial=None, failed=None, **options):
-        if failed is None:
+        if failed is None:  # a failed Newton is not marched (up to max_periods): the balance start follows
+            failed = self.steady_solver(system_f, initial=initial, **{**options, "march_fallback": False})
+            if failed.status == "OK":
+                return failed
+            fallback = True
+        else:
+            fallback = False
+        start, text = self.seeder.start(self.f_previous, self.f)
+        if start is None and fallback:  # no balance start after all: the solve with its marching fallback
             failed = self.steady_solver(system_f, initial=initial, **options)
             if failed.status == "OK":
                 return failed
-        start, text = self.seeder.start(self.f_previous, self.f)
         if start is None:
             return dataclasses.replace(failed, message=f"{failed.message}; {text}")
         self.used = True
