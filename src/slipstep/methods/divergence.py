@@ -35,10 +35,9 @@ def energy_diverged(out, n_steps: int, cs, fe: np.ndarray, motion: np.ndarray) -
         band_quadratic_forms(cs.Mb, cs.kl, cs.ku, np.ascontiguousarray(v), E)
         band_quadratic_forms(cs.Kb, cs.kl, cs.ku, np.ascontiguousarray(x), ek)
         E = 0.5 * (E + ek)
-    elif is_sparse(cs):  # the sparse backend: the structure's CSR matrices, the user's DOF order
-        E = 0.5 * quadratic_form(structure_matrix(cs, "M"), v) + 0.5 * quadratic_form(structure_matrix(cs, "K"), x)
-    else:
-        E = 0.5 * np.einsum("ti,ij,tj->t", v, cs.M, v) + 0.5 * np.einsum("ti,ij,tj->t", x, cs.K, x)
+    else:  # dense, or the sparse backend's CSR matrices (the user's DOF order)
+        M, K = (structure_matrix(cs, "M"), structure_matrix(cs, "K")) if is_sparse(cs) else (cs.M, cs.K)
+        E = 0.5 * quadratic_form(M, v) + 0.5 * quadratic_form(K, x)
     nrow, trow = np.asarray(cs.normal_row), np.asarray(cs.tangential_row)
     if nrow.size:
         E = E + 0.5 * (f[:, nrow] ** 2 / cs.kn).sum(axis=1) + 0.5 * (f[:, trow] ** 2 / cs.kt).sum(axis=1)
