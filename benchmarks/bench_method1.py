@@ -102,11 +102,17 @@ def fresh_process(cache_dir: str) -> dict:
 # The contact evaluation of the floor: the explicit-array cores when the kernels have them
 # (what the march's hot path calls), else the CompiledSystem wrappers named in issue 2.
 try:
+    import inspect
+
     from slipstep.kernels.contact import gather as _g_core, law as _l_core, scatter as _s_core
+
+    # the cores take A^T for a gather and A for a scatter since issue 24 (column-wise products);
+    # trees before it took A and A^T
+    _COLUMNWISE = next(iter(inspect.signature(_g_core.py_func).parameters)) == "AT"
 
     @njit(inline="always")
     def _gather(sys, x, p, q):
-        _g_core(sys.A, sys.B, sys.g, x, p, q)
+        _g_core(sys.AT if _COLUMNWISE else sys.A, sys.B, sys.g, x, p, q)
 
     @njit(inline="always")
     def _law(sys, q, w_old, f, w_new, state):
@@ -127,7 +133,7 @@ try:
 
     @njit(inline="always")
     def _scatter(sys, f, out):
-        _s_core(sys.AT, f, out)
+        _s_core(sys.A if _COLUMNWISE else sys.AT, f, out)
 
     FLOOR_FUNCTIONS = "contact.gather + contact.law + contact.scatter + linalg.lu_solve"
 except ImportError:  # older kernels

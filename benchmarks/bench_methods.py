@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import inspect
 import json
 import os
 import statistics
@@ -43,6 +44,9 @@ from slipstep.kernels import march as K
 from slipstep.kernels.contact import compatible, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.settings import contact_table
+
+# the scatter core takes A since issue 24 (row-wise axpy); trees before it took A^T
+_SCATTER_TAKES_A = next(iter(inspect.signature(scatter.py_func).parameters)) == "A"
 
 # (method, label, paper ratio to Method 1 (Figure 8: "at most"), our goal ratio)
 METHODS = [
@@ -150,7 +154,7 @@ def _solve_floor(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, lu, piv, qbase,
         for i in range(nq):
             q[i] = qbase[i]
         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, f, w1)
-        scatter(AT, f, gf)
+        scatter(A if _SCATTER_TAKES_A else AT, f, gf)
         for i in range(n):
             r[i] = r0[i] - gf[i]
         lu_solve(lu, piv, r, dx)
@@ -161,7 +165,7 @@ def _solve_floor(A, AT, nrow, lcode, lpar, fdir, ndir, trow, kt, lu, piv, qbase,
             q[rr] = s
         ok += compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, rtol, L)
         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, st, q, w, f, w1)
-        scatter(AT, f, gf)
+        scatter(A if _SCATTER_TAKES_A else AT, f, gf)
     return ok
 
 

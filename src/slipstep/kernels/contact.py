@@ -33,27 +33,47 @@ from slipstep.kernels.settings import contact_table
 #   trow (nd) tangential row of each direction in q, kt (nd).
 
 
+# The dense products with A below run column by column of the result's source (axpy form):
+# the inner loop has no reduction, so it vectorises without fastmath, and each entry is still
+# summed in the order of the row-by-row dot product (bit-identical to it); a zero x_j or f_r
+# is skipped. 3-4x faster than the dot products for a 400 x 31 gather (benchmark in the
+# closing note of issue 24), the many-contact case.
+
+
 @njit(cache=True, error_model="numpy", inline="always")
-def gather(A, B, g, x, p, q):
-    """q = A x - B p + g."""
-    for r in range(A.shape[0]):
-        s = g[r]
-        for j in range(A.shape[1]):
-            s += A[r, j] * x[j]
+def gather_columns(AT, base, x, q):
+    """q = base + A x (AT: the contiguous transpose of A), column by column of A."""
+    for r in range(AT.shape[1]):
+        q[r] = base[r]
+    for j in range(AT.shape[0]):
+        xj = x[j]
+        if xj != 0.0:
+            for r in range(AT.shape[1]):
+                q[r] += AT[j, r] * xj
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def gather(AT, B, g, x, p, q):
+    """q = A x - B p + g (AT: the contiguous transpose of A)."""
+    gather_columns(AT, g, x, q)
+    for r in range(AT.shape[1]):
+        s = q[r]
         for j in range(B.shape[1]):
             s -= B[r, j] * p[j]
         q[r] = s
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def scatter(AT, f, out):
-    """out = A^T f (AT: the contiguous transpose of A): the contact force on the DOFs as it
-    enters the left-hand side. One dot product per DOF, accumulated in a register."""
-    for j in range(AT.shape[0]):
-        s = 0.0
-        for r in range(AT.shape[1]):
-            s += AT[j, r] * f[r]
-        out[j] = s
+def scatter(A, f, out):
+    """out = A^T f: the contact force on the DOFs as it enters the left-hand side, row by row
+    of A."""
+    for j in range(A.shape[1]):
+        out[j] = 0.0
+    for r in range(A.shape[0]):
+        fr = f[r]
+        if fr != 0.0:
+            for j in range(A.shape[1]):
+                out[j] += A[r, j] * fr
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -293,7 +313,7 @@ def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kf
 def local_displacement(sys, x, p, q):
     """q = A x - B p + g (A dense, or in CSR for the banded backend of slipstep.system)."""
     if not sys.banded:
-        gather(sys.A, sys.B, sys.g, x, p, q)
+        gather(sys.AT, sys.B, sys.g, x, p, q)
         return
     for r in range(q.shape[0]):
         s = sys.g[r]
@@ -343,7 +363,7 @@ def add_tangent_stiffness(sys, state, q, w_old, factor, out):
 def generalised_force(sys, f, out):
     """out = A^T f (A^T dense, or in CSR for the banded backend)."""
     if not sys.banded:
-        scatter(sys.AT, f, out)
+        scatter(sys.A, f, out)
         return
     for j in range(out.shape[0]):
         s = 0.0

@@ -94,9 +94,9 @@ def _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, l
                     sys.motion_table_value, sys.motion_ramp, p)
     evaluate_signal(t, sys.force_frequency, sys.force_sin, sys.force_cos, sys.force_table_time,
                     sys.force_table_value, sys.force_ramp, fe)
-    gather(A, B, g, x, p, q)
+    gather(AT, B, g, x, p, q)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
-    scatter(AT, f, gf)
+    scatter(A, f, gf)
     for i in range(n):
         s = fe[i] + sys.constant_force[i] - gf[i]
         for j in range(n):

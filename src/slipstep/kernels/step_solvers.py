@@ -22,7 +22,7 @@ from numba import njit
 
 from slipstep.kernels.codes import C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 from slipstep.kernels.codes import STATE_CYCLING
-from slipstep.kernels.contact import compatible_law, coupled, law, piecewise_law, scatter
+from slipstep.kernels.contact import compatible_law, coupled, gather_columns, law, piecewise_law, scatter
 from slipstep.kernels import structure_ops as so
 
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
@@ -39,27 +39,23 @@ ROUNDOFF = 1e-14
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def local_coordinates(backend, csr, A, qbase, dx, q):
-    """q = q_base + A dx (A in CSR for the banded backend: structure_ops.gather_increment)."""
+def local_coordinates(backend, csr, AT, qbase, dx, q):
+    """q = q_base + A dx (AT: the transpose of A, dense; A in CSR for the banded backend:
+    structure_ops.gather_increment)."""
     if backend == so.BANDED:
         so.gather_increment(csr, qbase, dx, q)
         return
-    n = dx.shape[0]
-    for rr in range(A.shape[0]):
-        s = qbase[rr]
-        for j in range(n):
-            s += A[rr, j] * dx[j]
-        q[rr] = s
+    gather_columns(AT, qbase, dx, q)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def newton_residual(backend, csr, A, AT, cl, Lin, kfac, sv, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - kfac A^T f - Lin dx."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    local_coordinates(backend, csr, A, sv.qbase, sv.dx, sv.q1)
+    local_coordinates(backend, csr, AT, sv.qbase, sv.dx, sv.q1)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, sv.q1, sv.w, sv.f1, sv.w1, sv.state1)
     counters[C_LAW_CALLS] += 1
-    so.scatter_force(backend, csr, AT, sv.f1, sv.gf1)
+    so.scatter_force(backend, csr, A, sv.f1, sv.gf1)
     r, r0, gf1 = sv.r, sv.r0, sv.gf1
     for i in range(r.shape[0]):
         r[i] = r0[i] - kfac * gf1[i]
@@ -166,22 +162,13 @@ def _modified_newton_banded(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _local_coordinates_dense(A, qbase, dx, q):
-    """q = q_base + A dx."""
-    n = dx.shape[0]
-    for rr in range(A.shape[0]):
-        s = qbase[rr]
-        for j in range(n):
-            s += A[rr, j] * dx[j]
-        q[rr] = s
-@njit(cache=True, error_model="numpy", inline="always")
 def _newton_residual_dense(backend, A, AT, cl, Lin, kfac, sv, counters):
     """The contact law at q = q_base + A dx and the residual r = r0 - kfac A^T f - Lin dx."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    _local_coordinates_dense(A, sv.qbase, sv.dx, sv.q1)
+    gather_columns(AT, sv.qbase, sv.dx, sv.q1)
     law(nrow, lcode, lpar, fdir, ndir, trow, kt, sv.q1, sv.w, sv.f1, sv.w1, sv.state1)
     counters[C_LAW_CALLS] += 1
-    scatter(AT, sv.f1, sv.gf1)
+    scatter(A, sv.f1, sv.gf1)
     r, r0, gf1 = sv.r, sv.r0, sv.gf1
     for i in range(r.shape[0]):
         r[i] = r0[i] - kfac * gf1[i]
@@ -458,7 +445,7 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
         for rr in range(q1.shape[0]):  # the law at q_base (in q1: one call site of the law with q1)
             q1[rr] = qbase[rr]
         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-        so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)
+        so.scatter_force(backend, so.csr_of(sys), A, f1, gf1)
         for i in range(n):
             r[i] = r0[i] - kfac * gf1[i]
         so.solve(backend, sys, cl, cache, slot, state1, q1, w, kfac, r, dx)
@@ -470,11 +457,11 @@ def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, sta
         if not finite:
             status = NON_FINITE
             break
-        local_coordinates(backend, so.csr_of(sys), A, qbase, dx, q1)
+        local_coordinates(backend, so.csr_of(sys), AT, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
             law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)  # the law's f, w, S at q1 (exact_law)
             if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
-                so.scatter_force(backend, so.csr_of(sys), AT, f1, gf1)  # f1, w1: the law at q1
+                so.scatter_force(backend, so.csr_of(sys), A, f1, gf1)  # f1, w1: the law at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)
@@ -542,7 +529,7 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
         for rr in range(q1.shape[0]):  # the law at q_base (in q1: one call site of the law with q1)
             q1[rr] = qbase[rr]
         piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, f1, w1)
-        scatter(AT, f1, gf1)
+        scatter(A, f1, gf1)
         for i in range(n):
             r[i] = r0[i] - kfac * gf1[i]
         so.solve(backend, sys, cl, cache, slot, state1, q1, w, kfac, r, dx)
@@ -554,11 +541,11 @@ def _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, stat
         if not finite:
             status = NON_FINITE
             break
-        _local_coordinates_dense(A, qbase, dx, q1)
+        gather_columns(AT, qbase, dx, q1)
         if compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state1, q1, w, state_rtol, length_scale, f1, w1):
             law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)  # the law's f, w, S at q1 (exact_law)
             if kfac != 1.0:  # A^T f1 for the next residual base (alpha_f != 0; module docstring)
-                scatter(AT, f1, gf1)  # f1, w1: the law at q1
+                scatter(A, f1, gf1)  # f1, w1: the law at q1
             status = OK
             break
         law(nrow, lcode, lpar, fdir, ndir, trow, kt, q1, w, f1, w1, state1)

@@ -231,19 +231,19 @@ def gather_abs_max(csr, y):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def scatter_force(backend, csr, AT, f, out):
-    """out = A^T f (AT dense, or A^T in CSR for the banded backend)."""
+def scatter_force(backend, csr, A, f, out):
+    """out = A^T f (A dense, or A^T in CSR for the banded backend)."""
     if backend == BANDED:
         csr_matvec(csr[3], csr[4], csr[5], f, out)
     else:
-        scatter(AT, f, out)
+        scatter(A, f, out)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def gather_state(backend, sys, x, p, q):
     """q = A x - B p + g (kernels.contact.gather; A in CSR for the banded backend)."""
     if backend != BANDED:
-        gather(sys.A, sys.B, sys.g, x, p, q)
+        gather(sys.AT, sys.B, sys.g, x, p, q)
         return
     motion_base(sys, p, q)
     csr_gather(sys.A_ptr, sys.A_idx, sys.A_val, q, x, q)
