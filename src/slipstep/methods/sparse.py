@@ -350,17 +350,19 @@ SPARSE_MAX_NQ = 3000
 #: T_min by a dense eigen-solve up to this many DOFs (as the dense backend, the same value)
 DENSE_EIGEN_MAX_N = 2000
 #: the cost model of 'auto' (:func:`step_costs`, fitted to benchmarks/bench_backends.py, docs/sparse.md):
-#: seconds per multiply-add of the dense and banded kernels, ...
+#: seconds of a step's fixed work on every backend (the law, the state test, the stores), ...
+COST_STEP_S = 30e-6
+#: ... per multiply-add of the dense, banded and contact-space kernels, ...
 COST_FLOP_S = 1.0e-9
 #: ... per stored entry of L + U in the sparse backend's two triangular solves per step, ...
 COST_LU_ENTRY_S = 3.0e-9
+#: ... and new contact states per step (a state's factorisation: n^3/3 dense, 2 n b^2 banded,
+#: m^3/3 condensed with m = nq/4 rows that left stick)
+NEW_STATES_PER_STEP = 0.2
 #: 'auto' takes the sparse backend when its estimated cost per step is at least this many times
 #: below every other backend's (the estimates are within about 2x of the measured times: a
 #: closer call keeps the backend of System.compile's rule and its results)
 SPARSE_GAIN = 2.0
-#: ... and new contact states per step (a state's factorisation: n^3/3 dense, n b^2 banded,
-#: m^3/3 condensed with m = nq/2 rows that left stick)
-NEW_STATES_PER_STEP = 0.05
 
 
 def serves(system, method, opt) -> bool:
@@ -382,51 +384,70 @@ class CostEstimate:
     n: int
     nq: int
     band: int  # half-bandwidth after reverse Cuthill-McKee of M + C + K + A^T A
-    lu_entries: int  # the estimate of nnz(L + U) of the sparse backend: twice the RCM envelope
+    lu_entries: int  # the estimate of nnz(L + U) of the sparse backend (step_costs)
     seconds: dict  # backend ('direct', 'low-rank', 'banded', 'sparse') -> seconds per step
 
 
 def step_costs(system) -> CostEstimate:
     """Estimated seconds per step of the piecewise-linear march (Method 3) per backend, from n,
-    the RCM band b and envelope E (of M + C + K + A^T A), nq, and nnz of M + C + K (s):
+    nq, the DOFs the contacts see nb, the entries s of M, C and K (the products of a step), and
+    the reverse Cuthill-McKee order of the pattern of M + C + K + A^T A: its half-bandwidth b and
+    envelope E:
 
-        direct    c_f (5 n^2 + 2 n nq) + rho c_f n^3 / 3
-        low-rank  c_f (5 n^2 + 4 n nq) + rho c_f (n nq^2 + nq^3 / 3)        (when 2 nq <= n)
-        banded    c_f 10 n (2 b + 1)   + rho c_f 2 n b^2
-        sparse    c_lu 2 E + c_f (3 nq^2 + 3 s + 2 nb nq) + rho c_f (m^3 / 3 + m^2 nq),  m = nq / 2
+        direct    t0 + c_f (5 n^2 + 2 n nq) + rho c_f n^3 / 3
+        low-rank  t0 + c_f (5 n^2 + 4 n nq) + rho c_f (n nq^2 + nq^3 / 3)      (when 2 nq <= n)
+        banded    t0 + c_f (3 n (2 b + 1) + 20 n) + rho c_f 2 n b^2
+        sparse    t0 + c_lu 2 E + c_f (2 nq^2 + s + 2 nb nq + 20 n) + rho c_f (m^3 / 3 + 2 m^2)
 
-    c_f = COST_FLOP_S, c_lu = COST_LU_ENTRY_S, rho = NEW_STATES_PER_STEP; nb = the DOFs the
-    contacts see. 2 E bounds nnz(L + U) of the sparse factorisation from above (an LU in the RCM
-    order fills the envelope; the backend's minimum-degree order fills less). Cached per
-    structure and contacts."""
-    s = system.structure
-    key = (id(s), *(id(c.dof_gather) for c in system.contacts))
+    with m = nq / 4, t0 = COST_STEP_S, c_f = COST_FLOP_S, c_lu = COST_LU_ENTRY_S and rho =
+    NEW_STATES_PER_STEP, and nnz(L + U) of the sparse factorisation estimated by 2 E (the fill
+    of an LU in the RCM order), or where that estimate does not make the sparse backend the
+    choice, by the smaller of 2 E and :func:`minimum_degree_fill` (one symbolic-sized SuperLU
+    factorisation of the pattern). Cached per structure and contacts."""
+    st = system.structure
+    key = (id(st), *(id(c.dof_gather) for c in system.contacts))
     hit = _COSTS.get("last")
-    if hit is not None and hit[0] == key and hit[1] is s:
+    if hit is not None and hit[0] == key and hit[1] is st:
         return hit[2]
-    n = s.n_dofs
+    n = st.n_dofs
     A = sp.vstack([sp.csr_matrix(c.dof_gather) for c in system.contacts]).tocsr() if system.contacts else None
     nq = 0 if A is None else A.shape[0]
     nb = 0 if A is None else int(np.unique(A.indices).size)
-    P = _pattern(s)
-    nnz_s = int(P.nnz)
+    s = sum(sp.csr_matrix(X).nnz for X in (st.mass, st.damping, st.stiffness))
+    P = _pattern(st)
     if A is not None:
         P = (P + abs(A.T) @ abs(A)).tocsr()
     band, envelope = rcm_profile(P)
-    cf, rho = COST_FLOP_S, NEW_STATES_PER_STEP
-    m = nq / 2.0
+    t0, cf, rho = COST_STEP_S, COST_FLOP_S, NEW_STATES_PER_STEP
+    m = nq / 4.0
     seconds = {
-        "direct": cf * (5.0 * n * n + 2.0 * n * nq) + rho * cf * n**3 / 3.0,
-        "banded": cf * 10.0 * n * (2 * band + 1) + rho * cf * 2.0 * n * band**2,
-        "sparse": COST_LU_ENTRY_S * 2.0 * envelope
-        + cf * (3.0 * nq * nq + 3.0 * nnz_s + 2.0 * nb * nq)
-        + rho * cf * (m**3 / 3.0 + m * m * nq),
+        "direct": t0 + cf * (5.0 * n * n + 2.0 * n * nq) + rho * cf * n**3 / 3.0,
+        "banded": t0 + cf * (3.0 * n * (2 * band + 1) + 20.0 * n) + rho * cf * 2.0 * n * band**2,
     }
     if 0 < nq and 2 * nq <= n:
-        seconds["low-rank"] = cf * (5.0 * n * n + 4.0 * n * nq) + rho * cf * (n * nq * nq + nq**3 / 3.0)
-    est = CostEstimate(n, nq, band, int(2 * envelope), seconds)
-    _COSTS["last"] = (key, s, est)
+        seconds["low-rank"] = t0 + cf * (5.0 * n * n + 4.0 * n * nq) + rho * cf * (n * nq * nq + nq**3 / 3.0)
+    sparse_rest = t0 + cf * (2.0 * nq * nq + s + 2.0 * nb * nq + 20.0 * n) + rho * cf * (m**3 / 3.0 + 2.0 * m * m)
+    lu_entries = 2 * envelope
+    others = min(seconds.values())
+    if n >= SPARSE_MIN_N and SPARSE_GAIN * (sparse_rest + COST_LU_ENTRY_S * lu_entries) > others:
+        lu_entries = min(lu_entries, minimum_degree_fill(P))  # the envelope does not decide: the real fill
+    seconds["sparse"] = sparse_rest + COST_LU_ENTRY_S * lu_entries
+    est = CostEstimate(n, nq, band, int(lu_entries), seconds)
+    _COSTS["last"] = (key, st, est)
     return est
+
+
+def minimum_degree_fill(P: sp.csr_matrix) -> int:
+    """nnz(L + U) of SuperLU's factorisation of a matrix of the symmetric pattern P in the
+    minimum-degree order on A^T + A (the sparse backend's order; it puts the contact DOFs
+    last, which changes the fill little): the graph Laplacian of P plus the identity, symmetric
+    positive definite, factorised without pivoting."""
+    X = sp.csr_matrix((-np.ones(P.nnz), P.indices, P.indptr), shape=P.shape)
+    X.setdiag(0.0)
+    X.eliminate_zeros()
+    X = (X + sp.diags(1.0 - np.asarray(X.sum(axis=1)).ravel())).tocsc()
+    lu = sla.splu(X, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return int(lu.L.nnz + lu.U.nnz)
 
 
 _COSTS: dict = {}
