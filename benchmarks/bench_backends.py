@@ -2,16 +2,17 @@
 
 Method 3 (piecewise-linear) at a fixed step (``--steps`` per period, one period, no pilot) on a
 family of structures: bench_scaling's chains (narrow band), grids (band sqrt(n)) and strips,
-the blade pair of bench_blade_pair (full: 363 DOFs, sparse; reduced: 31 DOFs, dense), and the
-3D bolted beam of slipstep.model.fe_mesh at a coarse and a medium size. For each structure and
-each backend that serves it (direct, low-rank, banded, sparse) the kernel time of one period
-(CPU time of the march, best of two: the first loads the kernel) is divided by the steps; then the backend
-'auto' takes, its reason (the result attribute ``linear_solver_reason``) and the ratio of its
-time to the fastest backend's (1.00 when 'auto' picked the fastest). The columns:
+the blade pair of bench_blade_pair (full: 363 DOFs; reduced: 31 DOFs; both dense input), and
+the 3D bolted beam of slipstep.model.fe_mesh at three sizes. For each structure and each
+backend (direct, low-rank, banded, sparse; '-' where it refuses or, for the dense ones, above
+DENSE_LIMIT DOFs) the CPU time of the march (best of two: the first loads the kernel) is
+divided by the steps. Then the backend 'auto' takes (a separate run), the ratio of that
+backend's time (its column) to the fastest one's (1.00: 'auto' picked the fastest; single
+measurements on a shared machine vary by up to 2x), nnz(L + U) of the sparse factor over the
+cost model's estimate (methods.sparse.step_costs), and the reason 'auto' gives (the result
+attribute ``linear_solver_reason``: its estimated us per step of each backend). Columns:
 
-    case, n, nq, band (RCM of M + C + K), per-step CPU time [us] per backend, auto's backend,
-    auto / best, nnz(L + U) of the sparse factor / the cost model's estimate (2 x RCM envelope),
-    and the reason 'auto' gives (its estimated us per step of each backend)
+    case, n, nq, band (RCM of M + C + K), us per step per backend, auto, auto/best, LU/est, reason
 
 Usage: python benchmarks/bench_backends.py [--steps 200] [--quick] [--cases chain-2000,...] [--json FILE]
 """
@@ -143,7 +144,7 @@ def main() -> None:
         print(
             f"{name:>16} {n:6d} {nq:5d} {band:5d} "
             + " ".join(f"{t * 1e6:12.1f}" if np.isfinite(t) else f"{'-':>12}" for t in times.values())
-            + f" {chosen:>9} {t_auto / best:9.2f} {lu / est.lu_entries:6.2f}  {reason}",
+            + f" {chosen:>9} {times.get(chosen, t_auto) / best:9.2f} {lu / est.lu_entries:6.2f}  {reason}",
             flush=True,
         )
         rows.append(
