@@ -360,7 +360,7 @@ COST_LU_ENTRY_S = 3.0e-9
 #: m^3/3 condensed with m = nq/4 rows that left stick)
 NEW_STATES_PER_STEP = 0.2
 #: 'auto' takes the sparse backend when its estimated cost per step is at least this many times
-#: below every other backend's (the estimates are within about 2x of the measured times: a
+#: below every other backend's (the estimates are within about 3x of the measured times: a
 #: closer call keeps the backend of System.compile's rule and its results)
 SPARSE_GAIN = 2.0
 
@@ -471,10 +471,11 @@ def rcm_profile(P: sp.csr_matrix) -> tuple[int, int]:
 
 def auto_choice(system, method, opt) -> tuple[bool, str]:
     """linear_solver 'auto': (take the sparse backend?, why). The sparse backend when the
-    structure (sparse or dense input matrices: their pattern counts) has at least SPARSE_MIN_N DOFs and at most SPARSE_MAX_NQ contact
-    coordinates, the method is one it serves, and its estimated cost per step
-    (:func:`step_costs`) is SPARSE_GAIN times below that of every other backend; otherwise the rule of
-    System.compile (banded for a narrow band, else low-rank or direct)."""
+    structure (sparse or dense input matrices: their pattern counts) has at least SPARSE_MIN_N
+    DOFs, the contacts at most SPARSE_MAX_NQ coordinates, the method is one it serves, and its
+    estimated cost per step (:func:`step_costs`) is SPARSE_GAIN times below every other
+    backend's; otherwise the rule of System.compile (banded for a narrow band, else low-rank or
+    direct)."""
     s = system.structure
     if s.n_dofs < SPARSE_MIN_N:
         return False, f"auto: {s.n_dofs} DOFs < {SPARSE_MIN_N} (dense backend for small models)"
@@ -482,9 +483,10 @@ def auto_choice(system, method, opt) -> tuple[bool, str]:
         return False, "auto: no contacts"
     if not serves(system, method, opt):
         return False, f"auto: the sparse backend does not march {method.name}"
+    nq = sum(c.dof_gather.shape[0] for c in system.contacts)
+    if nq > SPARSE_MAX_NQ:
+        return False, f"auto: {nq} contact coordinates > {SPARSE_MAX_NQ} (dense nq x nq blocks)"
     est = step_costs(system)
-    if est.nq > SPARSE_MAX_NQ:
-        return False, f"auto: {est.nq} contact coordinates > {SPARSE_MAX_NQ} (dense nq x nq blocks)"
     costs = ", ".join(f"{b} {t * 1e6:.3g}" for b, t in sorted(est.seconds.items(), key=lambda bt: bt[1]))
     others = min(t for b, t in est.seconds.items() if b != "sparse")
     take = SPARSE_GAIN * est.seconds["sparse"] <= others
