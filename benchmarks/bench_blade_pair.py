@@ -160,7 +160,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--frequency", type=float, default=None, help="Hz (default 0.9 x first stuck mode)")
     ap.add_argument("--full", action="store_true", help="also march the unreduced assembly (Method 3)")
-    ap.add_argument("--full-solver", default="sparse", help="linear_solver of the unreduced march (auto: dense here)")
+    ap.add_argument("--full-solver", default="sparse", help="linear_solver of the unreduced march (auto: sparse here)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--frf", action="store_true", help="time the forced response by shoot, hbm and march")
     ap.add_argument("--frf-points", type=int, default=61)
@@ -253,8 +253,8 @@ def main():
         t0, c0 = time.perf_counter(), time.process_time()
         # Method 3's default step rule, 'accuracy' (issue 26): the frame's axial modes make T_min
         # tiny, the piecewise-linear solve does not need it (step_rule="t-min" took 622 s here).
-        # The sparse backend: 'auto' takes the dense one below methods.sparse.SPARSE_MIN_N DOFs,
-        # 4x slower here (33 s CPU against 7.9 s, the same 6,750 steps)
+        # 'auto' takes the sparse backend here by its estimated cost per step (methods.sparse.step_costs;
+        # the dense one, which it took before by size alone, is 4x slower: 33 s CPU against 7.9 s)
         ds = ss.run(full_system, "piecewise-linear", periods=args.periods, linear_solver=args.full_solver)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         amp = tip_amplitude(ds, "blade1." + full.points["tip"].dofs["x"])

@@ -76,7 +76,8 @@ def test_refusals():
 
 def test_auto_takes_sparse_for_a_wide_band():
     """'auto' takes the sparse backend for a large sparse structure with a wide band marched
-    by Method 3, and keeps the banded one for a chain (bandwidth 1)."""
+    by Method 3, and keeps the banded one for a chain (bandwidth 1) with 100 contacts
+    (methods.sparse.step_costs: the estimated costs per step decide)."""
     side = 50  # a square grid of springs: bandwidth about 50 after reverse Cuthill-McKee
     n = side * side
     idx = np.arange(n).reshape(side, side)
@@ -96,7 +97,8 @@ def test_auto_takes_sparse_for_a_wide_band():
     grid = ss.System(ss.Structure(sp.identity(n, format="csr") * 0.02, None, K), (contact,), ss.Excitation(force=force))
     plan = plan_run(grid, "piecewise-linear", step_rule="accuracy", error_estimate=False)
     assert plan.backend == "sparse"
-    assert plan_run(_chain(n=400, n_contacts=4), "piecewise-linear", error_estimate=False).backend == "banded"
+    # a chain with many contacts: the banded step (band 1) is cheaper than the nq^2 contact-space work
+    assert plan_run(_chain(n=1000, n_contacts=100), "piecewise-linear", error_estimate=False).backend == "banded"
 
 
 def test_fe_mesh_sparse_equals_dense():

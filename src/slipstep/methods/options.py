@@ -43,8 +43,8 @@ class RunOptions:
         reordered by reverse Cuthill-McKee, a banded LU per contact state: slipstep.model.system,
         kernels/banded.py), 'sparse' (one sparse LU per step size, the contact problem condensed
         on the contact coordinates: kernels/sparse.py; the dynamic piecewise-linear methods) or
-        'auto' (sparse for a sparse structure of at least methods.sparse.SPARSE_MIN_N DOFs with a
-        wide band marched by a method it serves, banded for a sparse structure of at least
+        'auto' (sparse where methods.sparse.auto_choice estimates it cheapest per step, for a
+        method it serves and at least methods.sparse.SPARSE_MIN_N DOFs, banded for a sparse structure of at least
         slipstep.model.system.BANDED_MIN_N DOFs with a narrow band, else low-rank when the contact
         coordinates are at most half the DOFs, else direct).
     rtol: accuracy the user sets (dynamic methods): the step follows the local error estimate

@@ -95,6 +95,12 @@ class RunPlan:
         return "banded" if self.compiled.banded else ("low-rank" if self.low_rank else "dense")
 
     @property
+    def backend_reason(self) -> str:
+        """Why the march runs on :attr:`backend`: the linear_solver the user gave, or the reason
+        of 'auto' (methods.sparse.backend_reason: the estimated cost per step of each backend)."""
+        return SB.backend_reason(self.system, self.method, self.options, self.backend)
+
+    @property
     def step_rule(self) -> str:
         """The step rule of the run, 'accuracy' or 't-min' (:func:`step_rule_of`)."""
         return step_rule_of(self.method, self.options, self.period)
@@ -213,8 +219,8 @@ def plan_run(system: System, method: str | Method = "newmark", **options) -> Run
 
 def _backend_of(system: System, method: Method, opt: RunOptions) -> str:
     """The System.compile backend of the linear_solver option: 'auto' takes the sparse backend
-    where methods.sparse.auto_chooses says so (a large sparse structure with a wide band marched
-    by a method it serves), else the rule of System.compile."""
+    where methods.sparse.auto_chooses says so (a sparse structure on which its estimated cost
+    per step is the lowest, marched by a method it serves), else the rule of System.compile."""
     if opt.linear_solver == "auto" and SB.auto_chooses(system, method, opt):
         return "sparse"
     return compile_backend(opt.linear_solver)

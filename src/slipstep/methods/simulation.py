@@ -387,6 +387,7 @@ class Simulation(Runner):
             "rtol": math.nan if self.options.rtol is None else float(self.options.rtol),
             "step_rule": self.plan.step_rule,
             "linear_solver": {"dense": "direct"}.get(self.plan.backend, self.plan.backend),
+            "linear_solver_reason": self.plan.backend_reason,
             "bandwidth": int(self.compiled.kl) if self.compiled.banded else -1,
             **(
                 {}

@@ -340,17 +340,29 @@ def check_adaptive(plan) -> None:
         )
 
 
-# ---- the 'auto' rule and T_min ---------------------------------------------------------------
-#: 'auto' takes the sparse backend from this many DOFs ...
-SPARSE_MIN_N = 2000
-#: ... when the band after reverse Cuthill-McKee is at least this wide (the banded LU per state
-#: costs n b^2: above it a new contact state costs more than the sparse backend's step)
-SPARSE_MIN_BAND = 40
-#: ... and at most this many contact coordinates (G0 and a state's LU are nq x nq dense: 72 MB
+# ---- the 'auto' rule: estimated cost per step ------------------------------------------------
+#: 'auto' never takes the sparse backend below this many DOFs (the paper's cases and every
+#: small model keep the dense backend and its results)
+SPARSE_MIN_N = 300
+#: ... nor above this many contact coordinates (G0 and a state's LU are nq x nq dense: 72 MB
 #: each at 3,000, a state's factorisation up to nq^3 / 3 = 9e9 multiply-adds)
 SPARSE_MAX_NQ = 3000
 #: T_min by a dense eigen-solve up to this many DOFs (as the dense backend, the same value)
 DENSE_EIGEN_MAX_N = 2000
+#: the cost model of 'auto' (:func:`step_costs`, fitted to benchmarks/bench_backends.py, docs/sparse.md):
+#: seconds of a step's fixed work on every backend (the law, the state test, the stores), ...
+COST_STEP_S = 30e-6
+#: ... per multiply-add of the dense, banded and contact-space kernels, ...
+COST_FLOP_S = 1.0e-9
+#: ... per stored entry of L + U in the sparse backend's two triangular solves per step, ...
+COST_LU_ENTRY_S = 3.0e-9
+#: ... and new contact states per step (a state's factorisation: n^3/3 dense, 2 n b^2 banded,
+#: m^3/3 condensed with m = nq/4 rows that left stick)
+NEW_STATES_PER_STEP = 0.2
+#: 'auto' takes the sparse backend when its estimated cost per step is at least this many times
+#: below every other backend's (the estimates are within about 3x of the measured times: a
+#: closer call keeps the backend of System.compile's rule and its results)
+SPARSE_GAIN = 2.0
 
 
 def serves(system, method, opt) -> bool:
@@ -364,29 +376,153 @@ def serves(system, method, opt) -> bool:
     return not method.adaptive or step_rule_of(method, opt, system.period) == "accuracy"
 
 
-def auto_chooses(system, method, opt) -> bool:
-    """linear_solver 'auto': the sparse backend for a sparse structure of at least SPARSE_MIN_N
-    DOFs whose band (reverse Cuthill-McKee of M + C + K) is at least SPARSE_MIN_BAND wide, with
-    at most SPARSE_MAX_NQ contact coordinates, marched by a method it serves."""
-    s = system.structure
-    if not s.sparse or s.n_dofs < SPARSE_MIN_N or not system.contacts or not serves(system, method, opt):
-        return False
-    if sum(c.dof_gather.shape[0] for c in system.contacts) > SPARSE_MAX_NQ:
-        return False
-    return structure_bandwidth(s) >= SPARSE_MIN_BAND
+@dataclass(frozen=True)
+class CostEstimate:
+    """The estimated seconds per step of Method 3 on each backend for one structure and its
+    contacts (:func:`step_costs`), with the numbers they come from."""
+
+    n: int
+    nq: int
+    band: int  # half-bandwidth after reverse Cuthill-McKee of M + C + K + A^T A
+    lu_entries: int  # the estimate of nnz(L + U) of the sparse backend (step_costs)
+    seconds: dict  # backend ('direct', 'low-rank', 'banded', 'sparse') -> seconds per step
 
 
-def structure_bandwidth(structure) -> int:
-    """The bandwidth of M + C + K after reverse Cuthill-McKee."""
+def step_costs(system) -> CostEstimate:
+    """Estimated seconds per step of the piecewise-linear march (Method 3) per backend, from n,
+    nq, the DOFs the contacts see nb, the entries s of M, C and K (the products of a step), and
+    the reverse Cuthill-McKee order of the pattern of M + C + K + A^T A: its half-bandwidth b and
+    envelope E:
+
+        direct    t0 + c_f (5 n^2 + 2 n nq) + rho c_f n^3 / 3
+        low-rank  t0 + c_f (5 n^2 + 4 n nq) + rho c_f (n nq^2 + nq^3 / 3)      (when 2 nq <= n)
+        banded    t0 + c_f (3 n (2 b + 1) + 20 n) + rho c_f 2 n b^2
+        sparse    t0 + c_lu 2 E + c_f (2 nq^2 + s + 2 nb nq + 20 n) + rho c_f (m^3 / 3 + 2 m^2)
+
+    with m = nq / 4, t0 = COST_STEP_S, c_f = COST_FLOP_S, c_lu = COST_LU_ENTRY_S and rho =
+    NEW_STATES_PER_STEP, and nnz(L + U) of the sparse factorisation estimated by 2 E (the fill
+    of an LU in the RCM order), or where that estimate does not make the sparse backend the
+    choice, by the smaller of 2 E and :func:`minimum_degree_fill` (one symbolic-sized SuperLU
+    factorisation of the pattern). Cached per structure and contacts."""
+    st = system.structure
+    key = (id(st), *(id(c.dof_gather) for c in system.contacts))
+    hit = _COSTS.get("last")
+    if hit is not None and hit[0] == key and hit[1] is st:
+        return hit[2]
+    n = st.n_dofs
+    A = sp.vstack([sp.csr_matrix(c.dof_gather) for c in system.contacts]).tocsr() if system.contacts else None
+    nq = 0 if A is None else A.shape[0]
+    nb = 0 if A is None else int(np.unique(A.indices).size)
+    s = sum(sp.csr_matrix(X).nnz for X in (st.mass, st.damping, st.stiffness))
+    P = _pattern(st)
+    if A is not None:
+        P = (P + abs(A.T) @ abs(A)).tocsr()
+    band, envelope = rcm_profile(P)
+    t0, cf, rho = COST_STEP_S, COST_FLOP_S, NEW_STATES_PER_STEP
+    m = nq / 4.0
+    seconds = {
+        "direct": t0 + cf * (5.0 * n * n + 2.0 * n * nq) + rho * cf * n**3 / 3.0,
+        "banded": t0 + cf * (3.0 * n * (2 * band + 1) + 20.0 * n) + rho * cf * 2.0 * n * band**2,
+    }
+    if 0 < nq and 2 * nq <= n:
+        seconds["low-rank"] = t0 + cf * (5.0 * n * n + 4.0 * n * nq) + rho * cf * (n * nq * nq + nq**3 / 3.0)
+    sparse_rest = t0 + cf * (2.0 * nq * nq + s + 2.0 * nb * nq + 20.0 * n) + rho * cf * (m**3 / 3.0 + 2.0 * m * m)
+    lu_entries = 2 * envelope
+    others = min(seconds.values())
+    if n >= SPARSE_MIN_N and SPARSE_GAIN * (sparse_rest + COST_LU_ENTRY_S * lu_entries) > others:
+        lu_entries = min(lu_entries, minimum_degree_fill(P))  # the envelope does not decide: the real fill
+    seconds["sparse"] = sparse_rest + COST_LU_ENTRY_S * lu_entries
+    est = CostEstimate(n, nq, band, int(lu_entries), seconds)
+    _COSTS["last"] = (key, st, est)
+    return est
+
+
+def minimum_degree_fill(P: sp.csr_matrix) -> int:
+    """nnz(L + U) of SuperLU's factorisation of a matrix of the symmetric pattern P in the
+    minimum-degree order on A^T + A (the sparse backend's order; it puts the contact DOFs
+    last, which changes the fill little): the graph Laplacian of P plus the identity, symmetric
+    positive definite, factorised without pivoting."""
+    X = sp.csr_matrix((-np.ones(P.nnz), P.indices, P.indptr), shape=P.shape)
+    X.setdiag(0.0)
+    X.eliminate_zeros()
+    X = (X + sp.diags(1.0 - np.asarray(X.sum(axis=1)).ravel())).tocsc()
+    lu = sla.splu(X, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return int(lu.L.nnz + lu.U.nnz)
+
+
+_COSTS: dict = {}
+
+
+def rcm_profile(P: sp.csr_matrix) -> tuple[int, int]:
+    """(half-bandwidth, envelope) of the symmetric pattern P in the reverse Cuthill-McKee order:
+    max |i - j| and sum_i (i - min {j <= i: P_ij != 0}) + n."""
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-    P = (abs(sp.csr_matrix(structure.mass)) + abs(sp.csr_matrix(structure.damping))).tocsr()
-    P = (P + abs(sp.csr_matrix(structure.stiffness))).tocsr()
     order = reverse_cuthill_mckee(P, symmetric_mode=True)
     inverse = np.empty_like(order)
     inverse[order] = np.arange(order.size)
     coo = P.tocoo()
-    return int(np.abs(inverse[coo.row] - inverse[coo.col]).max(initial=0))
+    r, c = inverse[coo.row], inverse[coo.col]
+    band = int(np.abs(r - c).max(initial=0))
+    first = np.arange(P.shape[0])
+    np.minimum.at(first, r, c)
+    return band, int((np.arange(P.shape[0]) - first).sum() + P.shape[0])
+
+
+def auto_choice(system, method, opt) -> tuple[bool, str]:
+    """linear_solver 'auto': (take the sparse backend?, why). The sparse backend when the
+    structure (sparse or dense input matrices: their pattern counts) has at least SPARSE_MIN_N
+    DOFs, the contacts at most SPARSE_MAX_NQ coordinates, the method is one it serves, and its
+    estimated cost per step (:func:`step_costs`) is SPARSE_GAIN times below every other
+    backend's; otherwise the rule of System.compile (banded for a narrow band, else low-rank or
+    direct)."""
+    s = system.structure
+    if s.n_dofs < SPARSE_MIN_N:
+        return False, f"auto: {s.n_dofs} DOFs < {SPARSE_MIN_N} (dense backend for small models)"
+    if not system.contacts:
+        return False, "auto: no contacts"
+    if not serves(system, method, opt):
+        return False, f"auto: the sparse backend does not march {method.name}"
+    nq = sum(c.dof_gather.shape[0] for c in system.contacts)
+    if nq > SPARSE_MAX_NQ:
+        return False, f"auto: {nq} contact coordinates > {SPARSE_MAX_NQ} (dense nq x nq blocks)"
+    est = step_costs(system)
+    costs = ", ".join(f"{b} {t * 1e6:.3g}" for b, t in sorted(est.seconds.items(), key=lambda bt: bt[1]))
+    others = min(t for b, t in est.seconds.items() if b != "sparse")
+    take = SPARSE_GAIN * est.seconds["sparse"] <= others
+    why = f"estimated us per step {costs} (n {est.n}, nq {est.nq}, band {est.band})"
+    if not take and est.seconds["sparse"] < others:
+        why += f"; sparse less than {SPARSE_GAIN:g}x below the next"
+    return take, f"auto: {why}"
+
+
+def auto_chooses(system, method, opt) -> bool:
+    """linear_solver 'auto' takes the sparse backend (:func:`auto_choice`)."""
+    return auto_choice(system, method, opt)[0]
+
+
+def backend_reason(system, method, opt, backend: str) -> str:
+    """Why the plan of (system, method, opt) runs on ``backend`` (the result attribute
+    ``linear_solver_reason``): the option the user gave, or the reason of :func:`auto_choice`."""
+    if opt.linear_solver != "auto":
+        return f"given: linear_solver {opt.linear_solver!r}"
+    reason = auto_choice(system, method, opt)[1]
+    if backend == "sparse":
+        return reason
+    if system.structure.sparse and backend in ("dense", "low-rank", "banded"):
+        return f"{reason}; then System.compile's rule: {'banded (narrow band)' if backend == 'banded' else backend}"
+    return reason
+
+
+def _pattern(structure) -> sp.csr_matrix:
+    """|M| + |C| + |K| as CSR (dense input matrices: their non-zero entries)."""
+    P = abs(sp.csr_matrix(structure.mass)) + abs(sp.csr_matrix(structure.damping))
+    return (P + abs(sp.csr_matrix(structure.stiffness))).tocsr()
+
+
+def structure_bandwidth(structure) -> int:
+    """The bandwidth of M + C + K after reverse Cuthill-McKee."""
+    return rcm_profile(_pattern(structure))[0]
 
 
 def effective_stiffness(cs, state) -> sp.csr_matrix:

@@ -66,8 +66,13 @@ ATTRS: dict[str, tuple[str, str]] = {
     "scheme": ("-", "time-integration scheme and its parameters, e.g. newmark(beta=1/4, gamma=1/2)"),
     "linear_solver": (
         "-",
-        "state solves: direct (LU per state), low-rank (Woodbury update) or banded (RCM-ordered banded LU per "
-        "state: sparse structures)",
+        "state solves: direct (LU per state), low-rank (Woodbury update), banded (RCM-ordered banded LU per "
+        "state: sparse structures) or sparse (one sparse LU, the contact problem condensed: docs/sparse.md)",
+    ),
+    "linear_solver_reason": (
+        "-",
+        "why that backend ran: the linear_solver given, or 'auto' with the estimated cost per step of each backend "
+        "[us] (methods.sparse.step_costs)",
     ),
     "bandwidth": ("1", "half-bandwidth kl = ku of the banded backend after the RCM order; -1 for dense backends"),
     "status": (

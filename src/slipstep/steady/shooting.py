@@ -61,14 +61,37 @@ def _from_unknowns(z: np.ndarray, n: int, quasi: bool, states) -> State:
     return State.from_unknowns(z, n, quasi, states)
 
 
-def dense_backend_options(system: System, run_options: dict) -> dict:
+def _auto_takes_sparse(system: System, method, run_options: dict) -> bool:
+    """Would linear_solver 'auto' march ``method`` on the sparse backend (False where the
+    options are bad: the plan names them)?"""
+    from slipstep.methods import sparse as SB
+    from slipstep.methods.options import RunOptions
+    from slipstep.methods.registry import get_method
+
+    if method is None or system.n_dofs < SB.SPARSE_MIN_N:
+        return False
+    try:
+        m = method if not isinstance(method, str) else get_method(method)
+        return SB.auto_chooses(system, m, RunOptions(**run_options).validated())
+    except (InputError, TypeError, ValueError):
+        return False
+
+
+def dense_backend_options(system: System, run_options: dict, method=None) -> dict:
     """The run options with ``linear_solver='direct'`` added for a sparse structure (which
     ``System.compile`` would put on the banded backend): the period Jacobian Phi is dense over
     2 n + n_d unknowns whatever the backend, so shooting marches densely (a sparse structure
     above DENSE_MAX_N DOFs is refused there, naming harmonic balance). A given linear_solver is
-    kept."""
-    if not system.structure.sparse or "linear_solver" in run_options:
+    kept. Dense input matrices keep 'auto' (the dense backend) unless 'auto' would take the
+    condensed sparse backend by its cost estimate (methods.sparse.auto_chooses): then 'direct'."""
+    if "linear_solver" in run_options:
         return run_options
+    if not system.structure.sparse:
+        return (
+            {**run_options, "linear_solver": "direct"}
+            if _auto_takes_sparse(system, method, run_options)
+            else run_options
+        )
     if system.n_dofs > DENSE_MAX_N:
         raise InputError(
             "structure",
@@ -331,7 +354,7 @@ def shoot(
     ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise InputError(name, f"is {value!r}", f"give a whole number >= {low}")
-    run_options = dense_backend_options(system, run_options)
+    run_options = dense_backend_options(system, run_options, method)
     sim = period_simulation(system, method, min_steps_per_period, run_options, initial)
     if sim.compiled.banded or sim.plan.backend == "sparse":  # the period Jacobian is dense in 2 n + nd unknowns
         raise InputError(
