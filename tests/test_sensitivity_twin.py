@@ -150,3 +150,14 @@ def test_the_trust_flag_names_the_command_line_option():
 
     text = tolerance_text(1e-6, 1e-11)
     assert "--tolerance 1e-13" in text and "[run] tolerance" in text
+
+
+def test_auto_skips_long_runs(monkeypatch):
+    """'auto' runs the twin only while steps x DOFs is at most AUTO_MAX_WORK (the paper case: 561 x 3)."""
+    paper = ss.load_system("paper")
+    monkeypatch.setattr(ST, "AUTO_MAX_WORK", 561 * 3 - 1)
+    ds, _ = _run(paper, periods=3)
+    assert ds.attrs["steps"] * 3 > ST.AUTO_MAX_WORK and "twin_difference" not in ds.attrs
+    monkeypatch.setattr(ST, "AUTO_MAX_WORK", 561 * 3)
+    ds, _ = _run(paper, periods=3)
+    assert "twin_difference" in ds.attrs

@@ -101,7 +101,7 @@ def auto_wanted(sim) -> bool:
     if plan.method.quasi_static or plan.method.adaptive or plan.massless is not None:
         return False
     steps = int(sim.out.counters[C_STEPS])
-    if steps < 1 or steps * plan.compiled.M.shape[0] > AUTO_MAX_WORK:
+    if steps < 1 or steps * plan.system.n_dofs > AUTO_MAX_WORK:
         return False
     return int(sim.out.counters[C_STATE_CHANGES]) >= AUTO_STATE_CHANGE_SHARE * steps
 
