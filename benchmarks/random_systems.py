@@ -26,13 +26,22 @@ lever-map, broad), Method 1 ('newmark') at its defaults against full Newton and 
 solve at 1e-13 (study.trust_systems.newmark_check); per generator the decidable systems, the silent
 failures (OK, no trust flag, more than rtol of the range off; those whose references are
 sensitive, a round-off spread above 1e-12 or a 1e-10 load change moving them by rtol, counted
-apart), the flagged results (slipstep.methods.invariants.flagged: the step audit or the tolerance
-flag), the false alarms (flagged, decidable and within rtol) and the non-OK results.
+apart), the silent failures before the load-sensitivity flag (the step audit and the tolerance flag
+only), the flagged results (slipstep.methods.invariants.flagged: the step audit, the tolerance flag
+or the sensitivity twin: slipstep.methods.sensitivity_twin), the false alarms (flagged, decidable and within rtol), the non-OK
+results, the runs whose perturbed twin ran and its CPU share of Method 1's runs.
+
+    python benchmarks/random_systems.py --trust --n 5000 --sensitivity true --dump rows.jsonl
+
+runs the twin on every result (``sensitivity_check=True``) and writes one JSON line per system
+(twin_difference, state_change_share, error, ...): the data the flag's threshold and the 'auto'
+trigger were chosen from (slipstep.methods.sensitivity_twin).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 import numpy as np
@@ -81,22 +90,34 @@ def families(n: int, seed: int, periods: float, rtol: float) -> None:
     print(f"  {time.perf_counter() - start:.0f} s")
 
 
-def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark") -> None:
-    """The issue-29 item-3 table (module docstring): per generator, Method 1's silent failures."""
+def trust(
+    n: int, seed: int, periods: float, rtol: float, method: str = "newmark", sensitivity="auto", dump: str | None = None
+) -> None:
+    """The issue-29 item-3 table (module docstring): per generator, Method 1's silent failures, with
+    the run's ``sensitivity_check`` option ``sensitivity`` ('auto', True or False)."""
     start = time.perf_counter()
-    print(f"{n} systems per generator, seed {seed}, {periods:g} periods, method {method}, rtol {rtol:g}")
+    print(
+        f"{n} systems per generator, seed {seed}, {periods:g} periods, method {method}, rtol {rtol:g}, "
+        f"sensitivity_check={sensitivity!r}"
+    )
     print("  silent: OK, unflagged, more than rtol of the range off the two agreeing tight references")
+    print("  silent before: the same without the sensitivity twin's flag (the tolerance flag and step audit only)")
     print(
         f"  {'generator':11s} {'systems':>7s} {'decidable':>9s} {'silent':>15s} {'of them sensitive':>17s} "
-        f"{'flagged':>7s} {'false alarms':>12s} {'non-OK':>6s}  worst silent, not sensitive"
+        f"{'silent before':>13s} {'flagged':>7s} {'false alarms':>12s} {'non-OK':>6s} {'twins':>6s} "
+        f"{'twin CPU':>8s}  worst silent, not sensitive"
     )
-    total = np.zeros(7, int)
+    total = np.zeros(9, int)
+    cpu_total = np.zeros(2)
+    out = open(dump, "w") if dump else None  # noqa: SIM115  (one JSON line per system)
     for g, generator in enumerate(GENERATORS):
-        c = np.zeros(7, int)  # systems, decidable, silent, silent and sensitive, flagged, non-OK, false alarms
+        # systems, decidable, silent, silent and sensitive, flagged, non-OK, false alarms, silent before, twins
+        c = np.zeros(9, int)
+        cpu = np.zeros(2)  # Method 1's runs (twins included), the twins
         worst = (0.0, -1)
         for i in range(n):
             system = trust_system(np.random.default_rng([seed, g, i]), generator)
-            row = newmark_check(system, method, periods=periods)
+            row = newmark_check(system, method, periods=periods, sensitivity_check=sensitivity)
             if row is None:
                 continue
             c[0] += 1
@@ -104,23 +125,33 @@ def trust(n: int, seed: int, periods: float, rtol: float, method: str = "newmark
             c[4] += row["flagged"]
             c[5] += row["status"] != "OK"
             c[6] += row["flagged"] and row["error"] <= rtol  # a flag on a result that agrees
+            c[7] += row["error"] > rtol and not row["flagged_tolerance"]
+            c[8] += row["twin_cpu_s"] > 0
+            cpu += (row["run_cpu_s"], row["twin_cpu_s"])
+            sensitive = None
             if row["error"] > rtol and not row["flagged"]:
                 c[2] += 1
                 sensitive = reference_sensitive(system, periods=periods, rtol=rtol)
                 c[3] += sensitive
                 if not sensitive:
                     worst = max(worst, (row["error"], i))
+            if out is not None:
+                out.write(json.dumps({"generator": generator, "system": i, "sensitive": sensitive, **row}) + "\n")
+                out.flush()
         total += c
-        print(
-            f"  {generator:11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
-            f"{c[4]:7d} {c[6]:12d} {c[5]:6d}  {worst[0]:.2g} (system {worst[1]})"
-        )
-    c = total
+        cpu_total += cpu
+        _trust_row(generator, c, cpu, f"  {worst[0]:.2g} (system {worst[1]})")
+    _trust_row("all", total, cpu_total, "")
+    if out is not None:
+        out.close()
+    print(f"  twin CPU: the twins' CPU time / Method 1's runs' (twins included); {time.perf_counter() - start:.0f} s")
+
+
+def _trust_row(name: str, c, cpu, tail: str) -> None:
     print(
-        f"  {'all':11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
-        f"{c[4]:7d} {c[6]:12d} {c[5]:6d}"
+        f"  {name:11s} {c[0]:7d} {c[1]:9d} {c[2]:6d} ({100 * c[2] / max(c[1], 1):5.2f} %) {c[3]:17d} "
+        f"{c[7]:13d} {c[4]:7d} {c[6]:12d} {c[5]:6d} {c[8]:6d} {100 * cpu[1] / max(cpu[0], 1e-300):6.1f} %{tail}"
     )
-    print(f"  {time.perf_counter() - start:.0f} s")
 
 
 def main() -> None:
@@ -136,9 +167,17 @@ def main() -> None:
     parser.add_argument(
         "--trust", action="store_true", help="issue 29 item 3: Method 1's silent failures per generator"
     )
+    parser.add_argument(
+        "--sensitivity",
+        choices=("auto", "true", "false"),
+        default="auto",
+        help="--trust: Method 1's sensitivity_check option (the perturbed twin)",
+    )
+    parser.add_argument("--dump", help="--trust: write one JSON line per system to this file")
     args = parser.parse_args()
     if args.trust:
-        trust(args.n, args.seed, args.periods, args.rtol)
+        sensitivity = {"auto": "auto", "true": True, "false": False}[args.sensitivity]
+        trust(args.n, args.seed, args.periods, args.rtol, sensitivity=sensitivity, dump=args.dump)
         return
     if args.families:
         families(args.n, args.seed, args.periods, args.rtol)

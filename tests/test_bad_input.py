@@ -877,6 +877,61 @@ CASES = [
         cli=("run", CASE_FILE),
         files=((CASE_FILE, TABLES_ONLY_ACCURACY.encode()),),
     ),
+    # -- the Newton tolerance and the load-sensitivity twin (issue 29 item 3) ---------------------
+    Bad(
+        "toml-run-zero-tolerance",
+        "`[run] tolerance = 0`",
+        "[run] tolerance",
+        toml=edit(PAPER, 'step_rule = "t-min"', 'step_rule = "t-min"\ntolerance = 0'),
+    ),
+    Bad(
+        "toml-run-tolerance-above-one",
+        "`[run] tolerance = 1.5`",
+        "[run] tolerance",
+        toml=edit(PAPER, 'step_rule = "t-min"', 'step_rule = "t-min"\ntolerance = 1.5'),
+    ),
+    Bad(
+        "toml-run-nan-tolerance",
+        "`[run] tolerance = nan`",
+        "[run] tolerance",
+        toml=edit(PAPER, 'step_rule = "t-min"', 'step_rule = "t-min"\ntolerance = nan'),
+    ),
+    Bad(
+        "toml-run-text-tolerance",
+        '`[run] tolerance = "tight"`',
+        "[run] tolerance",
+        toml=edit(PAPER, 'step_rule = "t-min"', 'step_rule = "t-min"\ntolerance = "tight"'),
+    ),
+    Bad(
+        "cli-zero-tolerance",
+        "`slipstep run paper --tolerance 0`",
+        "--tolerance",
+        cli=("run", "paper", "--tolerance", "0"),
+    ),
+    Bad(
+        "cli-negative-tolerance",
+        "`slipstep run paper --tolerance -1e-3`",
+        "--tolerance",
+        cli=("run", "paper", "--tolerance", "-1e-3"),
+    ),
+    Bad(
+        "cli-tolerance-one",
+        "`slipstep run paper --tolerance 1`",
+        "--tolerance",
+        cli=("run", "paper", "--tolerance", "1"),
+    ),
+    Bad(
+        "cli-inf-tolerance",
+        "`slipstep run paper --tolerance inf`",
+        "--tolerance",
+        cli=("run", "paper", "--tolerance", "inf"),
+    ),
+    Bad(
+        "api-sensitivity-check",
+        "`ss.run(system, sensitivity_check='yes')`",
+        "sensitivity_check",
+        api=lambda: ss.run(ss.load_system("paper"), sensitivity_check="yes"),
+    ),
 ]
 
 
@@ -892,6 +947,7 @@ def api_message(case: Bad, directory: Path) -> str:
             path.write_text(case.toml)
             system, spec = ss.load_case(path)
             given = (("periods", spec.periods), ("step_ratio", spec.step_ratio), ("step_rule", spec.step_rule))
+            given += (("tolerance", spec.tolerance),)
             options = {k: v for k, v in given + (("duration", spec.duration_s),) if v is not None}
             ss.Simulation(system, spec.method or "newmark", **options)
     return str(info.value)

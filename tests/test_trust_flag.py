@@ -91,7 +91,8 @@ def test_the_suggested_tolerance_clears_the_flag_and_the_result_is_closer():
     ref, _ = _run(system, "full-newton", tolerance=1e-13)
     loose, messages = _run(system, "newmark")
     text = next(m for m in messages if "tolerance=" in m)
-    suggested = float(text.split("tolerance=")[1].split(";")[0])
+    suggested = float(text.split("tolerance=")[1].split(",")[0])
+    assert f"slipstep run --tolerance {suggested:.0e}" in text  # and the command-line option
     assert suggested == 1e-13  # the power of ten below 1e-11 x 1e-8 / (tol L / R = 9.7e-7)
     tight, messages = _run(system, "newmark", tolerance=suggested)
     assert tight.attrs["tolerance_over_range"] <= TOLERANCE_RANGE_FLAG

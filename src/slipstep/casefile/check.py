@@ -478,6 +478,11 @@ def _check_run(c: _Checker, data: dict) -> None:
     for key in ("periods", "duration_s", "step_ratio"):
         c.number(("run", key), ">0")
     c.number(("run", "ramp_time_s"), ">=0")
+    c.number(("run", "tolerance"), ">0")
+    if "tolerance" in run and run["tolerance"] >= 1:
+        raise InputError(
+            c.path("run", "tolerance"), f"is {run['tolerance']:g}", "give a small relative tolerance (e.g. 1e-11)"
+        )
     if "step_rule" in run:
         from slipstep.methods.options import STEP_RULES
 

@@ -299,6 +299,14 @@ class RunSpec(_Strict):
         "command line `--step-rule`",
         json_schema_extra={"unit": "-"},
     )
+    tolerance: Optional[float] = Field(
+        None,
+        description="Newton tolerance of the methods that iterate within a step (newmark, newmark-adaptive, "
+        "full-newton): a step stops when its increment is below tolerance x length_scale and its residual below "
+        "tolerance x its forces (default 1e-11; 0 < tolerance < 1); the piecewise-linear methods do not iterate and "
+        "ignore it; command line `--tolerance`",
+        json_schema_extra={"unit": "1"},
+    )
     ramp_time_s: Optional[float] = Field(None, description="smooth start (1 - cos) / 2 of forces and motions")
     save: Optional[SaveSpec] = Field(
         None,

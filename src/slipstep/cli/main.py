@@ -158,10 +158,11 @@ def _run_options(
 
         opts["max_memory"] = parse_size("--max-memory", max_memory)
     origin["max_memory"] = "--max-memory"
-    if spec.step_rule is not None:  # `slipstep run --step-rule` wins
-        opts["step_rule"], origin["step_rule"] = spec.step_rule, "[run] step_rule"
-    else:
-        origin["step_rule"] = "--step-rule"
+    for key in ("step_rule", "tolerance"):  # `slipstep run --step-rule`, `--tolerance` win
+        if getattr(spec, key) is not None:
+            opts[key], origin[key] = getattr(spec, key), f"[run] {key}"
+        else:
+            origin[key] = "--" + key.replace("_", "-")
     _save_options(spec, save or {}, opts, origin)
     return opts, origin
 
@@ -301,6 +302,11 @@ def run(
         help="What sets the step: accuracy (the cap and the error estimate; default of the "
         "piecewise-linear methods) or t-min (the paper's T_min rule; default of the others).",
     ),
+    tolerance: Optional[float] = typer.Option(
+        None,
+        help="Newton tolerance of the methods that iterate within a step (newmark, newmark-adaptive, full-newton), "
+        "0 < tolerance < 1 (default 1e-11; the case's \\[run] tolerance); the piecewise-linear methods ignore it.",
+    ),
     save_dofs: Optional[str] = typer.Option(
         None,
         help="DOFs to save: all, none, response (those the contacts see, the forced ones) or "
@@ -335,6 +341,8 @@ def run(
             opts["rtol"], origin["rtol"] = rtol, "--rtol"
         if step_rule is not None:
             opts["step_rule"], origin["step_rule"] = step_rule, "--step-rule"
+        if tolerance is not None:
+            opts["tolerance"], origin["tolerance"] = tolerance, "--tolerance"
         directory = output_dir_option(output_dir)
         with option_names(origin):
             sim, label = _simulation(system, chosen, scheme, opts, origin)
@@ -370,9 +378,13 @@ def run(
         "energy_error_estimate",
         "peak_force_error_estimate",
         "tolerance_over_range",
+        "twin_difference",
     )
     summary = {k: _json_value(a[k]) for k in keys if k in a}
-    trusted = "tolerance_over_range" in a or "steps_above_tolerance" in a  # Methods 1 and 2 (invariants)
+    if "twin_difference" in summary and not math.isfinite(summary["twin_difference"]):
+        summary["twin_difference"] = None  # JSON has no NaN (the twin failed)
+    # Methods 1 and 2 (invariants), and every run whose sensitivity twin ran (methods/sensitivity_twin.py)
+    trusted = any(k in a for k in ("tolerance_over_range", "steps_above_tolerance", "twin_difference"))
     if trusted:
         summary["trust_flags"] = flagged(a)  # why the result may be off its discrete solution ([] none)
     summary["output"] = str(path)
@@ -395,6 +407,11 @@ def run(
             *(
                 [("tolerance / response range", _fmt(float(a["tolerance_over_range"]), 2))]
                 if "tolerance_over_range" in a
+                else []
+            ),
+            *(
+                [("sensitivity twin / response range", _fmt(float(a["twin_difference"]), 2))]
+                if "twin_difference" in a
                 else []
             ),
             *([("trust flag", "; ".join(flagged(a)) or "none")] if trusted else []),

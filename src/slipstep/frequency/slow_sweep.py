@@ -131,6 +131,7 @@ def sine_sweep(
         / f_fund
     )
     opts = dict(run_options)
+    opts.setdefault("sensitivity_check", False)  # the FRF has its own checks: no perturbed twin
     opts.setdefault("max_step", 1.0 / (f[-1] * r_max * min_steps_per_period))
     names = list(system.structure.dof_names)
     responses = names if responses is None else list(responses)

@@ -83,7 +83,13 @@ def _march_own(system, responses, method, tolerance, max_periods, steps_per_peri
     T = system.period
     periods = 25
     while True:
-        ds = run(system, method, periods=periods, max_step=T / steps_per_period, **run_options)
+        ds = run(
+            system,
+            method,
+            periods=periods,
+            max_step=T / steps_per_period,
+            **{"sensitivity_check": False, **run_options},
+        )
         if ds.attrs["status"] != "OK":
             return ds, periods, ds.attrs["status"], ds.attrs["status_message"]
         n_per = round(T / ds.attrs["dt_s"])

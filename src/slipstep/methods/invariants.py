@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from slipstep.kernels.codes import SLIP_STATES
+from slipstep.methods.sensitivity_twin import TWIN_FLAG, sensitivity_text
 from slipstep.model.contact import COUPLED_SLIP_CODES
 
 FRICTION_RTOL = 1e-12  # |T| <= mu N (1 + FRICTION_RTOL)
@@ -242,7 +243,7 @@ def audit_steps(runner) -> dict:
             f"{flagged.size} of {rho.size} steps were accepted with a balance residual above "
             f"{RESIDUAL_FLAG_FACTOR:g} x tolerance of their forces (largest {rho.max():.2g}, first at "
             f"t = {float(runner.out.t[first]):.6g} s): the result may be off the discrete solution "
-            "(issue 29). Check with method='full-newton' or a smaller tolerance",
+            "(issue 29). Check with method='full-newton' or a smaller tolerance (`slipstep run --tolerance`)",
             RuntimeWarning,
             stacklevel=3,
         )
@@ -306,19 +307,25 @@ def tolerance_text(ratio: float, tolerance: float) -> str:
     """The words of the tolerance flag (the warning, and the reason :func:`flagged` gives)."""
     tighter = tolerance * TOLERANCE_RANGE_FLAG / ratio if math.isfinite(ratio) and ratio > 0 else 0.0
     tighter = 10.0 ** math.floor(math.log10(tighter)) if tighter > 0 else 0.0  # the power of ten below
-    fix = f"tolerance={tighter:.0e}" if tighter >= 1e-15 else "a tighter tolerance"
+    fix = (
+        f"tolerance={tighter:.0e}, `slipstep run --tolerance {tighter:.0e}` or [run] tolerance = {tighter:.0e}"
+        if tighter >= 1e-15
+        else "a tighter tolerance: `slipstep run --tolerance`, [run] tolerance"
+    )
     return (
         f"the Newton tolerance x length scale is {ratio:.2g} of the response range (above {TOLERANCE_RANGE_FLAG:g}): "
         f"the result may differ from the discrete solution by about that fraction of the range, more where "
         f"the steps' errors accumulate. Tighten it with the tolerance option ({fix}; now {tolerance:g}) or use "
-        "method='piecewise-linear', which has no Newton tolerance"
+        "method='piecewise-linear' (`-m 3`), which has no Newton tolerance"
     )
 
 
 def flagged(attrs) -> list[str]:
     """The reasons a status-OK result may be off its discrete solution (issue 29 item 3), from
     its attrs: steps accepted far above their tolerance (:func:`audit_steps`), a Newton tolerance
-    above TOLERANCE_RANGE_FLAG of the response range (:func:`tolerance_check`); [] when none."""
+    above TOLERANCE_RANGE_FLAG of the response range (:func:`tolerance_check`), a response that
+    moved by more than TWIN_FLAG of its range in the sensitivity twin (loads x (1 + 1e-10), the
+    tolerance 100 times tighter: slipstep.methods.sensitivity_twin); [] when none."""
     reasons = []
     if attrs.get("steps_above_tolerance", 0) > 0:
         reasons.append(
@@ -328,4 +335,7 @@ def flagged(attrs) -> list[str]:
     ratio = attrs.get("tolerance_over_range", 0.0)
     if ratio > TOLERANCE_RANGE_FLAG:  # NaN (not computed) is not flagged
         reasons.append(tolerance_text(float(ratio), float(attrs.get("tolerance", math.nan))))
+    moved = attrs.get("twin_difference", 0.0)
+    if moved > TWIN_FLAG:  # NaN (no twin result) is not flagged
+        reasons.append(sensitivity_text(float(moved), float(attrs.get("tolerance", math.nan))))
     return reasons

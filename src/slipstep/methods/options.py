@@ -70,6 +70,13 @@ class RunOptions:
     save: what the march stores (methods/save.py): 'auto' (everything for at most
         save.FULL_SAVE_MAX_DOFS DOFs, else the contacts and the response DOFs, every step), 'all',
         a slipstep.Save or a dict of its keys (dofs, contacts, every, last_periods, times, response).
+    sensitivity_check: march a twin with every load and motion scaled by 1 + 1e-10 and the Newton
+        tolerance 100 times tighter, and record how far the response moved (attr twin_difference,
+        a fraction of its range; a SensitivityWarning above methods.sensitivity_twin.TWIN_FLAG =
+        1e-6): True on every OK run (``run()``), False never, 'auto' on the dynamic fixed-step
+        runs where at least 5 % of the steps changed a contact state and steps x DOFs is at most
+        2e6 (methods/sensitivity_twin.py). The steady-state, FRF, sweep and HBM cross-check paths
+        never run it.
     """
 
     periods: float = 3.0
@@ -94,6 +101,7 @@ class RunOptions:
     max_memory: float | None = None
     massless_dofs: object = "auto"
     save: object = "auto"
+    sensitivity_check: object = "auto"
 
     def validated(self) -> "RunOptions":
         positive("periods", self.periods)
@@ -133,6 +141,9 @@ class RunOptions:
         if self.step_rule is not None and self.step_rule not in STEP_RULES:
             raise InputError("step_rule", f"is {self.step_rule!r}", "use 'accuracy' or 't-min' (or leave it out)")
         SV.as_save(self.save)
+        check = self.sensitivity_check
+        if not (check == "auto" if isinstance(check, str) else isinstance(check, (bool, np.bool_))):
+            raise InputError("sensitivity_check", f"is {self.sensitivity_check!r}", "use 'auto', True or False")
         if not isinstance(self.scheme, Scheme):
             raise InputError("scheme", f"is {self.scheme!r}", "use slipstep.newmark(), hht() or generalized_alpha()")
         return self

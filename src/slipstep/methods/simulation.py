@@ -19,7 +19,7 @@ import numpy as np
 from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.kernels import march as K
 from slipstep.kernels.codes import EXACT_EVENTS
-from slipstep.methods import accuracy
+from slipstep.methods import accuracy, sensitivity_twin
 from slipstep.methods.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
 from slipstep.methods.buffers import (  # noqa: F401  (re-exported: the former homes of these names)
@@ -104,6 +104,8 @@ class Runner:
         """Preloaded march + Dataset. On failure the Dataset holds every step done before it."""
         start = time.perf_counter()
         self.march()
+        if hasattr(self, "plan"):  # the sensitivity twin (issue 29 item 3; explicit runners have no plan)
+            self.step_audit = {**self.step_audit, **sensitivity_twin.check(self, getattr(self, "given_start", False))}
         ds = self.dataset()
         ds.attrs["wall_time_s"] = time.perf_counter() - start
         collapsed_step_warning(ds)
@@ -340,6 +342,7 @@ class Simulation(Runner):
         duration]; it has no step-doubling estimate (its twins march from the preload)."""
         w = self.start.w if w is None else w
         self.start = consistent_start(self.plan, x, v, w, state, t_start, a)
+        self.given_start = True  # no sensitivity twin (it marches from the preload)
         self._accuracy = accuracy.no_estimate("none (started from a given state)")
 
     def march(self, kernel=None, check: bool = True) -> Status:

@@ -154,6 +154,14 @@ ATTRS: dict[str, tuple[str, str]] = {
         "off the discrete solution the Newton stop may leave the result, as a fraction of the range; above 1e-8 "
         "the run warns (slipstep.methods.invariants.TOLERANCE_RANGE_FLAG, flagged)",
     ),
+    "twin_difference": (
+        "1",
+        "the sensitivity twin (sensitivity_check option): max |x - x_twin| / the largest DOF range, x_twin the run "
+        "with every load and motion scaled by 1 + 1e-10 and the Newton tolerance 100 times tighter; the result is "
+        "not reproducible to better than this fraction of its range (NaN: the twin failed); above 1e-6 the run warns "
+        "(SensitivityWarning; slipstep.methods.sensitivity_twin.TWIN_FLAG, flagged)",
+    ),
+    "twin_time_s": ("s", "CPU time of the sensitivity twin (present when it ran)"),
     "steps_over_planned": (
         "1",
         "steps taken over the steps of the planned step dt_s for the duration (slipstep.run; above 50 the step "

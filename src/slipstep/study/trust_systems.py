@@ -18,6 +18,7 @@ Used by ``benchmarks/random_systems.py --trust`` and ``tests/test_trust_never_ok
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -140,8 +141,12 @@ def newmark_check(system: System, method: str = "newmark", periods: float = 2.0,
     Newton at tolerance 1e-13 and the piecewise-linear solve at state tolerance 1e-13 on the same
     grid. Returns {'decidable': the references are OK and agree to DECIDABLE_RTOL of the range,
     'status', 'error': max |x - x_ref| / range (NaN unless decidable and OK), 'flagged': the result
-    carries a trust flag (``invariants.flagged``: steps above tolerance, tolerance_over_range), 'steps'}; None when the system cannot
-    be set up (no static equilibrium)."""
+    carries a trust flag (``invariants.flagged``: steps above tolerance, tolerance_over_range,
+    twin_difference), 'flagged_tolerance' (the flags but the sensitivity twin's), 'twin_difference'
+    (NaN when the twin did not run: the ``sensitivity_check`` option), 'state_change_share' (steps
+    that changed a contact state / steps), 'dofs', 'run_cpu_s' (CPU time of the run, twin included),
+    'twin_cpu_s' (the twin's), 'steps'}; None when the system cannot be set up (no static
+    equilibrium)."""
     import warnings
 
     from slipstep.errors import SolverError
@@ -155,17 +160,27 @@ def newmark_check(system: System, method: str = "newmark", periods: float = 2.0,
         warnings.simplefilter("ignore")
         try:
             ref, pl = tight_references(system, periods)
+            cpu = time.process_time()
             ds = run(system, method, periods=periods, **options)
+            cpu = time.process_time() - cpu
         except (InputError, SolverError):
             return None
     decidable = ref.attrs["status"] == pl.attrs["status"] == "OK" and agreement_error(pl, ref) <= DECIDABLE_RTOL
     ok = ds.attrs["status"] == "OK"
+    a = ds.attrs
+    steps = int(a.get("steps", 0))
     return {
         "decidable": bool(decidable),
-        "status": ds.attrs["status"],
+        "status": a["status"],
         "error": agreement_error(ds, ref) if ok and decidable else math.nan,
-        "flagged": bool(flagged(ds.attrs)),
-        "steps": int(ds.attrs.get("steps", 0)),
+        "flagged": bool(flagged(a)),
+        "flagged_tolerance": bool(flagged({k: v for k, v in a.items() if k != "twin_difference"})),
+        "twin_difference": float(a.get("twin_difference", math.nan)),
+        "state_change_share": int(a.get("state_changes", 0)) / max(steps, 1),
+        "dofs": int(ds.sizes.get("dof", 0)),
+        "run_cpu_s": cpu,
+        "twin_cpu_s": float(a.get("twin_time_s", 0.0)),
+        "steps": steps,
     }
 
 
@@ -177,15 +192,17 @@ def reference_sensitive(system: System, periods: float = 2.0, rtol: float = 1e-6
     import warnings
 
     from slipstep.methods.simulation import run
-    from slipstep.study.verification import PERTURBATION, ROUNDOFF_SPREAD, agreement_error, perturbed
+    from slipstep.study.verification import PERTURBATION, ROUNDOFF_SPREAD, agreement_error, perturbed, tight_references
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ref = run(system, "full-newton", periods=periods, tolerance=1e-13, error_estimate=False, step_rule="t-min")
-        pl = run(
-            system, "piecewise-linear", periods=periods, state_tolerance=1e-13, error_estimate=False, step_rule="t-min"
-        )
+        ref, pl = tight_references(system, periods)
         twin = run(
-            perturbed(system, PERTURBATION), "full-newton", periods=periods, tolerance=1e-13, error_estimate=False
+            perturbed(system, PERTURBATION),
+            "full-newton",
+            periods=periods,
+            tolerance=1e-13,
+            error_estimate=False,
+            sensitivity_check=False,
         )
     return not (agreement_error(pl, ref) <= ROUNDOFF_SPREAD and agreement_error(twin, ref) <= rtol)

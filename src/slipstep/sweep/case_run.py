@@ -178,12 +178,13 @@ def _run_options(run, extra: dict) -> dict:
     opts = {}
     if run.duration_s is not None:
         opts["duration"] = run.duration_s
-    for key in ("periods", "step_ratio", "steps_per_period", "step_rule"):
+    for key in ("periods", "step_ratio", "steps_per_period", "step_rule", "tolerance"):
         if getattr(run, key, None) is not None:
             opts[key] = getattr(run, key)
     if getattr(run, "save", None) is not None:  # [run.save]: what the march stores (as `slipstep run`)
         opts["save"] = run.save.options()
     opts.update(extra)
+    opts.setdefault("sensitivity_check", False)  # a sweep has its own checks: no perturbed twin per case
     return opts
 
 
