@@ -396,11 +396,11 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
     """Solver 2 (Methods 3, 4): :func:`_piecewise_linear_step_dense` (the dense backends: the
     kernel split's code unchanged) or its banded copy (A in CSR). The banded copy is a plain call,
     not inlined: compiled once and shared by the implicit and quasi-static marches instead of
-    inside each (docs/measured.md, "Compile time"); ``np.int64(last_slot)``: one specialisation
-    (a caller's literal -1 would compile a second one)."""
+    inside each (docs/measured.md, "Compile time"); ``np.int64(attempt)``, ``np.int64(last_slot)``:
+    one specialisation (the quasi-static march's literal 0, a literal -1, would compile others)."""
     if backend == so.BANDED:
-        return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt,
-                                             nominal, np.int64(last_slot), has_circle, max_state_iter, fallback, max_iter, conv,
+        return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited,
+                                             np.int64(attempt), nominal, np.int64(last_slot), has_circle, max_state_iter, fallback, max_iter, conv,
                                              state_rtol, singular_rtol, length_scale, counters)
     return _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal,
                                         last_slot, has_circle, max_state_iter, fallback, max_iter, conv, state_rtol,
