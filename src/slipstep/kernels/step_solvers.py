@@ -121,12 +121,14 @@ def residual_converged(sv, kfac, conv):
 @njit(cache=True, error_model="numpy", inline="always")
 def modified_newton(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero, counters):
     """The modified Newton iteration of :func:`_modified_newton_dense` (the dense backends, the
-    kernel split's code unchanged) or its banded copy (A in CSR: ``csr``, structure_ops.csr_of)."""
+    kernel split's code unchanged) or its banded copy (A in CSR: ``csr``, structure_ops.csr_of).
+    ``bool(from_zero)``: a plain bool, so that a literal True at a call site does not compile a
+    second specialisation of the callee (benchmarks/bench_compile.py)."""
     if backend == so.BANDED:
         return _modified_newton_banded(backend, lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up,
-                                       from_zero, counters)
-    return _modified_newton_dense(backend, lu, piv, Lin, kfac, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero,
-                                  counters)
+                                       bool(from_zero), counters)
+    return _modified_newton_dense(backend, lu, piv, Lin, kfac, A, AT, cl, sv, max_iter, conv, theta_give_up,
+                                  bool(from_zero), counters)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -358,7 +360,7 @@ def state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv, tstate, dt, no
     return status, solves + more, okS, luS, pivS, tan_dt
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy")
 def stick_fallback(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol, pl_status,
                    counters):
     """The fallback of :func:`piecewise_linear_step` when its postulates cycle or J(S) is
@@ -379,17 +381,20 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
                           has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
                           length_scale, counters):
     """Solver 2 (Methods 3, 4): :func:`_piecewise_linear_step_dense` (the dense backends: the
-    kernel split's code unchanged) or its banded copy (A in CSR)."""
+    kernel split's code unchanged) or its banded copy (A in CSR). The banded copy is a plain call,
+    not inlined: compiled once and shared by the implicit and quasi-static marches instead of
+    inside each (docs/measured.md, "Compile time"); ``np.int64(attempt)``, ``np.int64(last_slot)``:
+    one specialisation (the quasi-static march's literal 0, a literal -1, would compile others)."""
     if backend == so.BANDED:
-        return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt,
-                                             nominal, last_slot, has_circle, max_state_iter, fallback, max_iter, conv,
+        return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited,
+                                             np.int64(attempt), nominal, np.int64(last_slot), has_circle, max_state_iter, fallback, max_iter, conv,
                                              state_rtol, singular_rtol, length_scale, counters)
     return _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal,
                                         last_slot, has_circle, max_state_iter, fallback, max_iter, conv, state_rtol,
                                         singular_rtol, length_scale, counters)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
                           has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
                           length_scale, counters):
