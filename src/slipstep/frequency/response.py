@@ -208,15 +208,13 @@ class _WithHbmStart:
         self.used = False
 
     def __call__(self, system_f, initial=None, failed=None, **options):
-        if failed is None:  # a failed Newton is not marched (up to max_periods): the balance start follows
+        own_attempt = failed is None  # made here without marching (below), not given by the caller
+        if own_attempt:  # a failed Newton is not marched (up to max_periods): the balance start follows
             failed = self.steady_solver(system_f, initial=initial, **{**options, "march_fallback": False})
             if failed.status == "OK":
                 return failed
-            fallback = True
-        else:
-            fallback = False
         start, text = self.seeder.start(self.f_previous, self.f)
-        if start is None and fallback:  # no balance start after all: the solve with its marching fallback
+        if start is None and own_attempt:  # no balance start after all: the solve with its marching fallback
             failed = self.steady_solver(system_f, initial=initial, **options)
             if failed.status == "OK":
                 return failed

@@ -387,8 +387,9 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
     one specialisation (the quasi-static march's literal 0, a literal -1, would compile others)."""
     if backend == so.BANDED:
         return _piecewise_linear_step_banded(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited,
-                                             np.int64(attempt), nominal, np.int64(last_slot), has_circle, max_state_iter, fallback, max_iter, conv,
-                                             state_rtol, singular_rtol, length_scale, counters)
+                                             np.int64(attempt), nominal, np.int64(last_slot), has_circle,
+                                             max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
+                                             length_scale, counters)
     return _piecewise_linear_step_dense(backend, sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal,
                                         last_slot, has_circle, max_state_iter, fallback, max_iter, conv, state_rtol,
                                         singular_rtol, length_scale, counters)

@@ -384,9 +384,8 @@ def structure_matrix(cs: CompiledSystem, which: str):
 def quadratic_form(A, X: np.ndarray) -> np.ndarray:
     """x_t^T A x_t per row of X (nt, n), A dense or sparse (the product X A by BLAS, then a row-wise
     dot: a three-operand einsum loops in C without BLAS, 10x slower at n = 31)."""
-    if not sp.issparse(A):
-        return np.einsum("ti,ti->t", X @ A, X)
-    return np.einsum("ti,ti->t", X, np.asarray((A @ np.ascontiguousarray(X.T)).T))
+    XA = np.asarray((A @ np.ascontiguousarray(X.T)).T) if sp.issparse(A) else X @ A
+    return np.einsum("ti,ti->t", XA, X)
 
 
 def kernel_dofs(cs: CompiledSystem, user_dofs) -> np.ndarray:
