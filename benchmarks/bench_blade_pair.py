@@ -30,8 +30,9 @@ side for the solvers a user would pick, each timed on the same model in the same
   error estimate) and shoot-plain (rtol=None: the points as solved): every point, its status
   and Floquet stability;
   the one-period Jacobian's cost split (free unknowns only, as shooting builds it, against all
-  sliders as unknowns: the pre-issue-24 column count) and the arithmetic floor of its two
-  matrix products at the dgemm rate measured in this run;
+  sliders as unknowns: the pre-issue-24 column count) and the arithmetic floor of its matrix
+  products (one per step, and the solve with J(S) per change of state) at the dgemm rate
+  measured in this run;
 * hbm (slipstep.hbm.frf at H = ``--harmonics``, without the marching cross-check): every point;
 * march (solver "march", the steady state by marching): on ``--march-points`` points only
   (it needs hundreds of periods per point where the stuck damper rings undamped);
@@ -307,9 +308,11 @@ def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
     na = free.size
     nc = int(np.count_nonzero(np.abs(system_f.compile().A).sum(axis=0)))  # the contact DOFs
     cols = 2 * n + na
-    # the kernel's products per step (kernels/sensitivity.py): n x 3n, nc x na, n x nc, na x nc
-    # times m = cols columns; worst case: every slider moving every step
-    flops = steps * 2.0 * cols * (3 * n * n + nc * na + n * nc + na * nc)
+    states = sim.out.state[1 : steps + 1]
+    changes = 1 + int(np.count_nonzero((states[1:] != states[:-1]).any(axis=1)))  # new (dt, S): the first step too
+    # the kernel's products (kernels/sensitivity.py), m = cols columns: per step P_s Z (n x 3n);
+    # per change of (dt, S) Q h (n x nc) and the solve with J(S) of 3n + nc right-hand sides
+    flops = 2.0 * (steps * cols * 3 * n * n + changes * (cols * n * nc + n * n * (3 * n + nc)))
     a, b = np.random.default_rng(0).random((n, 3 * n)), np.random.default_rng(1).random((3 * n, cols))
     reps = 400
     t0 = time.perf_counter()
@@ -318,6 +321,7 @@ def jacobian_split(system: ss.System, frequency_hz: float) -> dict:
     rate = reps * 2.0 * n * 3 * n * cols / (time.perf_counter() - t0)
     return {
         "steps_per_period": steps,
+        "state_changes": changes,
         "moving_sliders": int(na),
         "contact_dofs": nc,
         "sliders": nd,
@@ -395,7 +399,8 @@ def frf_benchmark(args) -> None:
         split = jacobian_split(system, float(peak))
         print(
             f"  shooting at the peak ({peak:.2f} Hz): {split['steps_per_period']} steps per period, "
-            f"{split['moving_sliders']} of {split['sliders']} sliders leave stick; period march "
+            f"{split['moving_sliders']} of {split['sliders']} sliders leave stick, {split['state_changes']} "
+            "changes of state; period march "
             f"{split['march_period_s'] * 1e3:.1f} ms; Jacobian {split['jacobian_free_s'] * 1e3:.1f} ms over the free "
             f"unknowns, {split['jacobian_all_sliders_s'] * 1e3:.1f} ms with every slider as an unknown, floor "
             f"{split['jacobian_floor_s'] * 1e3:.1f} ms ({split['jacobian_free_s'] / split['jacobian_floor_s']:.1f}x) "

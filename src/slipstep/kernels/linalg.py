@@ -68,3 +68,33 @@ def lu_solve(lu, piv, b, x):
         for j in range(i + 1, n):
             s -= lu[i, j] * x[j]
         x[i] = s / lu[i, i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def lu_solve_rows(lu, piv, B):
+    """Solve A X = B in place for the columns of B (n x r, row-major) with a factorisation from
+    :func:`lu_factor`: the row swaps of P, then L Y = P B and U X = Y a row of B at a time, so
+    the inner loop runs along a contiguous row of r right-hand sides."""
+    n, r = B.shape
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            for j in range(r):
+                tmp = B[k, j]
+                B[k, j] = B[p, j]
+                B[p, j] = tmp
+    for i in range(n):
+        for k in range(i):
+            lik = lu[i, k]
+            if lik != 0.0:
+                for j in range(r):
+                    B[i, j] -= lik * B[k, j]
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            uik = lu[i, k]
+            if uik != 0.0:
+                for j in range(r):
+                    B[i, j] -= uik * B[k, j]
+        inv = 1.0 / lu[i, i]
+        for j in range(r):
+            B[i, j] *= inv

@@ -24,8 +24,9 @@ J(S) (kernels/contact.py) and H(S) the columns k_t A_t^T of the stuck directions
 off follows dw_{n+1} = R_d(S) dX_{n+1}, R_d = A_t - s mu k_n / k_t A_n (slip in direction s),
 A_t (lift-off); a stuck slider keeps dw. The kernel carries the derivative matrix Z of
 (x, v, a, w) with respect to the unknowns through the recorded sequence of (dt, S) of the
-period: P and R are formed (one solve with J(S)) only when S or dt changes, and each step
-costs two matrix products (BLAS). Only the sliders asked for carry rows: a slider that stays
+period: P is formed (one solve with J(S)) and the stuck sliders' term H(S) dW summed only when S
+or dt changes, each step costs one matrix product (BLAS), and a moving slider's row R_d dX is
+formed only when it sticks again and at the end (:func:`period_sensitivity`). Only the sliders asked for carry rows: a slider that stays
 stuck over the whole period keeps w_d fixed, so its row is the unit vector and its column
 only matters if w_d is an unknown (shooting fixes it: a neutral direction). Steps that fell
 back to Newton converged to the same equations in their final state, so the same formulas
@@ -37,30 +38,41 @@ from numba import njit
 
 from slipstep.kernels.codes import P_KN, P_MU
 from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
+from slipstep.kernels.linalg import lu_factor, lu_solve_rows
 from slipstep.kernels.march import newmark_coefficients
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def period_sensitivity(
-    M, Cd, Kst, A, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia, dts, states, n_steps, wrow, Z
+    M, Cd, Kst, A, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia, dts, states, n_steps, wrow,
+    singular_rtol, Z
 ):
     """Propagate Z (rows x | v | a | w of the sliders d with wrow[d] >= 0, at row 3 n + wrow[d];
     columns: the unknowns) through steps 1..n_steps with step sizes dts[k] and accepted states
     states[k], in place (module docstring). A slider with wrow[d] < 0 must stay stuck over the
-    steps (its w is then constant and carries no row).
+    steps (its w is then constant and carries no row). Returns False (Z unfinished) if a J(S)
+    has a pivot below singular_rtol max|J| (kernels/linalg.lu_factor).
 
     The sliders act on the structure through the contact DOFs c (those A gathers, nc of them)
-    only, so per (dt, S) the kernel forms P_s = J^-1 [G_x | G_v | G_a] (n x 3 n), Q = (J^-1)[:, c]
-    (n x nc), H_c = k_t A_t[:, c]^T over the stuck sliders (nc x na) and R_c = R[:, c] (na x nc),
-    and a step costs d(dx) = P_s Z_xva + Q (H_c Z_w) and dW_moving = R_c X_c: about
-    n (3 n + nc) m + 2 nc na m multiply-adds for m unknowns, against n (3 n + 2 na) m in full."""
+    only, so per (dt, S) the kernel forms P_s = J^-1 [G_x | G_v | G_a] (n x 3 n), with
+    J^-1 G_x = J^-1 (a0 M + a1 C) - I, and Q = (J^-1)[:, c] (n x nc): one factorisation of J
+    and one solve with the right-hand sides [a0 M + a1 C | G_v | G_a | E_c], fixed while dt is.
+    A step costs
+
+        d(dx) = P_s Z_xva + Q h,   h = sum over the stuck sliders d of k_t A_t[d, c]^T Z_w[d]
+
+    where h and Q h change only with (dt, S): a stuck slider keeps its row of Z_w, so h is
+    updated by the sliders that stick or leave stick. A moving slider's row is w = R_d(S) X,
+    R_d = A_t[d] - s A_n[d] (:func:`_slider_row`), needed only when it sticks again and at the
+    period's end, so it is formed then, from the X of the last step it moved in. Per step
+    n 3 n m multiply-adds for m unknowns; per change of (dt, S) the factorisation, the solve
+    (n^2 (3 n + nc)) and n nc m."""
     kn = lpar[:, P_KN]
     mu = lpar[:, P_MU]
     n = M.shape[0]
     nd = kt.shape[0]
-    nz, m = Z.shape
+    m = Z.shape[1]
     iv, ia, iw = n, 2 * n, 3 * n
-    na = nz - iw
     massless = np.zeros(n, np.bool_)
     for i in range(n):
         massless[i] = M[i, i] == 0.0
@@ -68,94 +80,132 @@ def period_sensitivity(
     for c in range(nrow.shape[0]):
         for d in range(fdir[c], fdir[c] + ndir[c]):
             owner[d] = c
-    touched = np.zeros(n, np.bool_)  # the contact DOFs
-    for r in range(A.shape[0]):
-        for i in range(n):
+    position = np.full(n, -1, np.int64)  # the contact DOFs: position[i] = their index in c, or -1
+    nc = 0
+    for i in range(n):
+        for r in range(A.shape[0]):
             if A[r, i] != 0.0:
-                touched[i] = True
-    cdof = np.flatnonzero(touched)
-    nc = cdof.shape[0]
-    rhs = np.zeros((n, iw + nc))  # [G_x | G_v | G_a | E_c]: G_x = -(K + K_D), G_v = a2 M - b1 C, ...
-    for j in range(nc):
-        rhs[cdof[j], iw + j] = 1.0
+                position[i] = nc
+                nc += 1
+                break
+    rhs = np.zeros((n, iw + nc))  # [a0 M + a1 C | a2 M - b1 C | a3 M - b2 C | E_c] (quasi-static: [0 | 0 | 0 | E_c])
+    for i in range(n):
+        if position[i] >= 0:
+            rhs[i, iw + position[i]] = 1.0
+    sol = np.zeros((n, iw + nc))
+    J = np.zeros((n, n))
+    lu = np.zeros((n, n))
+    piv = np.zeros(n, np.int64)
     Ps = np.zeros((n, iw))
     Q = np.zeros((n, nc))
-    Hc = np.zeros((nc, max(na, 1)))
-    Rc = np.zeros((max(na, 1), nc))
-    moving = np.zeros(max(na, 1), np.int64)
-    n_moving = 0
-    ddx = np.zeros((n, m))
     hz = np.zeros((nc, m))
-    xc = np.zeros((nc, m))
-    dw = np.zeros((max(na, 1), m))
+    qhz = np.zeros((n, m))
+    ddx = np.zeros((n, m))
+    stuck = np.zeros(nd, np.bool_)  # the slider's k_t A_t^T Z_w is in h
+    moving = np.zeros(nd, np.bool_)  # the slider's w followed X in the last step (slip or lift-off)
+    slope = np.zeros(nd)  # its s in R_d = A_t - s A_n
     prev_state = np.full(nd, -1, np.int8)
     prev_dt = -1.0
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0
     for k in range(1, n_steps + 1):
         dt = dts[k]
         S = states[k]
-        changed = dt != prev_dt
+        new_state = False
         for d in range(nd):
             if S[d] != prev_state[d]:
-                changed = True
-        if changed:
-            J = Kst.copy()
-            if inertia:
-                a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
-                J += a0 * M + c1 * Cd
+                new_state = True
+        if dt != prev_dt and inertia:
+            a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
+            for i in range(n):
+                for j in range(n):
+                    rhs[i, j] = a0 * M[i, j] + c1 * Cd[i, j]
+                    rhs[i, iv + j] = a2 * M[i, j] - b1 * Cd[i, j]
+                    rhs[i, ia + j] = a3 * M[i, j] - b2 * Cd[i, j]
+        if new_state or dt != prev_dt:
+            for i in range(n):
+                for j in range(n):
+                    J[i, j] = Kst[i, j] + rhs[i, j]
             contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, np.empty(0), np.empty(0), 1.0, J)
-            rhs[:, 0:iw] = 0.0
-            rhs[:, 0:n] = -J
-            if inertia:
-                rhs[:, 0:n] += a0 * M + c1 * Cd
-                rhs[:, iv:ia] = a2 * M - b1 * Cd
-                rhs[:, ia:iw] = a3 * M - b2 * Cd
-            sol = np.linalg.solve(J, rhs)
-            Ps[:, :] = sol[:, 0:iw]
-            Q[:, :] = sol[:, iw:]
-            Hc[:, :] = 0.0
-            n_moving = 0
+            if not lu_factor(J, lu, piv, singular_rtol):
+                return False
+            sol[:, :] = rhs
+            lu_solve_rows(lu, piv, sol)
+            for i in range(n):
+                for j in range(iw):
+                    Ps[i, j] = sol[i, j]
+                Ps[i, i] -= 1.0
+                for j in range(nc):
+                    Q[i, j] = sol[i, iw + j]
+        if new_state:
             for d in range(nd):
                 j = wrow[d]
                 if j < 0:
                     continue
-                tr = trow[d]
                 if S[d] == STICK:  # df_b/dw = -k_t: dr = +k_t A_t^T dw
-                    for i in range(nc):
-                        Hc[i, j] = kt[d] * A[tr, cdof[i]]
+                    if not stuck[d]:
+                        if moving[d]:  # it moved up to the last step: its w = R_d X there
+                            _slider_row(Z, iw + j, A, trow[d], nrow[owner[d]], slope[d])
+                            moving[d] = False
+                        _add_stuck_slider(hz, position, A, trow[d], kt[d], Z[iw + j])
+                        stuck[d] = True
                     continue
+                if stuck[d]:
+                    _add_stuck_slider(hz, position, A, trow[d], -kt[d], Z[iw + j])
+                    stuck[d] = False
                 c = owner[d]
-                s = 0.0 if S[d] == LIFT else (mu[c] * kn[c] / kt[d] if S[d] == SLIP_POS else -mu[c] * kn[c] / kt[d])
-                nr = nrow[c]
-                for i in range(nc):
-                    Rc[n_moving, i] = A[tr, cdof[i]] - s * A[nr, cdof[i]]
-                moving[n_moving] = iw + j
-                n_moving += 1
+                moving[d] = True
+                slope[d] = 0.0 if S[d] == LIFT else (mu[c] * kn[c] / kt[d] if S[d] == SLIP_POS else -mu[c] * kn[c] / kt[d])
+        if new_state or dt != prev_dt:
+            np.dot(Q, hz, qhz)
             prev_dt = dt
             for d in range(nd):
                 prev_state[d] = S[d]
         np.dot(Ps, Z[0:iw], ddx)
-        if na > 0 and nc > 0:
-            np.dot(Hc, Z[iw:], hz)
-            ddx += np.dot(Q, hz)
-        if inertia:
-            for i in range(n):
-                for j in range(m):
-                    if massless[i]:  # a massless DOF in a dynamic march: v = dx/dt, a = 0
-                        Z[iv + i, j] = ddx[i, j] / dt
-                        Z[ia + i, j] = 0.0
-                    else:
-                        vi, ai = Z[iv + i, j], Z[ia + i, j]
-                        Z[ia + i, j] = a0 * ddx[i, j] - a2 * vi - a3 * ai
-                        Z[iv + i, j] = c1 * ddx[i, j] + b1 * vi + b2 * ai
         for i in range(n):
-            for j in range(m):
-                Z[i, j] += ddx[i, j]
-        if n_moving > 0:
-            for i in range(nc):
+            zx, zv, za, dxi, hi = Z[i], Z[iv + i], Z[ia + i], ddx[i], qhz[i]
+            if not inertia:
                 for j in range(m):
-                    xc[i, j] = Z[cdof[i], j]
-            np.dot(Rc[:n_moving], xc, dw[:n_moving])
-            for r in range(n_moving):
+                    zx[j] += dxi[j] + hi[j]
+            elif massless[i]:  # a massless DOF in a dynamic march: v = dx/dt, a = 0
                 for j in range(m):
-                    Z[moving[r], j] = dw[r, j]
+                    d_x = dxi[j] + hi[j]
+                    zx[j] += d_x
+                    zv[j] = d_x / dt
+                    za[j] = 0.0
+            else:
+                for j in range(m):
+                    d_x = dxi[j] + hi[j]
+                    vj, aj = zv[j], za[j]
+                    zx[j] += d_x
+                    za[j] = a0 * d_x - a2 * vj - a3 * aj
+                    zv[j] = c1 * d_x + b1 * vj + b2 * aj
+    for d in range(nd):  # the sliders still moving at the end: w = R_d X of the last step
+        if moving[d]:
+            _slider_row(Z, iw + wrow[d], A, trow[d], nrow[owner[d]], slope[d])
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_stuck_slider(hz, position, A, tr, k, zw):
+    """h += k A_t[c]^T zw: a stuck slider's force on the contact DOFs (k = k_t), or its removal
+    (k = -k_t) when it leaves stick; zw its row of Z_w."""
+    for i in range(A.shape[1]):
+        h = k * A[tr, i]
+        if h != 0.0:
+            p = position[i]
+            for col in range(zw.shape[0]):
+                hz[p, col] += h * zw[col]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slider_row(Z, row, A, tr, nr, s):
+    """Z[row] = R_d Z_x, R_d = A[tr] - s A[nr]: the w of a slider that slips (s = +/- mu k_n / k_t)
+    or lifts off (s = 0) follows its contact point, dw = dq_t - s dq_n."""
+    m = Z.shape[1]
+    for col in range(m):
+        Z[row, col] = 0.0
+    for i in range(A.shape[1]):
+        r = A[tr, i] - s * A[nr, i]
+        if r != 0.0:
+            for col in range(m):
+                Z[row, col] += r * Z[i, col]

@@ -150,6 +150,10 @@ class Marcher:
     for marches longer than a second (the CLI sets it)."""
 
     progress = False
+    #: keep the factorisations J(S) from one march to the next of the same plan (its matrices, step
+    #: and scheme, so the same J(S)): the periods of a shooting Newton revisit one state sequence.
+    #: Off by default, so that every run (and every timed repeat) pays for its own.
+    keep_factorisations = False
 
     def __new__(cls, plan: RunPlan | None = None):
         """A plan on a backend with a marcher of its own (BACKEND_MARCHERS: the condensed sparse
@@ -168,6 +172,7 @@ class Marcher:
         self.kernel = march_kernel(plan.method)
         self.entry = KernelEntry()
         self._event_arguments = None  # (compiled, ws, the event kernel's slim tuples of them)
+        self._factorised_for = None  # the plan whose J(S) the workspace's cache holds (keep_factorisations)
 
     # -- marching -------------------------------------------------------------------------
     def advance(self, state: State, t_end: float | None = None, kernel=None) -> Segment:
@@ -207,7 +212,11 @@ class Marcher:
         ws.w[:] = state.w
         ws.state[:] = state.contact_state
         self.q0[:], self.f0[:] = terms.q, terms.f
-        reset_cache(ws)
+        if self.keep_factorisations and self._factorised_for is self.plan:
+            ws.lin_dt[0] = np.nan  # Lin is built again at the first step; the cached J(S) stay valid
+        else:
+            reset_cache(ws)
+            self._factorised_for = self.plan
 
     def end_state(self, t: float) -> State:
         """A copy of the workspace's state at time t (user DOF order; quasi-static: v = a = 0)."""

@@ -92,6 +92,7 @@ def period_simulation(
     sim = reused_simulation(initial, system, method, opts)
     if sim is None:
         sim = Simulation(system, method, periods=1.0, **opts)
+    sim.marcher.keep_factorisations = True  # each period (Newton iterate) revisits the states of the one before
     SV.needs(
         sim.save_plan, "every_step", "the periodic steady state (march_to_steady, shooting)", "drop the save option"
     )
