@@ -55,8 +55,9 @@ def period_sensitivity(
 
     The sliders act on the structure through the contact DOFs c (those A gathers, nc of them)
     only, so per (dt, S) the kernel forms P_s = J^-1 [G_x | G_v | G_a] (n x 3 n), with
-    J^-1 G_x = J^-1 (a0 M + a1 C) - I, and Q = (J^-1)[:, c] (n x nc): one factorisation of J
-    and one solve with the right-hand sides [a0 M + a1 C | G_v | G_a | E_c], fixed while dt is.
+    J^-1 G_x = J^-1 (a0 M + a1 C) - I, and Q = (J^-1)[:, c] (n x nc): J updated by the K_D of
+    the contacts whose state changed (built afresh when dt changes), one factorisation and one
+    solve with the right-hand sides [a0 M + a1 C | G_v | G_a | E_c], fixed while dt is.
     A step costs
 
         d(dx) = P_s Z_xva + Q h,   h = sum over the stuck sliders d of k_t A_t[d, c]^T Z_w[d]
@@ -106,6 +107,7 @@ def period_sensitivity(
     slope = np.zeros(nd)  # its s in R_d = A_t - s A_n
     prev_state = np.full(nd, -1, np.int8)
     prev_dt = -1.0
+    nowhere = np.empty(0)  # no linearisation point (the laws' piecewise-constant tangents)
     a0 = c1 = a2 = a3 = b1 = b2 = 0.0
     for k in range(1, n_steps + 1):
         dt = dts[k]
@@ -121,11 +123,21 @@ def period_sensitivity(
                     rhs[i, j] = a0 * M[i, j] + c1 * Cd[i, j]
                     rhs[i, iv + j] = a2 * M[i, j] - b1 * Cd[i, j]
                     rhs[i, ia + j] = a3 * M[i, j] - b2 * Cd[i, j]
-        if new_state or dt != prev_dt:
+        if dt != prev_dt:
             for i in range(n):
                 for j in range(n):
                     J[i, j] = Kst[i, j] + rhs[i, j]
-            contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, np.empty(0), np.empty(0), 1.0, J)
+            contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, S, nowhere, nowhere, 1.0, J)
+        elif new_state:  # J(S) = J(S_prev) + K_D of the contacts that changed, S against S_prev
+            for c in range(nrow.shape[0]):
+                for d in range(fdir[c], fdir[c] + ndir[c]):
+                    if S[d] != prev_state[d]:
+                        one = slice(c, c + 1)
+                        table = (nrow[one], lcode[one], lpar[one], fdir[one], ndir[one], trow, kt, A)
+                        contact_stiffness(*table, prev_state, nowhere, nowhere, -1.0, J)
+                        contact_stiffness(*table, S, nowhere, nowhere, 1.0, J)
+                        break
+        if new_state or dt != prev_dt:
             if not lu_factor(J, lu, piv, singular_rtol):
                 return False
             sol[:, :] = rhs
