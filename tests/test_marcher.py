@@ -9,6 +9,7 @@ import pytest
 
 import slipstep as ss
 from slipstep.errors import Status
+from slipstep.kernels import march as K
 from slipstep.methods import accuracy
 from slipstep.methods.marcher import Marcher
 from slipstep.methods.plan import plan_run
@@ -74,6 +75,31 @@ def test_a_marcher_is_reused_without_new_buffers(paper):
     again = marcher.advance(start)
     assert marcher.entry.packed[-1] is held and marcher.out is out and marcher.ws is ws
     np.testing.assert_array_equal(again.trace.x, x1)  # the start is not consumed by a march
+
+
+@pytest.mark.parametrize("method", ["piecewise-linear", "piecewise-linear-adaptive", "newmark-adaptive"])
+def test_kept_factorisations_give_the_same_march(paper, method):
+    """A marcher that keeps its J(S) between marches of one plan (shooting's) refactorises
+    nothing the second time and marches the same numbers as a marcher that forgets them;
+    another plan, or a failed static equilibrium on its workspace, empties the cache."""
+    plan = plan_run(paper, method, periods=1, error_estimate=False)
+    start = static_equilibrium(plan)
+    forget = Marcher(plan)
+    keep = Marcher(plan)
+    keep.keep_factorisations = True
+    first = keep.advance(start)
+    assert first.status == Status.OK and first.counters[K.C_FACTORISATIONS] > 0
+    again = keep.advance(start)
+    reference = forget.advance(start)
+    assert again.counters[K.C_FACTORISATIONS] < reference.counters[K.C_FACTORISATIONS]
+    if method == "piecewise-linear":  # fixed step: every J(S) was cached (an adaptive last step is not)
+        assert again.counters[K.C_FACTORISATIONS] == 0
+    for name in FIELDS:
+        np.testing.assert_array_equal(getattr(again.trace, name), getattr(reference.trace, name), err_msg=name)
+    keep.retarget(dataclasses.replace(plan))  # another plan (the same numbers): its own factorisations
+    assert keep.advance(start).counters[K.C_FACTORISATIONS] == reference.counters[K.C_FACTORISATIONS]
+    static_equilibrium(keep.plan, keep.ws)  # a quasi-static march on the workspace: its J(S) are dropped
+    assert not keep.ws.cache_used.any()
 
 
 def test_consistent_start_has_the_equation_of_motion(paper):

@@ -14,7 +14,9 @@ from slipstep.frequency import harmonics, linear_response, retune
 from slipstep.post.energy import energy_balance, friction_energy_per_period
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import march_one_period, period_simulation, start
-from slipstep.steady.shooting import _from_unknowns, _unknowns, finite_difference_jacobian, period_jacobian
+from slipstep.steady.shooting import (
+    _from_unknowns, _unknowns, finite_difference_jacobian, moving_sliders, period_jacobian,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 FINE = 2000  # steps per period for comparisons with continuous-time solutions (phase error ~ 1e-6)
@@ -144,6 +146,26 @@ def test_period_jacobian_matches_finite_differences(case, method, f):
     col = np.abs(fd).max(axis=0) + np.abs(phi).max(axis=0) + 1e-300
     assert np.abs(phi - fd).max(axis=0).max() / 1 <= 1e-5 * col.max()
     assert (np.abs(phi - fd).max(axis=0) <= 1e-5 * col).all()
+
+
+def test_period_jacobian_over_the_moving_sliders_is_the_full_one_restricted():
+    """Shooting's Jacobian over (x, v, the sliders that leave stick) equals the one over every
+    slider restricted to those rows and columns: a slider stuck over the period keeps its w."""
+    system = retune(ss.load_system(EXAMPLES / "contact_chain.toml"), 280.0)
+    sim = period_simulation(system, "piecewise-linear", None, {})
+    start(sim, None, 0.0)
+    for _ in range(3):
+        _, _, end, _ = march_one_period(sim)
+        start(sim, end, 0.0)
+    march_one_period(sim)
+    n2 = 2 * system.n_dofs
+    moving = moving_sliders(sim)
+    nd = len(system.direction_names())
+    assert 0 < moving.size <= nd
+    full = period_jacobian(sim)
+    part = period_jacobian(sim, moving)
+    keep = np.r_[0:n2, n2 + moving]
+    np.testing.assert_allclose(part, full[np.ix_(keep, keep)], rtol=0, atol=1e-12 * np.abs(full).max())
 
 
 def test_floquet_multipliers_of_a_linear_orbit():

@@ -72,6 +72,8 @@ def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> S
         status = K.OK
         local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
         contact_law(cs, q, ws.w.copy(), f, ws.w, ws.state)
+    if not sparse:
+        reset_cache(ws)  # the ramp's quasi-static J(S) = K + K_D(S) are not the run's
     if status != K.OK:
         states = ", ".join(f"{d}={STATE_NAMES[s]}" for d, s in zip(plan.system.direction_names(), ws.state1))
         raise SolverError(
@@ -117,9 +119,9 @@ def _static_start(plan: RunPlan, ws: K.Workspace, settings: K.MarchSettings) -> 
     local_displacement(cs, ws.x, np.zeros(cs.B.shape[1]), q)
     contact_law(cs, q, ws.w.copy(), f, np.empty_like(ws.w), np.empty_like(ws.state))
     status = K.march(cs, settings, ws, out, q, f)
+    reset_cache(ws)  # the quasi-static J(S) = K + K_D(S) are not the run's (even when it failed)
     if status != K.OK:
         raise SolverError(f"the static equilibrium at t = 0 (p(0), f_e(0)) failed: {Status(status).message}")
-    reset_cache(ws)
     return out.q[1].copy(), out.f[1].copy()
 
 
