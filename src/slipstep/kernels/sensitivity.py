@@ -24,13 +24,13 @@ J(S) (kernels/contact.py) and H(S) the columns k_t A_t^T of the stuck directions
 off follows dw_{n+1} = R_d(S) dX_{n+1}, R_d = A_t - s mu k_n / k_t A_n (slip in direction s),
 A_t (lift-off); a stuck slider keeps dw. The kernel carries the derivative matrix Z of
 (x, v, a, w) with respect to the unknowns through the recorded sequence of (dt, S) of the
-period: P is formed (one solve with J(S)) and the stuck sliders' term H(S) dW summed only when S
-or dt changes, each step costs one matrix product (BLAS), and a moving slider's row R_d dX is
-formed only when it sticks again and at the end (:func:`period_sensitivity`). Only the sliders asked for carry rows: a slider that stays
-stuck over the whole period keeps w_d fixed, so its row is the unit vector and its column
-only matters if w_d is an unknown (shooting fixes it: a neutral direction). Steps that fell
-back to Newton converged to the same equations in their final state, so the same formulas
-hold.
+period: P is formed (one solve with J(S)) and the stuck sliders' term H(S) dW summed only when
+S or dt changes, each step costs one matrix product (BLAS), and a moving slider's row R_d dX
+is formed only when it sticks again and at the end (:func:`period_sensitivity`). Only the
+sliders asked for carry rows: a slider that stays stuck over the whole period keeps w_d
+fixed, so its row is the unit vector and its column only matters if w_d is an unknown
+(shooting fixes it: a neutral direction). Steps that fell back to Newton converged to the
+same equations in their final state, so the same formulas hold.
 """
 
 import numpy as np
