@@ -20,9 +20,7 @@ march is linear in n for a fixed bandwidth. Gather maps are CSR: (indptr, indice
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.codes import LAW_CIRCLE, LIFT, P_KN, P_MU
-from slipstep.kernels.contact import _circle_tangent
-from slipstep.kernels.laws import uncoupled
+from slipstep.kernels import laws
 
 #: Lanczos runs to convergence (n steps, full reorthogonalisation) up to this size, else LANCZOS_STEPS
 LANCZOS_FULL = 400
@@ -209,39 +207,13 @@ def _band_add_outer(lu, off, factor, ptr, idx, val, r1, r2):
 def band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, ptr, idx, val, state, q, w_old, factor, lu, off):
     """lu += factor K_D(S), K_D(S) = A^T K(S) A (paper Eq. 7), into band storage with the
     diagonal at column ``off`` (off = ku for band storage, kl + ku for factorisation storage),
-    A in CSR: per contact the outer products of its few rows (the same local stiffness as
-    kernels.contact.contact_stiffness; a friction-circle contact's six entries from
-    kernels.contact._circle_tangent, at (q, w_old) or without a point the stick ones)."""
+    A in CSR: per contact the outer products of its few rows with the local stiffness of
+    kernels.laws.stiffness (as kernels.contact.contact_stiffness)."""
     for c in range(nrow.shape[0]):
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            continue
-        nr = nrow[c]
-        kn = lpar[c, P_KN]
-        _band_add_outer(lu, off, factor * kn, ptr, idx, val, nr, nr)
-        if lcode[c] == LAW_CIRCLE:
-            r1, r2 = trow[d0], trow[d0 + 1]
-            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
-            if k11 != 0.0:
-                _band_add_outer(lu, off, factor * k11, ptr, idx, val, r1, r1)
-            if k12 != 0.0:
-                _band_add_outer(lu, off, factor * k12, ptr, idx, val, r1, r2)
-            if k21 != 0.0:
-                _band_add_outer(lu, off, factor * k21, ptr, idx, val, r2, r1)
-            if k22 != 0.0:
-                _band_add_outer(lu, off, factor * k22, ptr, idx, val, r2, r2)
-            if k1v != 0.0:
-                _band_add_outer(lu, off, factor * k1v, ptr, idx, val, r1, nr)
-            if k2v != 0.0:
-                _band_add_outer(lu, off, factor * k2v, ptr, idx, val, r2, nr)
-            continue
-        mu_kn = lpar[c, P_MU] * kn
-        for d in range(d0, d0 + ndir[c]):
-            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-            if kuu != 0.0:
-                _band_add_outer(lu, off, factor * kuu, ptr, idx, val, trow[d], trow[d])
-            if kuv != 0.0:
-                _band_add_outer(lu, off, factor * kuv, ptr, idx, val, trow[d], nr)
+        ks, ra, rb = laws.stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old)
+        for i in range(len(ks)):
+            if ks[i] != 0.0:
+                _band_add_outer(lu, off, factor * ks[i], ptr, idx, val, ra[i], rb[i])
 
 
 # ---- lambda_max of K phi = lambda M phi (T_min, paper Eq. 8) --------------------------------

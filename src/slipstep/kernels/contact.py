@@ -1,5 +1,6 @@
-"""The contact laws over all contacts: gather, scatter, and the laws of
-:mod:`slipstep.kernels.laws` dispatched on each contact's law code (physics.md 2-3).
+"""The contact laws over all contacts: gather, scatter, and loops over the contacts that
+apply each contact's row of the state table by :mod:`slipstep.kernels.laws` (the one
+dispatch on the law code; physics.md 2-3).
 
 Every contact c has a law code (``lcode[c]``, kernels/codes.py) and a row of the law
 parameter table (``lpar[c]``: k_n, mu); k_t is per tangential direction. The laws:
@@ -9,7 +10,8 @@ parameter table (``lpar[c]``: k_n, mu); k_t is per tangential direction. The law
   the Jenkins element is this law with a constant normal approach;
 * LAW_CIRCLE (laws/circle.py): coupled 3D friction circle, |T| <= mu N as a vector norm.
 
-Shared normal part: N = k_n v, and v <= 0 is LIFT (T = N = 0, w = u, every direction).
+Shared normal part (laws/normal.py): N = k_n v, and v <= 0 is LIFT (T = N = 0, w = u,
+every direction).
 In a state S with a piecewise-linear form the law is f = K(S) q + s(S, w_old) (paper Eq. 5),
 assembled (paper Eq. 7) as K_D(S) = A^T K(S) A; the generalised contact force is A^T f.
 A coupled slip has no such form: its K is the consistent tangent at (q, w_old), and a step
@@ -20,10 +22,8 @@ tangential direction (codes.STATE_NAMES).
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the state codes)
-    LAW_CIRCLE, LIFT, P_KN, P_MU, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK,
-)
-from slipstep.kernels.laws import circle, uncoupled
+from slipstep.kernels import laws
+from slipstep.kernels.codes import LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK  # noqa: F401  (re-exported)
 from slipstep.kernels.settings import contact_table
 
 # ---- explicit-array cores (the hot path: small argument lists, no tuples) ------------------
@@ -76,104 +76,28 @@ def scatter(A, f, out):
                 out[j] += A[r, j] * fr
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state):
-    """laws/circle.py law for the contact whose first direction is d0 (limit = mu N)."""
-    r1, r2 = trow[d0], trow[d0 + 1]
-    f[r1], f[r2], w_new[d0], w_new[d0 + 1], s = circle.law(kt[d0], limit, q[r1], q[r2], w_old[d0], w_old[d0 + 1])
-    state[d0] = s
-    state[d0 + 1] = s
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new):
-    """laws/circle.py linear for the contact whose first direction is d0."""
-    r1, r2 = trow[d0], trow[d0 + 1]
-    f[r1], f[r2], w_new[d0], w_new[d0 + 1] = circle.linear(kt[d0], limit, state[d0], q[r1], q[r2], w_old[d0],
-                                                           w_old[d0 + 1])
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _circle_compatible(trow, kt, d0, limit, state, q, w_old, tol_t):
-    """laws/circle.py compatible for the contact whose first direction is d0."""
-    return circle.compatible(kt[d0], limit, state[d0], q[trow[d0]], q[trow[d0 + 1]], w_old[d0], w_old[d0 + 1], tol_t)
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
     """The nonlinear law (return mapping): forces f (local, like q), new sliders and states
     from q and w_old."""
     for c in range(nrow.shape[0]):
-        nr = nrow[c]
-        v = q[nr]
-        d0 = fdir[c]
-        if v <= 0.0:
-            f[nr] = 0.0
-            for d in range(d0, d0 + ndir[c]):
-                f[trow[d]] = 0.0
-                w_new[d] = q[trow[d]]
-                state[d] = LIFT
-            continue
-        N = lpar[c, P_KN] * v
-        f[nr] = N
-        limit = lpar[c, P_MU] * N
-        if lcode[c] == LAW_CIRCLE:  # (out of line: keeps the paper's law compact where it is inlined)
-            _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state)
-        else:
-            for d in range(d0, d0 + ndir[c]):
-                tr = trow[d]
-                f[tr], w_new[d], state[d] = uncoupled.law(kt[d], limit, q[tr], w_old[d])
+        laws.law(c, nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
     """The law in a postulated state S: f = K(S) q + s(S, w_old) where S is linear."""
     for c in range(nrow.shape[0]):
-        nr = nrow[c]
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            f[nr] = 0.0
-            for d in range(d0, d0 + ndir[c]):
-                f[trow[d]] = 0.0
-                w_new[d] = q[trow[d]]
-            continue
-        N = lpar[c, P_KN] * q[nr]
-        f[nr] = N
-        limit = lpar[c, P_MU] * N
-        if lcode[c] == LAW_CIRCLE:
-            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
-        else:
-            for d in range(d0, d0 + ndir[c]):
-                tr = trow[d]
-                f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
+        laws.linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
-    """Does the postulated state satisfy its row of the state table at q (within tolerance)?
-
-    Tolerances: rtol * L on v (L the system length scale) and rtol * (mu k_n |v| + k_t L)
-    on the friction test, so that a point on a stick/slip or contact boundary is accepted.
-    """
-    tol_v = rtol * length_scale
+    """Does the postulated state satisfy its row of the state table at q (within tolerance,
+    laws.compatible)?"""
     for c in range(nrow.shape[0]):
-        v = q[nrow[c]]
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            if v > tol_v:
-                return False
-            continue
-        if v < -tol_v:
+        if not laws.compatible(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
             return False
-        limit = lpar[c, P_MU] * lpar[c, P_KN] * v
-        if lcode[c] == LAW_CIRCLE:
-            if not _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)):
-                return False
-            continue
-        for d in range(d0, d0 + ndir[c]):
-            tol_t = rtol * (abs(limit) + kt[d] * length_scale)
-            if not uncoupled.compatible(kt[d], limit, state[d], q[trow[d]], w_old[d], tol_t):
-                return False
     return True
 
 
@@ -182,37 +106,10 @@ def compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rto
     """:func:`compatible` and, when the postulated state holds, :func:`piecewise_law` at q in
     the same pass over the contacts (the piecewise-linear step's accept test). Returns the
     compatibility; f and w_new are meaningful only when it is True."""
-    tol_v = rtol * length_scale
     for c in range(nrow.shape[0]):
-        nr = nrow[c]
-        v = q[nr]
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            if v > tol_v:
-                return False
-            f[nr] = 0.0
-            for d in range(d0, d0 + ndir[c]):
-                f[trow[d]] = 0.0
-                w_new[d] = q[trow[d]]
-            continue
-        if v < -tol_v:
+        if not laws.compatible_linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol,
+                                      length_scale, f, w_new):
             return False
-        N = lpar[c, P_KN] * v
-        limit = lpar[c, P_MU] * N
-        f[nr] = N
-        if lcode[c] == LAW_CIRCLE:
-            climit = lpar[c, P_MU] * lpar[c, P_KN] * v
-            if not _circle_compatible(trow, kt, d0, climit, state, q, w_old, rtol * (abs(climit) + kt[d0] * length_scale)):
-                return False
-            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
-            continue
-        climit = lpar[c, P_MU] * lpar[c, P_KN] * v
-        for d in range(d0, d0 + ndir[c]):
-            tr = trow[d]
-            tol_t = rtol * (abs(climit) + kt[d] * length_scale)
-            if not uncoupled.compatible(kt[d], climit, state[d], q[tr], w_old[d], tol_t):
-                return False
-            f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
     return True
 
 
@@ -220,7 +117,7 @@ def compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rto
 def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
     """True if some contact is in a state without a piecewise-linear form (coupled slip)."""
     for c in range(nrow.shape[0]):
-        if state[fdir[c]] == SLIP_COUPLED:
+        if laws.coupled(c, fdir, state):
             return True
     return False
 
@@ -236,74 +133,26 @@ def _add_outer(out, k, A, r1, r2):
                 out[i, j] += a * A[r2, j]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old):
-    """The six tangential entries of a friction-circle contact's K(S) (laws/circle.py), at
-    (q, w_old), or without a point (q of length 0) the stick ones."""
-    d0 = fdir[c]
-    mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-    if q.shape[0] == 0:
-        return circle.tangent(kt[d0], mu_kn, 0.0, state[d0], False, 0.0, 0.0, 0.0, 0.0)
-    return circle.tangent(kt[d0], mu_kn, mu_kn * q[nrow[c]], state[d0], True, q[trow[d0]], q[trow[d0 + 1]],
-                          w_old[d0], w_old[d0 + 1])
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, q, w_old, factor, out):
     """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7): the laws' local
-    stiffness (laws/*.tangent), at (q, w_old) for a coupled slip (q of length 0: no point,
+    stiffness (laws.stiffness), at (q, w_old) for a coupled slip (q of length 0: no point,
     the stiffest tangent, used for T_min)."""
     for c in range(nrow.shape[0]):
-        d0 = fdir[c]
-        if state[d0] == LIFT:
-            continue
-        nr = nrow[c]
-        kn = lpar[c, P_KN]
-        _add_outer(out, factor * kn, A, nr, nr)
-        if lcode[c] == LAW_CIRCLE:
-            r1, r2 = trow[d0], trow[d0 + 1]
-            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
-            for k, ra, rb in ((k11, r1, r1), (k12, r1, r2), (k21, r2, r1), (k22, r2, r2), (k1v, r1, nr),
-                              (k2v, r2, nr)):
-                if k != 0.0:
-                    _add_outer(out, factor * k, A, ra, rb)
-            continue
-        mu_kn = lpar[c, P_MU] * kn
-        for d in range(d0, d0 + ndir[c]):
-            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-            if kuu != 0.0:
-                _add_outer(out, factor * kuu, A, trow[d], trow[d])
-            if kuv != 0.0:
-                _add_outer(out, factor * kuv, A, trow[d], nr)
+        ks, ra, rb = laws.stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old)
+        for i in range(len(ks)):
+            if ks[i] != 0.0:
+                _add_outer(out, factor * ks[i], A, ra[i], rb[i])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
-    """out = kfac (K(S) - K(stick)) y, local (the low-rank update of kernels/state_solve.py):
-    lift-off: -k_t on u, -k_n on v; slip: the slip tangent minus k_t on u; stick: 0."""
+    """out = kfac (K(S) - K(stick)) y, local (the low-rank update of kernels/state_solve.py,
+    laws.delta)."""
     for r in range(out.shape[0]):
         out[r] = 0.0
     for c in range(nrow.shape[0]):
-        d0 = fdir[c]
-        nr = nrow[c]
-        if state[d0] == LIFT:
-            out[nr] = -kfac * lpar[c, P_KN] * y[nr]
-            for d in range(d0, d0 + ndir[c]):
-                out[trow[d]] = -kfac * kt[d] * y[trow[d]]
-            continue
-        if lcode[c] == LAW_CIRCLE:
-            if state[d0] == STICK:
-                continue
-            r1, r2 = trow[d0], trow[d0 + 1]
-            k11, k12, k21, k22, k1v, k2v = _circle_tangent(nrow, lpar, fdir, trow, kt, c, state, q, w_old)
-            out[r1] = kfac * ((k11 - kt[d0]) * y[r1] + k12 * y[r2] + k1v * y[nr])
-            out[r2] = kfac * (k21 * y[r1] + (k22 - kt[d0]) * y[r2] + k2v * y[nr])
-            continue
-        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-        for d in range(d0, d0 + ndir[c]):
-            if state[d] != STICK:
-                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-                out[trow[d]] = kfac * (kuv * y[nr] + (kuu - kt[d]) * y[trow[d]])
+        laws.delta(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out)
 
 
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------

@@ -10,7 +10,7 @@ With harmonic loads and motions, f_e and p are combinations of the basis b_0 = 1
 b_j(t) = sin(w_h t), cos(w_h t), so x(t) = sum_j X_j b_j(t) and q(t) = sum_j Q_j b_j(t)
 with one solve J(S) X_j = RHS_j per basis function (J(S) and the harmonic columns cached
 per state; the constant column, which holds the stick sliders, solved every phase). Every condition of the state
-table is then a known smooth function of time (a trigonometric polynomial), a margin that
+table (kernels.laws.margins, the laws' rows in time) is then a known smooth function of time (a trigonometric polynomial), a margin that
 stays >= 0 while S holds:
 
     in contact      v >= 0;                 lift-off      -v >= 0
@@ -37,9 +37,10 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.codes import (
-    C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, LIFT, NON_FINITE, OK, P_KN,
-    P_MU, SINGULAR, SLIP_NEG, SLIP_POS, STATE_CYCLING, STICK,
+    C_FACTORISATIONS, C_FAIL_STEP, C_LAW_CALLS, C_SOLVES, C_STATE_CHANGES, C_STEPS, NON_FINITE, OK, SINGULAR,
+    STATE_CYCLING,
 )
+from slipstep.kernels import laws
 from slipstep.kernels.arguments import unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
@@ -97,8 +98,6 @@ def event_arguments(sys, ws):
             EventWorkspace(*(getattr(ws, f) for f in EventWorkspace._fields)))
 
 
-# margin kinds
-M_CONTACT, M_LIFT, M_STICK_POS, M_STICK_NEG, M_SLIP_POS, M_SLIP_NEG = 0, 1, 2, 3, 4, 5
 MAX_FLIPS = 20  # state changes allowed at one instant before STATE_CYCLING
 ANCHOR = 64  # output points between exact evaluations of the basis (rotation in between)
 
@@ -254,41 +253,9 @@ def _phase(sys, nrow, lcode, lpar, fdir, ndir, trow, kt, state, w, Fb, Pb, om, J
             Qc[slot, j, r] = s
         solves += 1 if j > 0 else 0
     Q = Qc[slot]
-    # margins
     k = 0
-    for c in range(nrow.shape[0]):
-        nr = nrow[c]
-        d0 = fdir[c]
-        lift = state[d0] == LIFT
-        for j in range(nb):
-            MC[k, j] = -Q[j, nr] if lift else Q[j, nr]
-        kind[k] = M_LIFT if lift else M_CONTACT
-        owner[k] = c
-        k += 1
-        if lift:
-            continue
-        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-        for d in range(d0, d0 + ndir[c]):
-            tr = trow[d]
-            if state[d] == STICK:
-                for side in range(2):
-                    sgn = 1.0 if side == 0 else -1.0
-                    for j in range(nb):
-                        MC[k, j] = mu_kn * Q[j, nr] - sgn * kt[d] * (Q[j, tr] - (w[d] if j == 0 else 0.0))
-                    kind[k] = M_STICK_POS if sgn > 0 else M_STICK_NEG
-                    owner[k] = d
-                    k += 1
-            else:  # +/- dw/dt, w = u -/+ mu k_n v / k_t
-                sgn = 1.0 if state[d] == SLIP_POS else -1.0
-                for h in range(om.shape[0]):
-                    cs_ = sgn * (Q[2 * h + 1, tr] - sgn * mu_kn / kt[d] * Q[2 * h + 1, nr])
-                    cc_ = sgn * (Q[2 * h + 2, tr] - sgn * mu_kn / kt[d] * Q[2 * h + 2, nr])
-                    MC[k, 2 * h + 1] = -om[h] * cc_
-                    MC[k, 2 * h + 2] = om[h] * cs_
-                MC[k, 0] = 0.0
-                kind[k] = M_SLIP_POS if sgn > 0 else M_SLIP_NEG
-                owner[k] = d
-                k += 1
+    for c in range(nrow.shape[0]):  # the margins
+        k = laws.margins(c, nrow, lpar, fdir, ndir, trow, kt, state, w, Q, om, MC, kind, owner, k)
     for i in range(k):
         s = 0.0
         for j in range(nb):
@@ -655,20 +622,7 @@ def event_march(sys, st, ws, out, q0, f0):
             if not (i == hit or (val <= 1e-7 * scale[i] and _slope(MC[i], om, bb) < 0.0)):
                 continue
             changed = True
-            o = owner[i]
-            if kind[i] == M_CONTACT:
-                for d in range(fdir[o], fdir[o] + ndir[o]):
-                    state[d] = LIFT
-            elif kind[i] == M_LIFT:
-                for d in range(fdir[o], fdir[o] + ndir[o]):
-                    state[d] = STICK
-                    wtmp[d] = q1[trow[d]]
-            elif kind[i] == M_STICK_POS:
-                state[o] = SLIP_POS
-            elif kind[i] == M_STICK_NEG:
-                state[o] = SLIP_NEG
-            else:
-                state[o] = STICK
+            laws.cross(kind[i], owner[i], fdir, ndir, trow, q1, state, wtmp)
         for d in range(nd):
             w[d] = wtmp[d]
         counters[C_LAW_CALLS] += 1

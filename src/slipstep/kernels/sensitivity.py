@@ -37,7 +37,8 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.codes import P_KN, P_MU
-from slipstep.kernels.contact import LIFT, SLIP_POS, STICK, contact_stiffness
+from slipstep.kernels.contact import STICK, contact_stiffness
+from slipstep.kernels.laws import uncoupled
 from slipstep.kernels.linalg import lu_factor, lu_solve_rows
 from slipstep.kernels.march import newmark_coefficients
 
@@ -166,7 +167,7 @@ def period_sensitivity(
                     stuck[d] = False
                 c = owner[d]
                 moving[d] = True
-                slope[d] = 0.0 if S[d] == LIFT else (mu[c] * kn[c] / kt[d] if S[d] == SLIP_POS else -mu[c] * kn[c] / kt[d])
+                slope[d] = uncoupled.slider_derivative(kt[d], mu[c] * kn[c], S[d])[1]  # dw = dq_t - slope dq_n
         if new_state or dt != prev_dt:
             np.dot(Q, hz, qhz)
             prev_dt = dt

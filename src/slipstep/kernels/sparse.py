@@ -41,10 +41,10 @@ from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (
     C_FACTORISATIONS, C_FAIL_STEP, C_FALLBACKS, C_LAW_CALLS, C_N_VISITED, C_PROGRESS, C_SOLVES, C_STATE_CHANGES, C_STEPS, C_STOP,
-    CAPACITY, INTERRUPTED, LIFT, NON_FINITE, NOT_CONVERGED, OK, P_KN, P_MU, SINGULAR, STATE_CYCLING, STICK,
+    CAPACITY, INTERRUPTED, NON_FINITE, NOT_CONVERGED, OK, P_KN, SINGULAR, STATE_CYCLING,
 )
 from slipstep.kernels.contact import compatible_law, law, piecewise_law
-from slipstep.kernels.laws import uncoupled
+from slipstep.kernels import laws
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.march import (
     S_CAPACITY, S_FAIL, S_ROWS, _accept, _accept_contacts, _loads_and_motions, _store, newmark_coefficients,
@@ -219,26 +219,12 @@ def recover_dofs(fac, kfac, h, fwd, dx):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _delta_rows(cl, state, rows, kdiag, kcol, koff):
-    """The rows R of dK(S) = K(S) - K(stick) that are not zero, with their entries: lift-off
-    -k_t on u, -k_n on v; slip (uncoupled law) k_uu - k_t on u and k_uv at v. Returns m."""
+    """The rows R of dK(S) = K(S) - K(stick) that are not zero, with their entries
+    (kernels.laws.delta_rows). Returns m."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
     m = 0
     for c in range(nrow.shape[0]):
-        d0 = fdir[c]
-        nr = nrow[c]
-        if state[d0] == LIFT:
-            for d in range(d0, d0 + ndir[c]):
-                rows[m], kdiag[m], kcol[m], koff[m] = trow[d], -kt[d], -1, 0.0
-                m += 1
-            rows[m], kdiag[m], kcol[m], koff[m] = nr, -lpar[c, P_KN], -1, 0.0
-            m += 1
-            continue
-        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-        for d in range(d0, d0 + ndir[c]):
-            if state[d] != STICK:
-                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-                rows[m], kdiag[m], kcol[m], koff[m] = trow[d], kuu - kt[d], nr, kuv
-                m += 1
+        m = laws.delta_rows(c, nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff, m)
     return m
 
 
