@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels import laws
+from slipstep.kernels.borrow import borrowed
 
 #: Lanczos runs to convergence (n steps, full reorthogonalisation) up to this size, else LANCZOS_STEPS
 LANCZOS_FULL = 400
@@ -209,6 +210,8 @@ def band_contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, ptr, idx, va
     diagonal at column ``off`` (off = ku for band storage, kl + ku for factorisation storage),
     A in CSR: per contact the outer products of its few rows with the local stiffness of
     kernels.laws.stiffness (as kernels.contact.contact_stiffness)."""
+    cl = borrowed((nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old))  # no counting per contact
+    nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old = cl
     for c in range(nrow.shape[0]):
         ks, ra, rb = laws.stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old)
         for i in range(len(ks)):

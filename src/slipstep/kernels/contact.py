@@ -23,7 +23,11 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels import laws
+from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.codes import LIFT, SLIP_COUPLED, SLIP_NEG, SLIP_POS, STICK  # noqa: F401  (re-exported)
+from slipstep.kernels.laws import (  # noqa: F401  (re-exported: the loops over the contacts)
+    compatible, compatible_law, coupled, delta_stiffness, law, piecewise_law,
+)
 from slipstep.kernels.settings import contact_table
 
 # ---- explicit-array cores (the hot path: small argument lists, no tuples) ------------------
@@ -76,52 +80,6 @@ def scatter(A, f, out):
                 out[j] += A[r, j] * fr
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
-    """The nonlinear law (return mapping): forces f (local, like q), new sliders and states
-    from q and w_old."""
-    for c in range(nrow.shape[0]):
-        laws.law(c, nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
-    """The law in a postulated state S: f = K(S) q + s(S, w_old) where S is linear."""
-    for c in range(nrow.shape[0]):
-        laws.linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
-    """Does the postulated state satisfy its row of the state table at q (within tolerance,
-    laws.compatible)?"""
-    for c in range(nrow.shape[0]):
-        if not laws.compatible(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
-            return False
-    return True
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale, f, w_new):
-    """:func:`compatible` and, when the postulated state holds, :func:`piecewise_law` at q in
-    the same pass over the contacts (the piecewise-linear step's accept test). Returns the
-    compatibility; f and w_new are meaningful only when it is True."""
-    for c in range(nrow.shape[0]):
-        if not laws.compatible_linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol,
-                                      length_scale, f, w_new):
-            return False
-    return True
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
-    """True if some contact is in a state without a piecewise-linear form (coupled slip)."""
-    for c in range(nrow.shape[0]):
-        if laws.coupled(c, fdir, state):
-            return True
-    return False
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _add_outer(out, k, A, r1, r2):
     """out += k * A[r1]^T A[r2]."""
@@ -138,21 +96,13 @@ def contact_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, A, state, q, w_ol
     """out += factor * K_D(S), with K_D(S) = A^T K(S) A (paper Eq. 7): the laws' local
     stiffness (laws.stiffness), at (q, w_old) for a coupled slip (q of length 0: no point,
     the stiffest tangent, used for T_min)."""
+    cl = borrowed((nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old))  # no counting per contact
+    nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old = cl
     for c in range(nrow.shape[0]):
         ks, ra, rb = laws.stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old)
         for i in range(len(ks)):
             if ks[i] != 0.0:
                 _add_outer(out, factor * ks[i], A, ra[i], rb[i])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
-    """out = kfac (K(S) - K(stick)) y, local (the low-rank update of kernels/state_solve.py,
-    laws.delta)."""
-    for r in range(out.shape[0]):
-        out[r] = 0.0
-    for c in range(nrow.shape[0]):
-        laws.delta(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out)
 
 
 # ---- convenience wrappers taking the CompiledSystem (Python, tests, cold paths) --------------

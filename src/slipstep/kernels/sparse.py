@@ -222,10 +222,7 @@ def _delta_rows(cl, state, rows, kdiag, kcol, koff):
     """The rows R of dK(S) = K(S) - K(stick) that are not zero, with their entries
     (kernels.laws.delta_rows). Returns m."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    m = 0
-    for c in range(nrow.shape[0]):
-        m = laws.delta_rows(c, nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff, m)
-    return m
+    return laws.delta_rows(nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -3,8 +3,8 @@ the law code that every kernel calls (so no kernel outside this package writes a
 law's state table).
 
 A law module gives the tangential part of the law as small scalar functions (no arrays: numba
-inlines them into the contact loop of :mod:`slipstep.kernels.contact` at no cost, which
-functions taking arrays in a loop do not get), for one direction (uncoupled) or one contact
+inlines them into the loops over the contacts below at no cost, which functions taking arrays
+in a loop do not get), for one direction (uncoupled) or one contact
 (coupled), in contact (v > 0), with the friction limit mu N given:
 
 * ``law``         the return mapping: T, w_new and the state from u and w_old;
@@ -18,10 +18,14 @@ functions taking arrays in a loop do not get), for one direction (uncoupled) or 
   event-driven march).
 
 The normal part (N = k_n v; v <= 0 lift-off: T = N = 0, w = u) is laws/normal.py. The
-functions below apply a contact's whole row (normal part and law) for contact c of the
-contact table (nrow, lcode, lpar, fdir, ndir, trow, kt: kernels/settings.ContactLaw), and
-are inlined into the loops over the contacts of kernels/contact.py, banded.py, sparse.py and
-events.py.
+functions below hold the state table's rows over all contacts of the contact table (nrow,
+lcode, lpar, fdir, ndir, trow, kt: kernels/settings.ContactLaw) and the one dispatch on the law
+code: the loops over the contacts (law, piecewise_law, compatible, compatible_law, coupled,
+delta_stiffness, delta_rows; re-exported by kernels/contact.py) and, for one contact c, its
+local stiffness (stiffness: K_D assembly in contact.py and banded.py) and its margins in time
+(margins, cross: kernels/events.py). Inside a loop over the contacts only scalar functions are
+called: an inlined function taking arrays costs numba's reference counting of each array per
+call (kernels/borrow.py), unless the caller borrows them (contact_stiffness does).
 
 Adding a law: a module here with law, linear, compatible and tangent; a code in codes.py (and,
 if its states are new, a state code and its name in STATE_NAMES); one branch on that code in
@@ -75,112 +79,186 @@ def _circle_tangent(c, nrow, lpar, fdir, trow, kt, state, q, w_old):
                           w_old[d0], w_old[d0 + 1])
 
 
-# ---- one contact's row of the state table -----------------------------------------------------
+# ---- the rows of the state table over all contacts --------------------------------------------
+# The loops over the contacts are here, not in the kernels that call them: the per-contact
+# functions taking arrays tried first made Method 1's kernel 2.3x slower (reference counting).
 @njit(cache=True, error_model="numpy", inline="always")
-def law(c, nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
-    """The nonlinear law of contact c: its forces f (local, like q), sliders and states from q
-    and w_old."""
-    nr = nrow[c]
-    v = q[nr]
-    d0 = fdir[c]
-    if v <= 0.0:
-        normal.lift_off(nr, d0, ndir[c], trow, q, f, w_new)
-        normal.lift_state(d0, ndir[c], state)
-        return
-    N = lpar[c, P_KN] * v
-    f[nr] = N
-    limit = lpar[c, P_MU] * N
-    if lcode[c] == LAW_CIRCLE:
-        _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state)
-        return
-    for d in range(d0, d0 + ndir[c]):
-        tr = trow[d]
-        f[tr], w_new[d], state[d] = uncoupled.law(kt[d], limit, q[tr], w_old[d])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
-    """The law of contact c in its postulated state: f = K(S) q + s(S, w_old) where S is
-    linear."""
-    nr = nrow[c]
-    d0 = fdir[c]
-    if state[d0] == LIFT:
-        normal.lift_off(nr, d0, ndir[c], trow, q, f, w_new)
-        return
-    N = lpar[c, P_KN] * q[nr]
-    f[nr] = N
-    limit = lpar[c, P_MU] * N
-    if lcode[c] == LAW_CIRCLE:
-        _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
-        return
-    for d in range(d0, d0 + ndir[c]):
-        tr = trow[d]
-        f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
+def law(nrow, lcode, lpar, fdir, ndir, trow, kt, q, w_old, f, w_new, state):
+    """The nonlinear law (return mapping): forces f (local, like q), new sliders and states
+    from q and w_old."""
+    for c in range(nrow.shape[0]):
+        nr = nrow[c]
+        v = q[nr]
+        d0 = fdir[c]
+        if v <= 0.0:
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]], w_new[d], state[d] = normal.lift_off(q[trow[d]])
+            continue
+        N = lpar[c, P_KN] * v
+        f[nr] = N
+        limit = lpar[c, P_MU] * N
+        if lcode[c] == LAW_CIRCLE:
+            _circle_law(trow, kt, d0, limit, q, w_old, f, w_new, state)
+            continue
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            f[tr], w_new[d], state[d] = uncoupled.law(kt[d], limit, q[tr], w_old[d])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def compatible(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
-    """Does the postulated state of contact c satisfy its row of the state table at q?
+def piecewise_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, f, w_new):
+    """The law in a postulated state S: f = K(S) q + s(S, w_old) where S is linear."""
+    for c in range(nrow.shape[0]):
+        nr = nrow[c]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]], w_new[d], _ = normal.lift_off(q[trow[d]])
+            continue
+        N = lpar[c, P_KN] * q[nr]
+        f[nr] = N
+        limit = lpar[c, P_MU] * N
+        if lcode[c] == LAW_CIRCLE:
+            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
+            continue
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def compatible(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale):
+    """Does the postulated state satisfy its row of the state table at q (within tolerance)?
 
     Tolerances: rtol * L on v (L the system length scale) and rtol * (mu k_n |v| + k_t L)
     on the friction test, so that a point on a stick/slip or contact boundary is accepted.
     """
     tol_v = rtol * length_scale
-    v = q[nrow[c]]
-    d0 = fdir[c]
-    if state[d0] == LIFT:
-        return not v > tol_v
-    if v < -tol_v:
-        return False
-    limit = lpar[c, P_MU] * lpar[c, P_KN] * v
-    if lcode[c] == LAW_CIRCLE:
-        return _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale))
-    for d in range(d0, d0 + ndir[c]):
-        tol_t = rtol * (abs(limit) + kt[d] * length_scale)
-        if not uncoupled.compatible(kt[d], limit, state[d], q[trow[d]], w_old[d], tol_t):
+    for c in range(nrow.shape[0]):
+        v = q[nrow[c]]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            if v > tol_v:
+                return False
+            continue
+        if v < -tol_v:
             return False
+        limit = lpar[c, P_MU] * lpar[c, P_KN] * v
+        if lcode[c] == LAW_CIRCLE:
+            if not _circle_compatible(trow, kt, d0, limit, state, q, w_old, rtol * (abs(limit) + kt[d0] * length_scale)):
+                return False
+            continue
+        for d in range(d0, d0 + ndir[c]):
+            tol_t = rtol * (abs(limit) + kt[d] * length_scale)
+            if not uncoupled.compatible(kt[d], limit, state[d], q[trow[d]], w_old[d], tol_t):
+                return False
     return True
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def compatible_linear(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale, f, w_new):
-    """:func:`compatible` and, where the postulated state holds, :func:`linear` of contact c
-    in one pass. Returns the compatibility; f and w_new are meaningful only when it is True."""
+def compatible_law(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, rtol, length_scale, f, w_new):
+    """:func:`compatible` and, when the postulated state holds, :func:`piecewise_law` at q in the same
+    pass over the contacts. Returns the compatibility; f and w_new are meaningful only when it
+    is True."""
     tol_v = rtol * length_scale
-    nr = nrow[c]
-    v = q[nr]
-    d0 = fdir[c]
-    if state[d0] == LIFT:
-        if v > tol_v:
+    for c in range(nrow.shape[0]):
+        nr = nrow[c]
+        v = q[nr]
+        d0 = fdir[c]
+        if state[d0] == LIFT:
+            if v > tol_v:
+                return False
+            f[nr] = 0.0
+            for d in range(d0, d0 + ndir[c]):
+                f[trow[d]], w_new[d], _ = normal.lift_off(q[trow[d]])
+            continue
+        if v < -tol_v:
             return False
-        normal.lift_off(nr, d0, ndir[c], trow, q, f, w_new)
-        return True
-    if v < -tol_v:
-        return False
-    N = lpar[c, P_KN] * v
-    limit = lpar[c, P_MU] * N
-    f[nr] = N
-    climit = lpar[c, P_MU] * lpar[c, P_KN] * v  # the limit of compatible (rounded as there)
-    if lcode[c] == LAW_CIRCLE:
-        if not _circle_compatible(trow, kt, d0, climit, state, q, w_old, rtol * (abs(climit) + kt[d0] * length_scale)):
-            return False
-        _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
-        return True
-    for d in range(d0, d0 + ndir[c]):
-        tr = trow[d]
-        tol_t = rtol * (abs(climit) + kt[d] * length_scale)
-        if not uncoupled.compatible(kt[d], climit, state[d], q[tr], w_old[d], tol_t):
-            return False
-        f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
+        N = lpar[c, P_KN] * v
+        limit = lpar[c, P_MU] * N
+        f[nr] = N
+        climit = lpar[c, P_MU] * lpar[c, P_KN] * v  # the limit of compatible (rounded as there)
+        if lcode[c] == LAW_CIRCLE:
+            if not _circle_compatible(trow, kt, d0, climit, state, q, w_old, rtol * (abs(climit) + kt[d0] * length_scale)):
+                return False
+            _circle_linear(trow, kt, d0, limit, state, q, w_old, f, w_new)
+            continue
+        for d in range(d0, d0 + ndir[c]):
+            tr = trow[d]
+            tol_t = rtol * (abs(climit) + kt[d] * length_scale)
+            if not uncoupled.compatible(kt[d], climit, state[d], q[tr], w_old[d], tol_t):
+                return False
+            f[tr], w_new[d] = uncoupled.linear(kt[d], limit, state[d], q[tr], w_old[d])
     return True
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def coupled(c, fdir, state):
-    """Is contact c in a state without a piecewise-linear form (a coupled slip)?"""
-    return state[fdir[c]] == SLIP_COUPLED
+def coupled(nrow, lcode, lpar, fdir, ndir, trow, kt, state):
+    """True if some contact is in a state without a piecewise-linear form (coupled slip)."""
+    for c in range(nrow.shape[0]):
+        if state[fdir[c]] == SLIP_COUPLED:
+            return True
+    return False
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def delta_stiffness(nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
+    """out = kfac (K(S) - K(stick)) y, local: lift-off -k_t on u, -k_n on v; slip the slip
+    tangent minus k_t on u; stick 0."""
+    for r in range(out.shape[0]):
+        out[r] = 0.0
+    for c in range(nrow.shape[0]):
+        d0 = fdir[c]
+        nr = nrow[c]
+        if state[d0] == LIFT:
+            out[nr] = kfac * normal.lift_delta(lpar[c, P_KN]) * y[nr]
+            for d in range(d0, d0 + ndir[c]):
+                out[trow[d]] = kfac * normal.lift_delta(kt[d]) * y[trow[d]]
+            continue
+        if lcode[c] == LAW_CIRCLE:
+            if state[d0] == STICK:
+                continue
+            r1, r2 = trow[d0], trow[d0 + 1]
+            k11, k12, k21, k22, k1v, k2v = _circle_tangent(c, nrow, lpar, fdir, trow, kt, state, q, w_old)
+            out[r1] = kfac * ((k11 - kt[d0]) * y[r1] + k12 * y[r2] + k1v * y[nr])
+            out[r2] = kfac * (k21 * y[r1] + (k22 - kt[d0]) * y[r2] + k2v * y[nr])
+            continue
+        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+        for d in range(d0, d0 + ndir[c]):
+            if state[d] != STICK:
+                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+                out[trow[d]] = kfac * (kuv * y[nr] + (kuu - kt[d]) * y[trow[d]])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def delta_rows(nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff):
+    """The rows of K(S) - K(stick) that are not zero: row, diagonal entry, one off-diagonal
+    column (-1: none) and entry. Lift-off -k_t on u, -k_n on v; slip k_uu - k_t on u and k_uv
+    at v. Piecewise-linear laws (a coupled slip has two off-diagonal entries: the sparse
+    backend refuses the friction circle). Returns their number."""
+    m = 0
+    for c in range(nrow.shape[0]):
+        d0 = fdir[c]
+        nr = nrow[c]
+        if state[d0] == LIFT:
+            for d in range(d0, d0 + ndir[c]):
+                rows[m], kdiag[m], kcol[m], koff[m] = trow[d], normal.lift_delta(kt[d]), -1, 0.0
+                m += 1
+            rows[m], kdiag[m], kcol[m], koff[m] = nr, normal.lift_delta(lpar[c, P_KN]), -1, 0.0
+            m += 1
+            continue
+        mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
+        for d in range(d0, d0 + ndir[c]):
+            if state[d] != STICK:
+                kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
+                rows[m], kdiag[m], kcol[m], koff[m] = trow[d], kuu - kt[d], nr, kuv
+                m += 1
+    return m
+
+
+# ---- one contact's local stiffness (K_D assembly: dense, banded) -------------------------------
 @njit(cache=True, error_model="numpy", inline="always")
 def stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old):
     """The local stiffness K(S) of contact c (laws' tangent; a contact has 1 or 2 directions)
@@ -204,49 +282,6 @@ def stiffness(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old):
     r2 = trow[d0 + 1]
     kuu2, kuv2 = uncoupled.tangent(kt[d0 + 1], mu_kn, state[d0 + 1])
     return (kn, kuu1, kuv1, kuu2, kuv2, 0.0, 0.0), (nr, r1, r1, r2, r2, nr, nr), (nr, r1, nr, r2, nr, nr, nr)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def delta(c, nrow, lcode, lpar, fdir, ndir, trow, kt, state, q, w_old, kfac, y, out):
-    """out = kfac (K(S) - K(stick)) y on the rows of contact c (out zero there before):
-    lift-off: -k_t on u, -k_n on v; slip: the slip tangent minus k_t on u; stick: 0."""
-    d0 = fdir[c]
-    nr = nrow[c]
-    if state[d0] == LIFT:
-        normal.lift_delta(nr, d0, ndir[c], trow, lpar[c, P_KN], kt, kfac, y, out)
-        return
-    if lcode[c] == LAW_CIRCLE:
-        if state[d0] == STICK:
-            return
-        r1, r2 = trow[d0], trow[d0 + 1]
-        k11, k12, k21, k22, k1v, k2v = _circle_tangent(c, nrow, lpar, fdir, trow, kt, state, q, w_old)
-        out[r1] = kfac * ((k11 - kt[d0]) * y[r1] + k12 * y[r2] + k1v * y[nr])
-        out[r2] = kfac * (k21 * y[r1] + (k22 - kt[d0]) * y[r2] + k2v * y[nr])
-        return
-    mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-    for d in range(d0, d0 + ndir[c]):
-        if state[d] != STICK:
-            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-            out[trow[d]] = kfac * (kuv * y[nr] + (kuu - kt[d]) * y[trow[d]])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def delta_rows(c, nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff, m):
-    """The rows of K(S) - K(stick) of contact c that are not zero, from slot m: row, diagonal
-    entry, one off-diagonal column (-1: none) and entry. Lift-off -k_t on u, -k_n on v; slip
-    k_uu - k_t on u and k_uv at v. Piecewise-linear laws (a coupled slip has two off-diagonal
-    entries: the sparse backend refuses the friction circle). Returns the next slot."""
-    d0 = fdir[c]
-    nr = nrow[c]
-    if state[d0] == LIFT:
-        return normal.lift_delta_rows(nr, d0, ndir[c], trow, lpar[c, P_KN], kt, rows, kdiag, kcol, koff, m)
-    mu_kn = lpar[c, P_MU] * lpar[c, P_KN]
-    for d in range(d0, d0 + ndir[c]):
-        if state[d] != STICK:
-            kuu, kuv = uncoupled.tangent(kt[d], mu_kn, state[d])
-            rows[m], kdiag[m], kcol[m], koff[m] = trow[d], kuu - kt[d], nr, kuv
-            m += 1
-    return m
 
 
 # ---- the state table in time (kernels/events.py: piecewise-linear laws) ---------------------
@@ -300,7 +335,8 @@ def cross(kind, o, fdir, ndir, trow, q, state, w):
     q: contact -> lift-off; lift-off -> stick with w = u; stick -> slip+/-; slip -> stick (the
     slider stays where it is)."""
     if kind == M_CONTACT:
-        normal.lift_state(fdir[o], ndir[o], state)
+        for d in range(fdir[o], fdir[o] + ndir[o]):
+            state[d] = LIFT
     elif kind == M_LIFT:
         for d in range(fdir[o], fdir[o] + ndir[o]):
             state[d] = STICK

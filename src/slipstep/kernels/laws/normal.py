@@ -7,6 +7,8 @@ tangential directions d0 .. d0 + nd - 1 (rows trow[d]):
 so K(LIFT) = 0 and K(LIFT) - K(stick) is -k_n on v and -k_t on each u. Its margins in time
 (kernels/events.py): v >= 0 in contact, -v >= 0 lifted off; a lifted contact that touches
 again re-enters in the law's contact state with w = u.
+
+Scalar functions, like the laws' (the contact loops of laws/__init__.py call them).
 """
 
 from numba import njit
@@ -15,35 +17,13 @@ from slipstep.kernels.codes import LIFT
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def lift_off(nr, d0, nd, trow, q, f, w_new):
-    """The LIFT row of the law: f = 0 on the contact's rows, w_new = u."""
-    f[nr] = 0.0
-    for d in range(d0, d0 + nd):
-        f[trow[d]] = 0.0
-        w_new[d] = q[trow[d]]
+def lift_off(u):
+    """(T, w, state) of one direction of a lifted contact (its N = 0)."""
+    return 0.0, u, LIFT
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def lift_state(d0, nd, state):
-    """Every direction of the contact lifted off."""
-    for d in range(d0, d0 + nd):
-        state[d] = LIFT
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def lift_delta(nr, d0, nd, trow, kn, kt, kfac, y, out):
-    """out = kfac (K(LIFT) - K(stick)) y on the contact's rows: -k_n on v, -k_t on each u."""
-    out[nr] = -kfac * kn * y[nr]
-    for d in range(d0, d0 + nd):
-        out[trow[d]] = -kfac * kt[d] * y[trow[d]]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def lift_delta_rows(nr, d0, nd, trow, kn, kt, rows, kdiag, kcol, koff, m):
-    """The rows of K(LIFT) - K(stick) (diagonal entry, no off-diagonal: kcol -1) from slot m:
-    each u, then v. Returns the next slot."""
-    for d in range(d0, d0 + nd):
-        rows[m], kdiag[m], kcol[m], koff[m] = trow[d], -kt[d], -1, 0.0
-        m += 1
-    rows[m], kdiag[m], kcol[m], koff[m] = nr, -kn, -1, 0.0
-    return m + 1
+def lift_delta(k):
+    """The entry of K(LIFT) - K(stick) on a row of stick stiffness k (k_n on v, k_t on u):
+    -k, on the diagonal only."""
+    return -k
