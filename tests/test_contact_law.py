@@ -372,3 +372,43 @@ def test_quasi3d_can_slip_in_one_direction_and_stick_in_the_other(quasi3d):
     # lift-off is shared by both directions
     f, w, s = law(q3, [2.0, 5.0, -0.1], np.zeros(2))
     assert list(s) == [LIFT, LIFT] and list(w) == [2.0, 5.0] and not f.any()
+
+
+@pytest.mark.parametrize("u", [-3.0, -0.2, 0.0, 0.3, 3.0])
+@pytest.mark.parametrize("v", [-0.5, 0.25, 1.0])
+def test_slider_derivative_is_the_law_derivative(u, v):
+    """laws.uncoupled.slider_derivative (the shooting sensitivity's and the event margins' dw/dq)
+    is the derivative of the law's slider w_new(u, v) at fixed w_old in the state the law takes:
+    dw = a du - s dv (lift-off: w = u), by central differences inside the state's region."""
+    from slipstep.kernels.laws import uncoupled
+
+    w_old, h = 0.1, 1e-6
+
+    def w_new(uu, vv):
+        if vv <= 0.0:
+            return uu, LIFT
+        _, w, s = uncoupled.law(KT, MU * KN * vv, uu, w_old)
+        return w, s
+
+    w0, state = w_new(u, v)
+    a, s = uncoupled.slider_derivative(KT, MU * KN, state)
+    assert w_new(u + h, v)[1] == w_new(u - h, v)[1] == state  # the region holds around the point
+    assert (w_new(u + h, v)[0] - w_new(u - h, v)[0]) / (2 * h) == pytest.approx(a, abs=1e-6)
+    assert -(w_new(u, v + h)[0] - w_new(u, v - h)[0]) / (2 * h) == pytest.approx(s, abs=1e-6)
+
+
+@pytest.mark.parametrize("side", [0, 1])
+def test_stick_margin_is_the_compatibility_test(side):
+    """A stick margin a v - b (u - w) >= 0 (laws.uncoupled.stick_margin) holds exactly where the
+    stick test of uncoupled.compatible holds on its side, and crosses into that side's slip."""
+    from slipstep.kernels.laws import uncoupled
+
+    a, b, crossed = uncoupled.stick_margin(KT, MU * KN, side)
+    assert crossed == (SLIP_POS if side == 0 else SLIP_NEG)
+    v, w = 1.0, 0.0
+    for u in np.linspace(-8.0, 8.0, 65):  # the limit mu k_n v / k_t = 4 is on the grid
+        margin = a * v - b * (u - w)
+        trial = KT * (u - w)
+        holds = trial <= MU * KN * v if side == 0 else trial >= -MU * KN * v
+        assert (margin >= 0.0) == holds
+        assert uncoupled.law(KT, MU * KN * v, u, w)[2] != crossed or margin < 0.0

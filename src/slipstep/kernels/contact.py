@@ -1,6 +1,7 @@
-"""The contact laws over all contacts: gather, scatter, and loops over the contacts that
-apply each contact's row of the state table by :mod:`slipstep.kernels.laws` (the one
-dispatch on the law code; physics.md 2-3).
+"""The contact laws over all contacts (physics.md 2-3): gather, scatter, the K_D assembly, and,
+re-exported from :mod:`slipstep.kernels.laws` where the one dispatch on the law code is, the
+loops applying each contact's row of the state table (law, piecewise_law, compatible,
+compatible_law, coupled, delta_stiffness).
 
 Every contact c has a law code (``lcode[c]``, kernels/codes.py) and a row of the law
 parameter table (``lpar[c]``: k_n, mu); k_t is per tangential direction. The laws:
