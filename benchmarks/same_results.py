@@ -34,7 +34,7 @@ SNIPPET = textwrap.dedent("""
     from slipstep.hbm.residual import preload_sliders
     from slipstep.steady.linear import stuck_state
 
-    TIMES = ("wall_time_s", "kernel_time_s", "point_time")
+    TIMES = ("wall_time_s", "kernel_time_s", "point_time", "twin_time_s")
     paper = ss.load_system("paper")
     found = {}
 
