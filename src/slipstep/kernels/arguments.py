@@ -13,6 +13,8 @@ methods/simulation.py (:func:`pack_arguments`); it holds the caller's arrays (wh
 writes lands in them) and keeps them alive. Each march kernel has a ``*_packed(args, st)``
 twin beside it that calls ``kernel(sys, st, ws, out, q0, f0)`` with ``(sys, ws, out, q0, f0)
 = unpacked(args)``; the settings ``st``, which change from march to march, are passed beside.
+The implicit and quasi-static marches are written in that form (one kernel per structure backend,
+kernels.march.implicit_kernel); their ``march(sys, st, ws, out, q0, f0)`` wrappers pack the arguments.
 """
 
 from numba import njit, types

@@ -59,13 +59,14 @@ One step of :func:`march`, in order (each a function below or in step_solvers.py
 Inputs: the CompiledSystem, MarchSettings (kernels/settings.py), the Workspace, Outputs.
 """
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from slipstep.kernels.banded import band_contact_stiffness, band_is_diagonal, band_lambda_max, band_to_lu_storage
-from slipstep.kernels.arguments import unpacked
+from slipstep.kernels.arguments import pack_arguments, unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import (  # noqa: F401  (re-exported: the counters and status codes)
@@ -193,7 +194,7 @@ def _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol
     if A.shape[0] == 0:
         for j in range(n):
             err = max(err, abs(e[j]))
-    elif backend == so.BANDED:  # banded backend (issue 10): A in CSR
+    elif backend == BANDED:  # banded backend (issue 10): A in CSR
         err = so.gather_abs_max(so.csr_of(sys), e)
     else:
         for rr in range(A.shape[0]):
@@ -242,9 +243,9 @@ def _convergence_parameters(backend, sys, tol):
     conv[CV_FLOOR] = 0.0
     for i in range(n):
         amax = 0.0
-        if backend == so.BANDED:  # banded backend (issue 10): A^T in CSR
+        if backend == BANDED:  # banded backend (issue 10): A^T in CSR
             amax = so.column_abs_max_banded(sys, i)
-        for rr in range(nq if backend != so.BANDED else 0):
+        for rr in range(nq if backend != BANDED else 0):
             amax = max(amax, abs(A[rr, i]))
         conv[CV_X + i] = tol * (length_scale / amax if amax > 0.0 else length_scale)
     return conv
@@ -369,214 +370,241 @@ def _state_step_limit_banded(sys, ws, cl, state, step_factor, dt_max):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _limit_of(sys, ws, cl, state, st):
+def _limit_of(backend, sys, ws, cl, state, st):
     """:func:`_state_step_limit` of a state with this march's arrays."""
     nrow, lcode, lpar, fdir, ndir, trow, kt = cl
-    if st.structure == so.BANDED:  # banded backend (issue 10): T_min by Arnoldi on the band
+    if backend == BANDED:  # banded backend (issue 10): T_min by Arnoldi on the band
         return _state_step_limit_banded(sys, ws, cl, state, st.step_factor, st.dt_max)
     return _state_step_limit(sys.K, ws.mass_factor, sys.A, nrow, lcode, lpar, fdir, ndir, trow, kt, state, ws.tmin_keys,
                              ws.tmin_used, ws.tmin_value, st.step_factor, st.dt_max)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _state_redo(sys, ws, cl, st, state1, dt):
+def _state_redo(backend, sys, ws, cl, st, state1, dt):
     """The redo rule of the adaptive step (paper 4.2): (redo, limit), redo when the state the
     step reached needs a smaller step than the dt used (its limit below dt (1 - 1e-9))."""
     if _same(state1, ws.dt_state):
         return False, dt
-    limit = _limit_of(sys, ws, cl, state1, st)
+    limit = _limit_of(backend, sys, ws, cl, state1, st)
     return limit < dt * (1.0 - 1e-9), limit
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
 def march(sys, st, ws, out, q0, f0):
     """March from st.t_start to st.t_end, writing step k into out[k] (k = 0: the initial state,
     whose local q0 and f0 are given); st: the MarchSettings. Returns the status;
-    out.counters[C_STEPS] steps done.
+    out.counters[C_STEPS] steps done. The kernel of st.structure (:func:`implicit_kernel`) on the
+    packed arguments (kernels/arguments.py).
 
     Preload mode (st.preload = N > 0): N quasi-static increments at t = 0 with the constant
     loads scaled by k/N and p = 0 (set inertia and signals False)."""
-    # ---- the arguments' arrays without reference counting (kernels/borrow.py), unpacked once ----
-    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
-    A = sys.A
-    cl = contact_table(sys)
-    cache = state_cache(ws)
-    sv = step_vectors(ws)
-    length_scale = sys.length_scale
-    x, v, a, fe, gf, w, state = ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state
-    fe1, gf1, f1, q1, w1, state1 = ws.fe1, ws.gf1, ws.f1, ws.q1, ws.w1, ws.state1
-    dx, p, qbase, r0 = ws.dx, ws.p, ws.qbase, ws.r0
-    Lin, J, dt_state, visited = ws.Lin, ws.J, ws.dt_state, ws.visited
-    lus, pivs = ws.cache_lu, ws.cache_piv
-    backend = st.structure
-    counters = out.counters
-    n = x.shape[0]
-    nd = state.shape[0]
-    beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
-    own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
-    if backend == so.BANDED:  # banded backend (issue 10): A in CSR, M in band storage
-        own_kd = so.stick_diagonal_banded(sys)
-    else:
-        own_kd = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
-                                 sys.tangential_row, sys.kt)
-    own_mdiag = so.mass_diagonal(backend, sys)
-    state_rtol = st.state_rtol
-    singular_rtol = st.singular_rtol
-    solver = st.solver
-    n_preload = st.preload
-    adaptive = st.adaptive and n_preload == 0
-    inertia = st.inertia
-    signals = st.signals
-    max_iter, max_state_iter, max_redo, fallback = st.max_iter, st.max_state_iter, st.max_redo, st.fallback
-    kfac = (1.0 - af) if inertia else 1.0
-    has_damping = so.has_nonzero(backend, sys, 1)
-    has_circle = np.any(cl.lcode == LAW_CIRCLE)
-    has_stiffness = so.has_nonzero(backend, sys, 2)
-    own_pred = np.empty((2, n))
-    cap = out.plan[S_CAPACITY]
-    # ---- initial point ----
-    t = st.t_start
-    t_end = st.t_end
-    o_q, o_f, o_rows = out.q, out.f, out.rows
-    row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
-    for ii in range(o_rows.shape[0]):
-        o_q[row, ii] = q0[o_rows[ii]]
-        o_f[row, ii] = f0[o_rows[ii]]
-    for d in range(nd):
-        dt_state[d] = 0
-    tiny = 1e-12 * (t_end - t + 1e-300)
-    status = OK
-    k = 0
-    last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
-    stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
-    tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
-    own_tan = np.full(nd, -1, np.int8)
-    # the arrays allocated here, borrowed too (kernels/borrow.py; kept alive to the end below)
-    conv, kd_stick, mdiag, tan_state = borrowed(own_conv), borrowed(own_kd), borrowed(own_mdiag), borrowed(own_tan)
-    acc_pred, vel_pred = borrowed(own_pred[0]), borrowed(own_pred[1])
-    okS = False
-    luS = lus[0]
-    pivS = pivs[0]
-    ok0 = False
-    lu0 = lus[0]
-    piv0 = pivs[0]
-    dt_state_limit = 0.0  # step limit of dt_state (adaptive)
-    a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
-    ws.lin_dt[0] = np.nan
-    basis, clock = ws.basis, ws.clock
-    clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
-    accuracy = st.rtol > 0.0 and n_preload == 0 and inertia
-    err_tol = st.rtol * st.err_scale
-    dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
-    dt_next = dt_acc
-    while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
-        # (written out here and in kernels/quasi_static.py: as shared inline helpers, this check and
-        # the q, f output rows below made Method 1 about 8 % slower, bench_method1.py, and Method 4's
-        # kernel 3-7 %)
-        if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
-            status = INTERRUPTED
-            counters[C_FAIL_STEP] = k
-            break
-        if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
-            status = CAPACITY
-            break
-        # ---- step size (fixed, or by contact state; the accuracy step) ----
-        if n_preload > 0:
-            dt_nominal = 1.0
-        elif adaptive:
-            if k == 0 or not _same(state, dt_state):
-                for d in range(nd):
-                    dt_state[d] = state[d]
-                dt_state_limit = _limit_of(sys, ws, cl, state, st)
-            dt_nominal = dt_state_limit
+    return implicit_kernel(st.structure)(pack_arguments(sys, ws, out, q0, f0), st)
+
+
+@functools.cache
+def implicit_kernel(backend: int):
+    """The implicit march of one structure backend (structure_ops: DENSE, LOW_RANK, BANDED),
+    ``kernel(args, st)`` on a kernels.arguments.KernelArguments; st.structure must be ``backend``.
+
+    The backend is a constant of the kernel (a free variable of a closure, cached on disk per
+    backend): numba's dead-branch pruning drops the other backends' branches, of this body and of
+    every ``inline="always"`` helper it inlines, before they are typed. The step solver stays a
+    run-time choice (st.solver): every command marches the piecewise-linear solver (the static
+    preload, the pilot of the step rule) beside its own, and one kernel holding all four compiles
+    in less time than two kernels of two solvers each (docs/measured.md, "Compile time")."""
+    return _implicit_kernel(int(backend))
+
+
+def _implicit_kernel(backend):
+    """:func:`implicit_kernel` (backend a plain int: the closure's cache key)."""
+
+    @njit(cache=True, nogil=True, error_model="numpy")
+    def march_packed(args, st):
+        """:func:`march` of this backend on a KernelArguments."""
+        # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
+        sys, ws, out, q0, f0 = unpacked(args)
+        sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
+        A = sys.A
+        cl = contact_table(sys)
+        cache = state_cache(ws)
+        sv = step_vectors(ws)
+        length_scale = sys.length_scale
+        x, v, a, fe, gf, w, state = ws.x, ws.v, ws.a, ws.fe, ws.gf, ws.w, ws.state
+        fe1, gf1, f1, q1, w1, state1 = ws.fe1, ws.gf1, ws.f1, ws.q1, ws.w1, ws.state1
+        dx, p, qbase, r0 = ws.dx, ws.p, ws.qbase, ws.r0
+        Lin, J, dt_state, visited = ws.Lin, ws.J, ws.dt_state, ws.visited
+        lus, pivs = ws.cache_lu, ws.cache_piv
+        counters = out.counters
+        n = x.shape[0]
+        nd = state.shape[0]
+        beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
+        own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
+        if backend == BANDED:  # banded backend (issue 10): A in CSR, M in band storage
+            own_kd = so.stick_diagonal_banded(sys)
         else:
-            dt_nominal = st.dt
-        if accuracy:  # the step of the local error estimate, never beyond the convergence / stability rule
-            dt_nominal = min(dt_acc, st.dt_max) if solver == PIECEWISE_LINEAR else min(dt_nominal, dt_acc)
-        dt = dt_nominal
-        if n_preload == 0 and t + dt > t_end - tiny:
-            dt = t_end - t
-        nominal = abs(dt - dt_nominal) <= 1e-12 * dt_nominal and not accuracy
-        load_factor = (k + 1.0) / n_preload if n_preload > 0 else 1.0
-        solves = 0
-        for attempt in range(max_redo + 1):
-            t1 = t + dt if n_preload == 0 else t
-            # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K (per dt) ----
-            if ws.lin_dt[0] != dt:
-                a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
-                last_slot = -1
-                so.build_lin(backend, sys, inertia, (1.0 - am) * a0, (1.0 - af) * c1, 1.0 - af, Lin)
-                ws.lin_dt[0] = dt
-                # the floor of a step at rest: the stiffness forces of a displacement L (no inertia term:
-                # tol L a0 M exceeds the step's forces by (2 / omega dt)^2 and let steps off by 1e-8 pass)
-                conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(
-                    backend, sys.Kb if backend == so.BANDED else sys.K, kfac, kd_stick)
-            # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
-            _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p)
-            so.gather_state(backend, sys, x, p, qbase)
-            _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf,
-                           fe1, acc_pred, vel_pred, r0)
-            # ---- the step solver ----
-            if solver == PIECEWISE_LINEAR:
-                status, more, last_slot = piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state,
-                                                                visited, attempt, nominal, last_slot, has_circle,
-                                                                max_state_iter, fallback, max_iter, conv, state_rtol,
-                                                                singular_rtol, length_scale, counters)
-            elif solver == FULL_NEWTON:
-                status, more = full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv,
-                                           singular_rtol, counters)
-            elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
-                tstate = dt_state if adaptive else state
-                status, more, okS, luS, pivS, tan_dt = state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
-                                                                          tstate, dt, nominal, max_iter, conv,
-                                                                          singular_rtol, counters, okS, luS, pivS,
-                                                                          tan_dt, tan_state)
-            else:
-                status, more, ok0, lu0, piv0, stick_dt = stick_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
-                                                                            dt, nominal, max_iter, conv,
-                                                                            singular_rtol, counters, ok0, lu0, piv0,
-                                                                            stick_dt)
-            solves += more
-            # ---- accuracy / redo rule ----
-            if accuracy and status == OK:
-                err = _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
-                redo, dt, dt_next = _accuracy_redo(err, dt, attempt, max_redo)
-                if redo:  # reject: redo with the step the estimate asks for
-                    counters[C_REDOS] += 1
-                    continue
-            if status != OK or not adaptive or attempt == max_redo:
-                break
-            redo, limit = _state_redo(sys, ws, cl, st, state1, dt)  # paper 4.2: the new state needs a smaller step
-            if not redo:
-                break
-            counters[C_REDOS] += 1
-            for d in range(nd):
-                dt_state[d] = state1[d]
-            dt_state_limit = limit
-            dt = limit
-            nominal = True
-        counters[C_SOLVES] += solves
-        if accuracy and status == OK:
-            dt_acc = dt_next
-        if status != OK:
-            counters[C_FAIL_STEP] = k + 1
-            out.times[S_FAIL] = t + dt if n_preload == 0 else t
-            break
-        # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
-        _accept(mdiag, inertia, a0, c1, a2, a3, b1, b2, dt, dx, x, v, a, fe, gf, fe1, gf1)
-        if _accept_contacts(w, state, w1, state1):
-            counters[C_STATE_CHANGES] += 1
-        if n_preload == 0:
-            t += dt
-        k += 1
-        row = _store(x, v, a, w, state, out, k, t, dt, solves)
-        counters[C_PROGRESS] = k
+            own_kd = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
+                                     sys.tangential_row, sys.kt)
+        own_mdiag = so.mass_diagonal(backend, sys)
+        state_rtol = st.state_rtol
+        singular_rtol = st.singular_rtol
+        solver = st.solver
+        n_preload = st.preload
+        adaptive = st.adaptive and n_preload == 0
+        inertia = st.inertia
+        signals = st.signals
+        max_iter, max_state_iter, max_redo, fallback = st.max_iter, st.max_state_iter, st.max_redo, st.fallback
+        kfac = (1.0 - af) if inertia else 1.0
+        has_damping = so.has_nonzero(backend, sys, 1)
+        has_circle = np.any(cl.lcode == LAW_CIRCLE)
+        has_stiffness = so.has_nonzero(backend, sys, 2)
+        own_pred = np.empty((2, n))
+        cap = out.plan[S_CAPACITY]
+        # ---- initial point ----
+        t = st.t_start
+        t_end = st.t_end
+        o_q, o_f, o_rows = out.q, out.f, out.rows
+        row = _store(x, v, a, w, state, out, 0, t, 0.0, 0)
         for ii in range(o_rows.shape[0]):
-            o_q[row, ii] = q1[o_rows[ii]]
-            o_f[row, ii] = f1[o_rows[ii]]
-    counters[C_STEPS] = k
-    keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
-    return status
+            o_q[row, ii] = q0[o_rows[ii]]
+            o_f[row, ii] = f0[o_rows[ii]]
+        for d in range(nd):
+            dt_state[d] = 0
+        tiny = 1e-12 * (t_end - t + 1e-300)
+        status = OK
+        k = 0
+        last_slot = -1  # cache slot of the last piecewise-linear factorisation (fast path)
+        stick_dt = np.nan  # step size of the current full-stick factorisation (lu0, piv0), Method 1
+        tan_dt = np.nan  # step size and state of the current J(S) factorisation (luS, pivS), solver 3
+        own_tan = np.full(nd, -1, np.int8)
+        # the arrays allocated here, borrowed too (kernels/borrow.py; kept alive to the end below)
+        conv, kd_stick, mdiag, tan_state = borrowed(own_conv), borrowed(own_kd), borrowed(own_mdiag), borrowed(own_tan)
+        acc_pred, vel_pred = borrowed(own_pred[0]), borrowed(own_pred[1])
+        okS = False
+        luS = lus[0]
+        pivS = pivs[0]
+        ok0 = False
+        lu0 = lus[0]
+        piv0 = pivs[0]
+        dt_state_limit = 0.0  # step limit of dt_state (adaptive)
+        a0 = c1 = a2 = a3 = b1 = b2 = 0.0  # Newmark coefficients of the current dt
+        ws.lin_dt[0] = np.nan
+        basis, clock = ws.basis, ws.clock
+        clock[0], clock[1], clock[2], clock[3] = t, np.nan, 0.0, np.nan  # the harmonic basis: exact at the first step
+        accuracy = st.rtol > 0.0 and n_preload == 0 and inertia
+        err_tol = st.rtol * st.err_scale
+        dt_acc = st.dt  # the accuracy step, adapted after every step (accuracy control)
+        dt_next = dt_acc
+        while (n_preload > 0 and k < n_preload) or (n_preload == 0 and t < t_end - tiny):
+            # (written out here and in kernels/quasi_static.py: as shared inline helpers, this check and
+            # the q, f output rows below made Method 1 about 8 % slower, bench_method1.py, and Method 4's
+            # kernel 3-7 %)
+            if counters[C_STOP] != 0:  # stop request from another thread (Ctrl-C): keep the k steps done
+                status = INTERRUPTED
+                counters[C_FAIL_STEP] = k
+                break
+            if k >= cap or out.plan[S_ROWS] + 2 > out.t.shape[0]:  # out of steps or of output rows
+                status = CAPACITY
+                break
+            # ---- step size (fixed, or by contact state; the accuracy step) ----
+            if n_preload > 0:
+                dt_nominal = 1.0
+            elif adaptive:
+                if k == 0 or not _same(state, dt_state):
+                    for d in range(nd):
+                        dt_state[d] = state[d]
+                    dt_state_limit = _limit_of(backend, sys, ws, cl, state, st)
+                dt_nominal = dt_state_limit
+            else:
+                dt_nominal = st.dt
+            if accuracy:  # the step of the local error estimate, never beyond the convergence / stability rule
+                dt_nominal = min(dt_acc, st.dt_max) if solver == PIECEWISE_LINEAR else min(dt_nominal, dt_acc)
+            dt = dt_nominal
+            if n_preload == 0 and t + dt > t_end - tiny:
+                dt = t_end - t
+            nominal = abs(dt - dt_nominal) <= 1e-12 * dt_nominal and not accuracy
+            load_factor = (k + 1.0) / n_preload if n_preload > 0 else 1.0
+            solves = 0
+            for attempt in range(max_redo + 1):
+                t1 = t + dt if n_preload == 0 else t
+                # ---- Newmark coefficients and Lin = (1-am) a0 M + (1-af) a1 C + (1-af) K (per dt) ----
+                if ws.lin_dt[0] != dt:
+                    a0, c1, a2, a3, b1, b2 = newmark_coefficients(beta, gamma, dt)
+                    last_slot = -1
+                    so.build_lin(backend, sys, inertia, (1.0 - am) * a0, (1.0 - af) * c1, 1.0 - af, Lin)
+                    ws.lin_dt[0] = dt
+                    # the floor of a step at rest: the stiffness forces of a displacement L (no inertia term:
+                    # tol L a0 M exceeds the step's forces by (2 / omega dt)^2 and let steps off by 1e-8 pass)
+                    conv[CV_FLOOR] = st.tol * length_scale * so.max_diagonal(
+                        backend, sys.Kb if backend == BANDED else sys.K, kfac, kd_stick)
+                # ---- loads, motion, q_base, r0 (the dx-independent part of the residual) ----
+                _loads_and_motions(sys, t1, signals, load_factor, basis, clock, fe1, p)
+                so.gather_state(backend, sys, x, p, qbase)
+                _residual_base(backend, sys, inertia, has_damping, has_stiffness, am, af, a2, a3, b1, b2, x, v, a, fe, gf,
+                               fe1, acc_pred, vel_pred, r0)
+                # ---- the step solver ----
+                if solver == PIECEWISE_LINEAR:
+                    status, more, last_slot = piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state,
+                                                                    visited, attempt, nominal, last_slot, has_circle,
+                                                                    max_state_iter, fallback, max_iter, conv, state_rtol,
+                                                                    singular_rtol, length_scale, counters)
+                elif solver == FULL_NEWTON:
+                    status, more = full_newton(backend, sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv,
+                                               singular_rtol, counters)
+                elif solver == MODIFIED_NEWTON_STATE:  # the tangent of the state that set the step
+                    tstate = dt_state if adaptive else state
+                    status, more, okS, luS, pivS, tan_dt = state_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
+                                                                              tstate, dt, nominal, max_iter, conv,
+                                                                              singular_rtol, counters, okS, luS, pivS,
+                                                                              tan_dt, tan_state)
+                else:
+                    status, more, ok0, lu0, piv0, stick_dt = stick_tangent_step(backend, sys, cl, cache, Lin, J, kfac, sv,
+                                                                                dt, nominal, max_iter, conv,
+                                                                                singular_rtol, counters, ok0, lu0, piv0,
+                                                                                stick_dt)
+                solves += more
+                # ---- accuracy / redo rule ----
+                if accuracy and status == OK:
+                    err = _local_error(backend, sys, mdiag, A, dx, v, a, a0, a2, a3, dt, beta, err_tol)
+                    redo, dt, dt_next = _accuracy_redo(err, dt, attempt, max_redo)
+                    if redo:  # reject: redo with the step the estimate asks for
+                        counters[C_REDOS] += 1
+                        continue
+                if status != OK or not adaptive or attempt == max_redo:
+                    break
+                redo, limit = _state_redo(backend, sys, ws, cl, st, state1, dt)  # paper 4.2: the new state needs a smaller step
+                if not redo:
+                    break
+                counters[C_REDOS] += 1
+                for d in range(nd):
+                    dt_state[d] = state1[d]
+                dt_state_limit = limit
+                dt = limit
+                nominal = True
+            counters[C_SOLVES] += solves
+            if accuracy and status == OK:
+                dt_acc = dt_next
+            if status != OK:
+                counters[C_FAIL_STEP] = k + 1
+                out.times[S_FAIL] = t + dt if n_preload == 0 else t
+                break
+            # ---- accept: x_{n+1} = x_n + dx and the Newmark relations ----
+            _accept(mdiag, inertia, a0, c1, a2, a3, b1, b2, dt, dx, x, v, a, fe, gf, fe1, gf1)
+            if _accept_contacts(w, state, w1, state1):
+                counters[C_STATE_CHANGES] += 1
+            if n_preload == 0:
+                t += dt
+            k += 1
+            row = _store(x, v, a, w, state, out, k, t, dt, solves)
+            counters[C_PROGRESS] = k
+            for ii in range(o_rows.shape[0]):
+                o_q[row, ii] = q1[o_rows[ii]]
+                o_f[row, ii] = f1[o_rows[ii]]
+        counters[C_STEPS] = k
+        keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
+        return status
+
+
+
+    return march_packed
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -638,10 +666,3 @@ def _store_positions(x, w, state, out, k, t, dt, solves):
         o_w[j, ii] = w[d]
         o_state[j, ii] = state[d]
     return j
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def march_packed(args, st):
-    """:func:`march` on a kernels.arguments.KernelArguments."""
-    sys, ws, out, q0, f0 = unpacked(args)
-    return march(sys, st, ws, out, q0, f0)

@@ -17,7 +17,10 @@ backend code (MarchSettings.structure), chosen once per run in Python:
 
 Contract (for a new backend, e.g. banded matrices): each function takes the backend code
 first, then the CompiledSystem ``sys`` (M, C, K, A, AT) and/or the Workspace arrays it needs
-(Lin, J, the StateCache of kernels/settings.py), and branches on the code. The arrays are
+(Lin, J, the StateCache of kernels/settings.py), and branches on the code, compared with the
+bare names DENSE, LOW_RANK, BANDED: the code is a constant of every march kernel (a closure of
+it, kernels.march.implicit_kernel), and numba prunes a branch on a constant against a global name
+(not a module attribute such as ``so.BANDED``) before typing, after inlining too. The arrays are
 those the runner allocated for the backend (Simulation._allocate_workspace): a backend may
 store Lin, J and the factors in its own layout as long as every function below agrees on
 it. Equations (kfac = 1 - alpha_f dynamic, 1 quasi-static):

@@ -27,7 +27,7 @@ from slipstep.kernels import explicit as E
 from slipstep.kernels import march as K
 from slipstep.kernels.arguments import KernelArguments, pack_arguments
 from slipstep.kernels.events import event_arguments, event_march, event_march_packed
-from slipstep.kernels.quasi_static import quasi_static_march, quasi_static_march_packed
+from slipstep.kernels.quasi_static import quasi_static_kernel, quasi_static_march
 from slipstep.methods.live import call_kernel
 from slipstep.methods import save as SV
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache, reset_outputs, saved_rows
@@ -39,12 +39,15 @@ from slipstep.methods.state import State
 from slipstep.model.system import to_user_order
 
 #: each march kernel's twin taking a kernels.arguments.KernelArguments (its arrays unboxed once,
-#: not on every call); :class:`KernelEntry` calls the twin of a kernel that has one
+#: not on every call), as a function of the march settings: the implicit and quasi-static marches
+#: have one twin per structure backend (kernels.march.implicit_kernel,
+#: kernels.quasi_static.quasi_static_kernel: only the backend a run takes is compiled);
+#: :class:`KernelEntry` calls the twin of a kernel that has one
 PACKED_TWINS = {
-    K.march: K.march_packed,
-    quasi_static_march: quasi_static_march_packed,
-    event_march: event_march_packed,
-    E.explicit_march: E.explicit_march_packed,
+    K.march: lambda st: K.implicit_kernel(st.structure),
+    quasi_static_march: lambda st: quasi_static_kernel(st.structure),
+    event_march: lambda st: event_march_packed,
+    E.explicit_march: lambda st: E.explicit_march_packed,
 }
 
 
@@ -114,7 +117,7 @@ class KernelEntry:
         reset_outputs(out)
         twin = PACKED_TWINS.get(dispatcher)
         if twin is not None:
-            dispatcher, args = twin, self.packed_arguments(args)
+            dispatcher, args = twin(args[1]), self.packed_arguments(args)
         layout = args[0]._type if twin is not None else None  # a new KernelArguments may hold other layouts
         known = self.kernel is not None and self.kernel[0] is dispatcher and self.kernel[2] == layout
         kernel = self.kernel[1] if known else dispatcher
