@@ -18,6 +18,16 @@ from numba import njit
 from numba.extending import register_jitable
 
 
+# The defaults of the march's controls, one place: MarchSettings and the user's RunOptions
+# (methods/options.py) both take them.
+NEWTON_TOL = 1e-11  # Newton tolerance (relative)
+STATE_RTOL = 1e-9  # compatibility tolerance of a postulated state (relative)
+SINGULAR_RTOL = 1e-12  # pivot below SINGULAR_RTOL * max|J|: singular
+MAX_ITER = 500  # Newton iterations per step
+MAX_STATE_ITER = 20  # postulated states per piecewise-linear step
+MAX_REDO = 4  # redone steps (adaptive / accuracy control)
+
+
 class MarchSettings(NamedTuple):
     """The scalars of a march. Fields a kernel does not use keep their defaults."""
 
@@ -28,9 +38,9 @@ class MarchSettings(NamedTuple):
     dt: float = 0.0  # s, the fixed step (quasi-static: 1 / steps per period; events: the output grid)
     step_factor: float = 0.0  # adaptive: dt = step_factor * T_min(S), capped at dt_max
     dt_max: float = np.inf  # s
-    tol: float = 1e-11  # Newton tolerance (relative)
-    state_rtol: float = 1e-9  # compatibility tolerance of a postulated state (relative)
-    singular_rtol: float = 1e-13  # pivot below singular_rtol * max|J|: singular
+    tol: float = NEWTON_TOL
+    state_rtol: float = STATE_RTOL
+    singular_rtol: float = SINGULAR_RTOL
     t_start: float = 0.0  # s
     t_end: float = 0.0  # s
     rtol: float = 0.0  # accuracy control on when > 0 (the piecewise-linear solve then keeps dt <= dt_max only)
@@ -39,9 +49,9 @@ class MarchSettings(NamedTuple):
     solver: int = 0  # kernels.codes step solver (march); explicit_march: CENTRAL_DIFFERENCE / RK4
     adaptive: bool = False  # the contact-state adaptive step (Method 2)
     inertia: bool = True  # False: quasi-static (Lin = K)
-    max_iter: int = 50  # Newton iterations per step
-    max_state_iter: int = 20  # postulated states per piecewise-linear step
-    max_redo: int = 5  # redone steps (adaptive / accuracy control)
+    max_iter: int = MAX_ITER
+    max_state_iter: int = MAX_STATE_ITER
+    max_redo: int = MAX_REDO
     fallback: bool = True  # piecewise linear: modified Newton when the states cycle
     signals: bool = True  # evaluate the time signals (False: p = 0, f_e = load_factor f_const)
     preload: int = 0  # N > 0: N quasi-static increments of the constant loads at t = 0

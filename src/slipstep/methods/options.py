@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstep.errors import InputError
+from slipstep.kernels import settings as KS
 from slipstep.methods import memory
 from slipstep.methods import save as SV
 from slipstep.methods.schemes import Scheme, newmark
@@ -84,12 +85,12 @@ class RunOptions:
     step_ratio: float = 1.0
     steps_per_period: int = 300
     scheme: Scheme = field(default_factory=newmark)
-    tolerance: float = 1e-11
-    state_tolerance: float = 1e-9
-    singular_tolerance: float = 1e-12
-    max_iterations: int = 500
-    max_state_iterations: int = 20
-    max_redo: int = 4
+    tolerance: float = KS.NEWTON_TOL
+    state_tolerance: float = KS.STATE_RTOL
+    singular_tolerance: float = KS.SINGULAR_RTOL
+    max_iterations: int = KS.MAX_ITER
+    max_state_iterations: int = KS.MAX_STATE_ITER
+    max_redo: int = KS.MAX_REDO
     max_step: float | None = None
     preload_increments: int = 45
     fallback: bool = True
