@@ -15,7 +15,11 @@ from slipstep.post.energy import energy_balance, friction_energy_per_period
 from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import march_one_period, period_simulation, start
 from slipstep.steady.shooting import (
-    _from_unknowns, _unknowns, finite_difference_jacobian, moving_sliders, period_jacobian,
+    _from_unknowns,
+    _unknowns,
+    finite_difference_jacobian,
+    moving_sliders,
+    period_jacobian,
 )
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
