@@ -245,6 +245,32 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_cases(tmp_path):
     assert run_sweep(spec, tmp_path / "part.zarr", executor=SerialExecutor())["computed"] == 0
 
 
+def test_a_write_killed_before_its_status_marks_nothing_done(tmp_path, monkeypatch):
+    """A client killed inside a write (here: at its metadata step, before the status) leaves no
+    case marked done whose data the store's metadata does not list; the rerun computes them."""
+    import inspect
+
+    from slipstep.sweep.store import SweepStore
+
+    spec = _small_spec(batch_size=2)
+    original = SweepStore.consolidate
+
+    def killed_in_write(self):
+        if inspect.stack()[1].function == "write":
+            raise KeyboardInterrupt
+        original(self)
+
+    monkeypatch.setattr(SweepStore, "consolidate", killed_in_write)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(spec, tmp_path / "part.zarr", executor=SerialExecutor())
+    monkeypatch.undo()
+    assert not (open_sweep(tmp_path / "part.zarr").status.values != "").any()
+    again = run_sweep(spec, tmp_path / "part.zarr", executor=SerialExecutor())
+    assert again["computed"] == 12
+    full = run_sweep(spec, tmp_path / "full.zarr", executor=SerialExecutor())["store"]
+    _same_values(open_sweep(tmp_path / "part.zarr"), open_sweep(full))
+
+
 def test_a_store_of_another_sweep_is_refused(tmp_path):
     run_sweep(_small_spec(), tmp_path / "s.zarr", executor=SerialExecutor())
     other = SweepSpec(

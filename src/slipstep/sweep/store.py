@@ -113,7 +113,9 @@ class SweepStore:
             if overwrite:
                 shutil.rmtree(path)
             else:
-                store = cls(path, _zarr().open_group(str(path), mode="r+"))
+                # the arrays on disk, not the consolidated list: a process killed inside a write may
+                # have created arrays after the last consolidation
+                store = cls(path, _zarr().open_group(str(path), mode="r+", use_consolidated=False))
                 store._check_same(plan)
                 written = store.group.attrs.get("slipstep_version")
                 if written != __version__:
@@ -143,7 +145,7 @@ class SweepStore:
     def consolidate(self) -> None:
         """Write the consolidated metadata (every array's metadata in the group's zarr.json), so
         that ``xr.open_zarr(store)`` opens the store in one read and without a warning. Called
-        on opening and after every write (an array created by a write is then listed too)."""
+        on opening and in every write before the status (an array created by a write is then listed too)."""
         import warnings
 
         with warnings.catch_warnings():  # zarr notes that format 3 has no consolidated metadata yet
@@ -176,7 +178,9 @@ class SweepStore:
 
     # -- writing ---------------------------------------------------------------------------------
     def write(self, results: list[dict]) -> None:
-        """Write finished cases: their data first, their status last."""
+        """Write finished cases: their data first, then the consolidated metadata (which lists the
+        arrays the data created), their status last: a process killed at any point leaves no case
+        marked done whose data a reader cannot open."""
         if not results:
             return
         results = sorted(results, key=lambda r: r["index"])
@@ -207,8 +211,8 @@ class SweepStore:
         self._arrays["run_index"].oindex[idx] = np.full(idx.size, self.run_index, np.int64)
         self._arrays["status_message"].oindex[idx] = np.array([r["message"] for r in results], dtype=str)
         self._arrays["warning"].oindex[idx] = np.array([r["warning"] for r in results], dtype=str)
+        self.consolidate()  # before the status: a reader opens through the consolidated metadata
         self._arrays["status"].oindex[idx] = np.array([r["status"] for r in results], dtype=str)  # last: done
-        self.consolidate()
 
     def _summary_array(self, base: str, dim, labels, values):
         from slipstep.post.summary import FIELDS
