@@ -40,6 +40,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.contact import contact_law, generalised_force, local_displacement
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.contact import add_contact_stiffness
+from pinning import pin_to_one_cpu
 
 TARGET_KERNEL_S = 1e-3  # one period of the paper case
 TARGET_RUN_S = 50e-3  # a whole slipstep.run call for one period
@@ -255,7 +256,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--compile", action="store_true", help="measure the cold compile even with --quick")
     ap.add_argument("--repeats", type=int, default=None, help="kernel repeats (default 200, quick 30)")
     ap.add_argument("--json", action="store_true", help="also print the results as one JSON object")
+    ap.add_argument("--no-pin", action="store_true", help="do not pin the process to one CPU")
     args = ap.parse_args(argv)
+    print(pin_to_one_cpu(not args.no_pin))
     repeats = args.repeats or (30 if args.quick else 200)
     results: dict = {"machine_cpus": os.cpu_count(), "date": time.strftime("%Y-%m-%d %H:%M")}
 

@@ -44,6 +44,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.contact import compatible, piecewise_law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
 from slipstep.kernels.settings import contact_table
+from pinning import pin_to_one_cpu
 
 # the scatter core takes A since issue 24 (row-wise axpy); trees before it took A^T
 _SCATTER_TAKES_A = next(iter(inspect.signature(scatter.py_func).parameters)) == "A"
@@ -275,7 +276,9 @@ def main(argv=None) -> list[dict]:
         help="dump the results as a JSON list (to FILE, or stdout if no FILE)",
     )
     ap.add_argument("--per-step", action="store_true", help="only the per-step cost split of Method 4")
+    ap.add_argument("--no-pin", action="store_true", help="do not pin the process to one CPU")
     args = ap.parse_args(argv)
+    print(pin_to_one_cpu(not args.no_pin))
     if args.per_step:
         return [per_step(args.repeats or (30 if args.quick else 200))]
     rep200 = args.repeats or (15 if args.quick else 300)

@@ -20,6 +20,7 @@ import statistics
 import subprocess
 import sys
 import textwrap
+from pinning import pin_to_one_cpu
 
 SNIPPET = textwrap.dedent("""
     import json, sys, slipstep
@@ -60,7 +61,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--rounds", type=int, default=4)
     ap.add_argument("--repeats", type=int, default=40)
     ap.add_argument("--periods", type=float, default=1.0, help="periods per run (0.01: one to three steps)")
+    ap.add_argument("--no-pin", action="store_true", help="do not pin the process to one CPU")
     args = ap.parse_args(argv)
+    print(pin_to_one_cpu(not args.no_pin))
     trees = [args.base, args.new]
     times: dict = {t: {} for t in trees}
     for k in range(args.rounds):
