@@ -78,6 +78,7 @@ from slipstep.kernels.codes import (  # noqa: F401
     PIECEWISE_LINEAR,
 )
 from slipstep.kernels.contact import contact_stiffness
+from slipstep.kernels.lean_compiler import LeanCompiler
 from slipstep.kernels.eigen import EIG_RTOL, MAX_BASIS, MAX_RESTARTS, largest_eigenvalue_modulus
 from slipstep.kernels.settings import (  # noqa: F401  (re-exported: the settings)
     MarchSettings, contact_table, march_settings, replace_settings, state_cache, step_vectors,
@@ -417,12 +418,17 @@ def implicit_kernel(backend: int):
 def _implicit_kernel(backend):
     """:func:`implicit_kernel` (backend a plain int: the closure's cache key)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def march_packed(args, st):
         """:func:`march` of this backend on a KernelArguments."""
         # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
         sys, ws, out, q0, f0 = unpacked(args)
-        sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
+        # (one statement each: a tuple of the five would be one more copy of every array for LLVM)
+        sys = borrowed(sys)
+        ws = borrowed(ws)
+        out = borrowed(out)
+        q0 = borrowed(q0)
+        f0 = borrowed(f0)
         A = sys.A
         cl = contact_table(sys)
         cache = state_cache(ws)

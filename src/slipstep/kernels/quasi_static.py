@@ -56,6 +56,7 @@ from slipstep.kernels.march import (
 )
 from slipstep.kernels.settings import contact_table, state_cache, step_vectors
 from slipstep.kernels.step_solvers import CV_FLOOR, piecewise_linear_step, stick_fallback
+from slipstep.kernels.lean_compiler import LeanCompiler
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -84,11 +85,16 @@ def quasi_static_kernel(backend: int):
 def _quasi_static_kernel(backend):
     """:func:`quasi_static_kernel` (backend a plain int: the closure's cache key)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def quasi_static_march_packed(args, st):
         """:func:`quasi_static_march` of this backend on a KernelArguments."""
         sys, ws, out, q0, f0 = unpacked(args)
-        sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
+        # one statement each (kernels/march.py)
+        sys = borrowed(sys)
+        ws = borrowed(ws)
+        out = borrowed(out)
+        q0 = borrowed(q0)
+        f0 = borrowed(f0)
         cl = contact_table(sys)
         cache = state_cache(ws)
         sv = step_vectors(ws)

@@ -41,9 +41,10 @@ from slipstep.kernels.contact import STICK, contact_stiffness
 from slipstep.kernels.laws import uncoupled
 from slipstep.kernels.linalg import lu_factor, lu_solve_rows
 from slipstep.kernels.march import newmark_coefficients
+from slipstep.kernels.lean_compiler import LeanCompiler
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def period_sensitivity(
     M, Cd, Kst, A, nrow, lcode, lpar, fdir, ndir, trow, kt, beta, gamma, inertia, dts, states, n_steps, wrow,
     singular_rtol, Z

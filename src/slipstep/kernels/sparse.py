@@ -51,6 +51,7 @@ from slipstep.kernels.march import (
 )
 from slipstep.kernels.settings import contact_table
 from slipstep.kernels.step_solvers import ROUNDOFF
+from slipstep.kernels.lean_compiler import LeanCompiler
 
 
 class SparseFactor(NamedTuple):
@@ -225,7 +226,7 @@ def _delta_rows(cl, state, rows, kdiag, kcol, koff):
     return laws.delta_rows(nrow, lpar, fdir, ndir, trow, kt, state, rows, kdiag, kcol, koff)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def factorise_state(fac, cl, ws, slot, state, kfac, singular_rtol):
     """Rows R of dK(S) into ``slot`` and the LU of C_R = I + kfac dK_R G0[:, R] (m x m).
     Returns ok (False: C_R, hence J(S), singular)."""
@@ -465,14 +466,19 @@ def nominal_step(st):
     return st.dt_max if st.adaptive else st.dt
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def sparse_march(sys, st, ws, out, q0, f0):
     """kernels/march.py's march (fixed step, piecewise-linear solver; preload mode st.preload
     = N > 0: N quasi-static increments of the constant loads) with the condensed sparse
     solves (module docstring). Returns the status; out.counters[C_STEPS] steps done.
     A nominal step uses ws.main; a shorter one ws.last, which must hold its step size (else
     SINGULAR: the Python side prepares it, methods/sparse.py)."""
-    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
+    # one statement each (kernels/march.py)
+    sys = borrowed(sys)
+    ws = borrowed(ws)
+    out = borrowed(out)
+    q0 = borrowed(q0)
+    f0 = borrowed(f0)
     cl = contact_table(sys)
     counters = out.counters
     n = ws.x.shape[0]

@@ -30,6 +30,7 @@ from slipstep.kernels.cache import find_slot
 from slipstep.kernels.codes import C_FACTORISATIONS
 from slipstep.kernels.contact import STICK, contact_stiffness, coupled, delta_stiffness
 from slipstep.kernels.linalg import lu_factor, lu_solve
+from slipstep.kernels.lean_compiler import LeanCompiler
 
 
 class LowRank(NamedTuple):
@@ -75,7 +76,7 @@ def state_slot(cl, cache, kd_state, nominal):
     return cap, False
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def factorise_state(slot, lowrank, Lin, J, kfac, A, cl, cache, kd_state, q, w_old, nominal, singular_rtol, counters):
     """Factorise the solve of J(kd_state) for the current step size into ``slot`` (from
     :func:`state_slot`, not found there): the LU of J (direct) or the low-rank update of the

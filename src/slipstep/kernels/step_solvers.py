@@ -32,6 +32,7 @@ from slipstep.kernels.codes import STATE_CYCLING
 from slipstep.kernels.contact import compatible_law, coupled, gather_columns, law, piecewise_law
 from slipstep.kernels import structure_ops as so
 from slipstep.kernels.structure_ops import BANDED, DENSE, LOW_RANK
+from slipstep.kernels.lean_compiler import LeanCompiler
 
 THETA_GIVE_UP = 0.5  # contraction at which solver 3 leaves J(S) for J(all stick)
 # convergence parameters of the Newton iterations (the array ``conv``, filled per step by march):
@@ -151,7 +152,7 @@ def _modified_newton_kernel(backend):
     shared by the marches): the backend a constant of the closure, so that numba prunes the
     other backends' branches of the inlined helpers before typing (kernels.march.implicit_kernel)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def modified_newton(lu, piv, Lin, kfac, csr, A, AT, cl, sv, max_iter, conv, theta_give_up, from_zero,
                         counters):
         """Iterate dx += F^-1 r(dx) with one factorised Jacobian F = (lu, piv) (Method 1: J(all
@@ -204,7 +205,7 @@ def _full_newton_kernel(backend):
     """:func:`full_newton` of one structure backend (out of line, its backend a constant:
     :func:`_modified_newton_kernel`)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def full_newton(sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol, counters):
         """Newton with the Jacobian J(S) of the current iterate's state S (factorised per state,
         cached; the consistent tangent at the iterate for a coupled slip), the full-stick one
@@ -269,7 +270,7 @@ def _factorisation_kernels(backend):
     """(stick_factorisation, state_factorisation) of one structure backend (out of line, its
     backend a constant: :func:`_modified_newton_kernel`)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def stick_kernel(sys, cl, cache, Lin, J, kfac, nominal, singular_rtol, counters):
         """(ok, lu, piv): the factorisation of J(all stick) = Lin + kfac A^T K(stick) A for the
         current step size, held by its state slot (direct) or by the low-rank base (where
@@ -280,7 +281,7 @@ def _factorisation_kernels(backend):
         lu, piv = so.stick_factor(backend, cache, slot)
         return ok, lu, piv
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def state_kernel(sys, cl, cache, Lin, J, kfac, tstate, nominal, singular_rtol, counters):
         """(ok, lu, piv): the factorisation of J(S) = Lin + kfac A^T K(S) A for the modified Newton
         of solver 3, S the contact state whose T_min set the step (cached per state like the
@@ -379,7 +380,7 @@ def _stick_fallback_kernel(backend):
     """:func:`stick_fallback` of one structure backend (out of line, its backend a constant:
     :func:`_modified_newton_kernel`)."""
 
-    @njit(cache=True, nogil=True, error_model="numpy")
+    @njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
     def stick_fallback(sys, cl, cache, Lin, J, kfac, sv, nominal, max_iter, conv, singular_rtol, pl_status, counters):
         """The fallback of :func:`piecewise_linear_step` when its postulates cycle or J(S) is
         singular (pl_status): modified Newton with J(all stick) from dx = 0 (counted in
@@ -417,7 +418,7 @@ def piecewise_linear_step(backend, sys, cl, cache, Lin, J, kfac, sv, state, visi
                                   singular_rtol, length_scale, counters)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def _piecewise_linear_step_banded(sys, cl, cache, Lin, J, kfac, sv, state, visited, attempt, nominal, last_slot,
                                   has_circle, max_state_iter, fallback, max_iter, conv, state_rtol, singular_rtol,
                                   length_scale, counters):
