@@ -2,9 +2,11 @@
 (slipstep.study.compare.fresh_process_times), or this process when that one cannot run."""
 
 import math
+import multiprocessing
+import os
 
 import slipstep
-from slipstep.study.compare import compare, fresh_process_times
+from slipstep.study.compare import compare, compile_ahead, fresh_process_times
 
 
 def test_fresh_process_times_every_method_repeats_times():
@@ -25,3 +27,19 @@ def test_a_fresh_process_that_cannot_start_says_why_and_compare_times_here():
     rows = compare(slipstep.load_system("paper"), methods="newmark", periods=0.5, repeats=2, fresh_process=False)
     assert [row["timed_in"] for row in rows] == ["this process"]
     assert rows[0]["kernel_time_s"] > 0
+
+
+def test_the_compile_ahead_process_marches_the_methods_and_ends_cleanly():
+    paper = slipstep.load_system("paper")
+    process = compile_ahead(paper, ["quasi-static", "newmark"], {"step_rule": "t-min"})
+    if len(os.sched_getaffinity(0)) < 2:
+        assert process is None  # one CPU: nothing to compile beside
+        return
+    process.join(timeout=600)
+    assert process.exitcode == 0
+
+
+def test_compare_stops_the_compile_ahead_process_when_its_runs_are_done():
+    rows = compare(slipstep.load_system("paper"), methods="newmark,quasi-static", periods=0.5, repeats=1)
+    assert [row["method"] for row in rows] == ["newmark", "quasi-static"]
+    assert not [p for p in multiprocessing.active_children() if p.name == "slipstep-compile-ahead"]

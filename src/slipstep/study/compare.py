@@ -205,6 +205,7 @@ def compare(
     finally:
         if helper is not None:
             helper.terminate()
+            helper.join(timeout=10)
     times, timed_in = fresh_process_times(system, names, periods, repeats, options) if fresh_process else (None, "")
     if times is None:
         times, timed_in = time_kernels(sims, repeats), "this process" + (f" ({timed_in})" if timed_in else "")
