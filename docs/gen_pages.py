@@ -498,7 +498,7 @@ def methods_reference() -> str:
     from slipstep.integrators import INTEGRATORS
     from slipstep.integrators.base import VARIANTS
     from slipstep.methods.registry import ALIASES, METHODS
-    from slipstep.methods.simulation import SOLVER_NAMES
+    from slipstep.kernels.codes import SOLVER_NAMES
 
     numbers = {}
     for alias, name in ALIASES.items():
@@ -525,7 +525,7 @@ def methods_reference() -> str:
         when = METHOD_ADVICE.get(m.name, "**no advice yet: add it to METHOD_ADVICE in slipstep.methods.registry**")
         L.append(
             f"| `{m.name}` | {m.paper_label} | {also} | {when} | {m.description} "
-            f"| {SOLVER_NAMES.get(m.solver, m.solver)} | {step} |"
+            f"| {SOLVER_NAMES[m.solver]} | {step} |"
         )
     L += [
         "",
