@@ -337,7 +337,7 @@ class Simulation(Runner):
 
     def march(self, kernel=None, check: bool = True) -> Status:
         """March from the start (the preload, or the state of :meth:`start_from`) over t_end:
-        Marcher.advance (``kernel``: another kernel of the same arguments, as
+        Marcher.advance (``kernel``: another kernel entry of the same arguments, as
         tests/test_quasi_static.py does); returns the status (also in self.status). ``check``
         False leaves out the contact invariants (slipstep.methods.invariants.check_march) for a
         caller that checks the march it keeps (shooting's Newton iterates)."""
