@@ -43,7 +43,8 @@ FRF_SOLVERS: dict[str, FrfSolver] = {
         FrfSolver(
             "auto",
             "slipstep.frequency.choice:choose",
-            "shoot, or hbm where a time-domain steady state costs minutes, with the method; printed with its reason",
+            "chosen for the system: shoot, or hbm where a time-domain steady state costs minutes; printed with "
+            "its reason",
         ),
         FrfSolver("march", "slipstep.steady:march_to_steady", "march each point until its period repeats", True),
         FrfSolver(
@@ -58,6 +59,7 @@ def solver_help() -> str:
     """'auto (...), march (...), shoot (...) or hbm (...)': every FRF solver with its description."""
     items = [f"{s.name} ({s.description})" for s in FRF_SOLVERS.values()]
     return ", ".join(items[:-1]) + " or " + items[-1]
+
 
 FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     # name: (dims, units, long_name)
