@@ -48,7 +48,7 @@ def test_the_runners_kernel_call_writes_what_the_wrapper_writes(label, sim, kern
     assert isinstance(held, KernelArguments)
     # the kernel's wrapper, on the argument tuples, from the same start
     for name in OUTPUTS:
-        # (the twin's numbers are kept in `packed`; v, a as allocated: quasi-static kernels leave them 0)
+        # (the runner's numbers are kept in `packed`; v, a as allocated: quasi-static kernels leave them 0)
         getattr(sim.out, name)[...] = 0 if name in ("v", "a") else -9
     ws = sim.ws
     for name, start in zip(("x", "v", "a", "fe", "gf", "w", "state"), sim.preload_state):
