@@ -418,7 +418,7 @@ def frf_reference() -> str | None:
     path = SRC / "slipstep" / "output" / "frf_schema.py"
     if not path.exists():
         return None
-    from slipstep.output.frf_schema import FRF_SCHEMA
+    from slipstep.output.frf_schema import FRF_SCHEMA, FRF_SOLVERS
 
     tree = ast.parse(path.read_text())
     module_doc = ast.get_docstring(tree) or ""
@@ -439,6 +439,15 @@ def frf_reference() -> str | None:
         "`slipstep.output.frf_schema.FRF_SCHEMA` (this table), so curves from different solvers overlay.",
         "",
         module_doc,
+        "",
+        "## Solvers",
+        "",
+        "`solver=` of `slipstep.frequency.frf`, `slipstep frf --solver` and a sweep's `[outputs.frf] solver` "
+        "(the table `slipstep.output.frf_schema.FRF_SOLVERS`):",
+        "",
+        "| solver | what it is | run by |",
+        "|---|---|---|",
+        *(f"| `{s.name}` | {s.description} | `{s.runs}` |" for s in FRF_SOLVERS.values()),
         "",
         "## Variables",
         "",
@@ -498,7 +507,7 @@ def methods_reference() -> str:
     from slipstep.integrators import INTEGRATORS
     from slipstep.integrators.base import VARIANTS
     from slipstep.methods.registry import ALIASES, METHODS
-    from slipstep.methods.simulation import SOLVER_NAMES
+    from slipstep.kernels.codes import SOLVER_NAMES
 
     numbers = {}
     for alias, name in ALIASES.items():
@@ -525,7 +534,7 @@ def methods_reference() -> str:
         when = METHOD_ADVICE.get(m.name, "**no advice yet: add it to METHOD_ADVICE in slipstep.methods.registry**")
         L.append(
             f"| `{m.name}` | {m.paper_label} | {also} | {when} | {m.description} "
-            f"| {SOLVER_NAMES.get(m.solver, m.solver)} | {step} |"
+            f"| {SOLVER_NAMES[m.solver]} | {step} |"
         )
     L += [
         "",

@@ -1,6 +1,7 @@
-"""Kernel arguments unboxed once (kernels/arguments.py): every march kernel's packed twin, as the
-runners call it, writes the same numbers into the runner's own arrays as the kernel called on
-the argument tuples, and a runner packs its arrays again only when it replaces one."""
+"""Kernel arguments unboxed once (kernels/arguments.py): every march kernel, as the runners call
+it (their kernel entry: the arguments packed once, the compiled overload kept), writes the same
+numbers into the runner's own arrays as its ``march(sys, st, ws, out, q0, f0)`` wrapper called
+on the argument tuples, and a runner packs its arrays again only when it replaces one."""
 
 import numpy as np
 import pytest
@@ -8,9 +9,12 @@ import pytest
 import slipstep
 from slipstep.integrators.explicit_simulation import ExplicitSimulation
 from slipstep.integrators import get_integrator
+from slipstep.kernels import march as K
+from slipstep.kernels.events import event_march
 from slipstep.kernels.explicit import explicit_march
 from slipstep.kernels.arguments import KernelArguments, pack_arguments, unpacked
-from slipstep.methods.simulation import PACKED_TWINS, Simulation, _reset_cache, march_kernel, reset_outputs, saved_rows
+from slipstep.kernels.quasi_static import quasi_static_march
+from slipstep.methods.simulation import Simulation, _reset_cache, reset_outputs, saved_rows
 from numba import njit
 
 from slipstep.kernels.codes import C_STEPS
@@ -20,9 +24,14 @@ OUTPUTS = ("t", "dt", "x", "v", "a", "q", "f", "w", "state", "solves", "step")
 
 def _runners():
     paper = slipstep.load_system("paper")
-    for method in ("newmark", "piecewise-linear-adaptive", "quasi-static", "quasi-static-events"):
-        sim = Simulation(paper, method, periods=1)
-        yield method, sim, march_kernel(sim.method)
+    wrappers = {
+        "newmark": K.march,
+        "piecewise-linear-adaptive": K.march,
+        "quasi-static": quasi_static_march,
+        "quasi-static-events": event_march,
+    }
+    for method, wrapper in wrappers.items():
+        yield method, Simulation(paper, method, periods=1), wrapper
     yield "rk4", ExplicitSimulation(paper, get_integrator("rk4"), periods=0.5), explicit_march
 
 
@@ -31,16 +40,15 @@ def _outputs(sim) -> dict:
 
 
 @pytest.mark.parametrize("label, sim, kernel", list(_runners()), ids=lambda v: v if isinstance(v, str) else "")
-def test_packed_twin_writes_what_the_kernel_writes(label, sim, kernel):
+def test_the_runners_kernel_call_writes_what_the_wrapper_writes(label, sim, kernel):
     sim.run()
     packed = _outputs(sim)
-    assert sim._packed is not None, "the runner called the packed twin"
+    assert sim._packed is not None, "the runner packed the arguments"
     held = sim._packed[-1]
     assert isinstance(held, KernelArguments)
-    # the kernel itself, on the argument tuples, from the same start
-    assert PACKED_TWINS[kernel] is not None
+    # the kernel's wrapper, on the argument tuples, from the same start
     for name in OUTPUTS:
-        # (the twin's numbers are kept in `packed`; v, a as allocated: quasi-static kernels leave them 0)
+        # (the runner's numbers are kept in `packed`; v, a as allocated: quasi-static kernels leave them 0)
         getattr(sim.out, name)[...] = 0 if name in ("v", "a") else -9
     ws = sim.ws
     for name, start in zip(("x", "v", "a", "fe", "gf", "w", "state"), sim.preload_state):

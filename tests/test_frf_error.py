@@ -199,10 +199,22 @@ def test_auto_chooses_shooting_and_the_advisors_method():
         name, reason = choose_solver(ss.load_system(case))
         assert name == "shoot" and "piecewise-linear" in reason
     assert tuple(SOLVERS) == ("auto", "march", "shoot", "hbm")
-    import slipstep.cli.main  # noqa: F401  (first: cli_frf imported alone registers nothing: a circular import)
-    from slipstep.cli.frf import SOLVER_NAMES
+    import inspect
+    import pkgutil
 
-    assert tuple(SOLVER_NAMES) == tuple(SOLVERS)
+    import slipstep.cli.main  # noqa: F401  (first: cli_frf imported alone registers nothing: a circular import)
+    from slipstep.cli.frf import frf as frf_command
+    from slipstep.frequency import choice, response
+    from slipstep.hbm.frf import frf as hbm_frf
+    from slipstep.output.frf_schema import FRF_SOLVERS, solver_help
+    from slipstep.steady import march_to_steady, shoot
+
+    assert tuple(FRF_SOLVERS) == tuple(SOLVERS)  # one table: the CLI's --solver values are frf's
+    option = inspect.signature(frf_command).parameters["solver"].default
+    assert option.help == solver_help() and all(f"{name} (" in option.help for name in SOLVERS)
+    runs = {name: pkgutil.resolve_name(s.runs) for name, s in FRF_SOLVERS.items()}
+    assert runs == {"auto": choice.choose, "march": march_to_steady, "shoot": shoot, "hbm": hbm_frf}
+    assert response.STEADY_SOLVERS == {"march": march_to_steady, "shoot": shoot}
 
 
 @pytest.mark.parametrize("case", ["ring", "paper"])

@@ -47,6 +47,26 @@ def test_facade_and_new_path_are_bit_for_bit_equal(paper, method):
         segment.trace.x[0, 0] = 1.0
 
 
+def test_every_method_names_its_kernel():
+    """The registry names each method's kernel entry (Method.kernel): a function of the structure
+    backend giving the numba kernel(args, st); the exact event-driven method has none."""
+    from numba.core.registry import CPUDispatcher
+
+    from slipstep.kernels.events import event_march_packed
+    from slipstep.methods.marcher import march_kernel
+    from slipstep.methods.registry import METHODS
+
+    for method in METHODS.values():
+        if method.kernel is None:
+            with pytest.raises(ValueError, match="no march kernel"):
+                march_kernel(method)
+            continue
+        assert isinstance(march_kernel(method)(0), CPUDispatcher), method.name
+    assert METHODS["events"].kernel is None
+    assert march_kernel(METHODS["quasi-static-events"])(0) is event_march_packed
+    assert march_kernel(METHODS["newmark"])(2) is K.implicit_kernel(2)
+
+
 def test_segments_continue_the_whole_march(paper):
     """[0, T] then [T, 2T] from the first segment's end state equals a march over [0, 2T] up to
     the round-off of the elastic-form contact force at the joint."""

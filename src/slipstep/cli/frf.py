@@ -27,7 +27,7 @@ from slipstep.cli.console import out as _out
 from slipstep.cli.console import output_dir_option as _output_dir
 from slipstep.cli.console import user_errors as _user_errors
 from slipstep.errors import InputError
-from slipstep.output.frf_schema import FRF_SOLVERS as SOLVER_NAMES  # (standard library only: start-up time)
+from slipstep.output.frf_schema import FRF_SOLVERS, solver_help  # (standard library only: start-up time)
 
 
 def _steady(system, frequencies, direction, options, progress):
@@ -69,9 +69,7 @@ def frf(
     frequencies: str = typer.Option(
         ..., "--frequencies", "-f", help="start:stop:count [Hz], both ends included, or a comma list"
     ),
-    solver: str = typer.Option(
-        "auto", "--solver", help="auto (printed with its reason), march, shoot or hbm (harmonic balance)"
-    ),
+    solver: str = typer.Option("auto", "--solver", help=solver_help()),
     direction: str = typer.Option("up", "--direction", help="up, down or both (shows jumps)"),
     sine_sweep: bool = typer.Option(
         False, "--sine-sweep", help="one transient run with the frequency swept (envelope), not steady states"
@@ -123,8 +121,8 @@ def frf(
 
         if direction not in ("up", "down", "both"):
             raise InputError("--direction", f"is {direction!r}", "use up, down or both")
-        if not sine_sweep and solver not in SOLVER_NAMES:
-            raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(SOLVER_NAMES)}")
+        if not sine_sweep and solver not in FRF_SOLVERS:
+            raise InputError("--solver", f"is {solver!r}", f"use one of {', '.join(FRF_SOLVERS)}")
         freqs = check_frequencies(parse_frequencies(frequencies))
         system = load_system(case)
         reason = ""

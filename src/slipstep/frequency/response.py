@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pkgutil
 import time
 import warnings
 from collections.abc import Callable
@@ -45,19 +46,18 @@ from slipstep.steady.linear import linear_limits
 from slipstep.model.retune import retune
 from slipstep.output.frf_schema import FRF_SOLVERS, TEXT_VARIABLES
 from slipstep.model.excitation import CompiledSignal, evaluate_compiled
-from slipstep.steady import march_to_steady, shoot
 from slipstep.steady.marching import STEADY_STEPS_PER_PERIOD, STEP_OPTIONS
 from slipstep.steady.state import SteadyState
 from slipstep.model.system import System
 
 STEADY_SOLVERS: dict[str, Callable[..., SteadyState]] = {
-    "march": lambda system, **kw: march_to_steady(system, **kw),
-    "shoot": lambda system, **kw: shoot(system, **kw),
+    name: pkgutil.resolve_name(s.runs) for name, s in FRF_SOLVERS.items() if s.steady
 }
-"""Steady-state solvers of :func:`frf`: name -> f(system, initial=..., tolerance=..., ...)."""
+"""Steady-state solvers of :func:`frf` (FRF_SOLVERS' steady ones, march_to_steady and shoot of
+slipstep.steady): name -> f(system, initial=..., tolerance=..., ...)."""
 
-SOLVERS = FRF_SOLVERS
-"""The ``solver`` values of :func:`frf` (auto: slipstep.frequency.choice)."""
+SOLVERS = tuple(FRF_SOLVERS)
+"""The ``solver`` values of :func:`frf` (output.frf_schema.FRF_SOLVERS; auto: slipstep.frequency.choice)."""
 DEFAULT_RTOL = 1e-2  # relative error of the energy per cycle allowed per point
 DEFAULT_MAX_REFINEMENTS = 3  # step halvings beyond the first step doubling
 

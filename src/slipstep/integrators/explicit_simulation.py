@@ -158,7 +158,12 @@ class ExplicitSimulation(Runner):
         for dst, src in zip((ws.x, ws.v, ws.a, ws.w, ws.state), (s.x, s.v, s.a, s.w, s.contact_state)):
             dst[:] = src
         self.status, self.kernel_time = self.entry.call(
-            E.explicit_march, self.kernel_arguments(), self.out, self.out.t, self.t_end, self.progress
+            E.explicit_kernel(self.settings.structure),
+            self.kernel_arguments(),
+            self.out,
+            self.out.t,
+            self.t_end,
+            self.progress,
         )
         self._check_interrupted()
         self.status = check_divergence(self.status, self.compiled, self.out)

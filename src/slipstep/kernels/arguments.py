@@ -8,13 +8,15 @@ returns at once, called between the other methods' runs as ``slipstep compare`` 
 (caches cold): 6-10 us per call for the event kernel's 50 arrays (2 us back to back), against
 2-4 us (0.3 us) for one :class:`KernelArguments`, about a fifth of the event-driven march.
 
-A :class:`KernelArguments` is built once per (system, workspace, outputs, q0, f0) by
-methods/simulation.py (:func:`pack_arguments`); it holds the caller's arrays (what a kernel
-writes lands in them) and keeps them alive. Each march kernel has a ``*_packed(args, st)``
-twin beside it that calls ``kernel(sys, st, ws, out, q0, f0)`` with ``(sys, ws, out, q0, f0)
-= unpacked(args)``; the settings ``st``, which change from march to march, are passed beside.
-The implicit and quasi-static marches are written in that form (one kernel per structure backend,
-kernels.march.implicit_kernel); their ``march(sys, st, ws, out, q0, f0)`` wrappers pack the arguments.
+A :class:`KernelArguments` is built once per (system, workspace, outputs, q0, f0) by the
+runner's kernel entry (methods/marcher.py, :func:`pack_arguments`); it holds the caller's arrays
+(what a kernel writes lands in them) and keeps them alive. Every march kernel is written in that
+form, ``kernel(args, st)`` starting from ``(sys, ws, out, q0, f0) = unpacked(args)`` (the settings
+``st``, which change from march to march, passed beside), and its module gives it as a function
+of the structure backend (``implicit_kernel``, ``quasi_static_kernel``: one kernel per backend;
+``event_kernel``, ``explicit_kernel``: one for all), which the method registry names; the
+``march(sys, st, ws, out, q0, f0)`` of each (``quasi_static_march``, ``event_march``,
+``explicit_march``) is a Python wrapper that packs the arguments.
 """
 
 from numba import njit, types

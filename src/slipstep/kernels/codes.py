@@ -1,6 +1,6 @@
 """The integer codes every kernel shares, defined here once: counters, status codes
 (mirrored by slipstep.errors.Status), contact-state codes (named by STATE_NAMES, used by
-results, post, advise and plots) and contact-law codes with the columns of their
+results, post, advise and plots), step-solver codes (named by SOLVER_NAMES) and contact-law codes with the columns of their
 parameter table (CompiledSystem.law, CompiledSystem.law_par)."""
 
 # counters
@@ -33,7 +33,9 @@ LAW_CIRCLE = 1  # coupled 3D: one slider in the tangent plane, |T| <= mu N (Eucl
 P_KN, P_MU = 0, 1
 N_LAW_PAR = 2
 
-# step solvers of kernels.march (here so that the method registry needs no numba import);
-# EVENTS is not a step solver: the event-driven quasi-static march of kernels/events.py;
-# EXACT_EVENTS neither: the exact event-driven dynamic march (methods/exact_events.py, kernels/exact_events.py)
+# step solvers of kernels.march (here so that the method registry needs no numba import), named by
+# SOLVER_NAMES[code] (the result attr ``solver``, the methods page); EVENTS is not a step solver: the
+# event-driven quasi-static march of kernels/events.py; EXACT_EVENTS neither: the exact event-driven
+# dynamic march (methods/exact_events.py, kernels/exact_events.py)
 MODIFIED_NEWTON, FULL_NEWTON, PIECEWISE_LINEAR, MODIFIED_NEWTON_STATE, EVENTS, EXACT_EVENTS = 0, 1, 2, 3, 4, 5
+SOLVER_NAMES = ("modified-newton", "full-newton", "piecewise-linear", "modified-newton-state", "events", "exact-events")

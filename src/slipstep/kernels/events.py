@@ -41,7 +41,7 @@ from slipstep.kernels.codes import (
     STATE_CYCLING,
 )
 from slipstep.kernels import laws
-from slipstep.kernels.arguments import unpacked
+from slipstep.kernels.arguments import pack_arguments, unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
@@ -50,8 +50,8 @@ from slipstep.kernels.march import S_CAPACITY, S_EVERY, S_FAIL, S_FROM, S_LAST, 
 
 class EventSystem(NamedTuple):
     """The fields of slipstep.system.CompiledSystem that :func:`event_march` reads (same names
-    and meaning): 19 arrays instead of 44 (:func:`event_arguments`), so that a direct call
-    unboxes fewer arrays and the packed twin's call (kernels/arguments.py) passes fewer."""
+    and meaning): 19 arrays instead of 44 (:func:`event_arguments`), so that the packed
+    arguments (kernels/arguments.py) hold and pass fewer."""
 
     K: np.ndarray
     A: np.ndarray
@@ -381,13 +381,28 @@ def _outputs_every(k0, m, row0, dt_out, t0, t_end, t_prev, pending, om, rot_c, r
     return t_prev
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
 def event_march(sys, st, ws, out, q0, f0):
     """Event-driven quasi-static march from st.t_start to st.t_end with outputs every st.dt
     (module docstring); same arguments (st: the MarchSettings), layout and counters as
     kernels.march.march, sys and ws as the slim tuples of :func:`event_arguments` (or the full
-    CompiledSystem and Workspace: the same fields are read)."""
-    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)  # kernels/borrow.py
+    CompiledSystem and Workspace: the same fields are read). :func:`event_march_packed` on the
+    packed arguments (kernels/arguments.py)."""
+    return event_march_packed(pack_arguments(sys, ws, out, q0, f0), st)
+
+
+def event_kernel(backend: int):
+    """The event-driven march's kernel ``kernel(args, st)`` on a kernels.arguments.KernelArguments
+    (registry.Method.kernel): :func:`event_march_packed`, one for every structure backend (it
+    reads the dense matrices of the slim tuples)."""
+    return event_march_packed
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def event_march_packed(args, st):
+    """:func:`event_march` on a KernelArguments."""
+    # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
+    sys, ws, out, q0, f0 = unpacked(args)
+    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     Kst, A = sys.K, sys.A
     nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
     ndir, trow, kt = sys.n_directions, sys.tangential_row, sys.kt
@@ -637,10 +652,3 @@ def event_march(sys, st, ws, out, q0, f0):
     counters[C_STEPS] = k
     keep_alive((own_f, own_x, own_i))
     return status
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def event_march_packed(args, st):
-    """:func:`event_march` on a kernels.arguments.KernelArguments."""
-    sys, ws, out, q0, f0 = unpacked(args)
-    return event_march(sys, st, ws, out, q0, f0)

@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from slipstep.kernels.arguments import unpacked
+from slipstep.kernels.arguments import pack_arguments, unpacked
 from slipstep.kernels.borrow import borrowed
 from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
@@ -105,12 +105,25 @@ def _accel(sys, A, AT, B, g, nrow, lcode, lpar, fdir, ndir, trow, kt, Kst, Cd, l
     lu_solve(lu, piv, rhs, out)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
 def explicit_march(sys, st, ws, out, q0, f0):
     """March from t_start to t_end writing step k into out[k] (k = 0: the initial state with
     local q0, f0; st: the MarchSettings), same layout and counters as :func:`slipstep.kernels.march.march`.
-    Returns the status; out.counters[C_STEPS] steps done."""
-    # ---- the arguments without reference counting (kernels/borrow.py), unpacked once ----
+    Returns the status; out.counters[C_STEPS] steps done. :func:`explicit_march_packed` on the
+    packed arguments (kernels/arguments.py)."""
+    return explicit_march_packed(pack_arguments(sys, ws, out, q0, f0), st)
+
+
+def explicit_kernel(backend: int):
+    """The explicit march's kernel ``kernel(args, st)`` on a kernels.arguments.KernelArguments:
+    :func:`explicit_march_packed`, one for every structure backend (the dense matrices only)."""
+    return explicit_march_packed
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def explicit_march_packed(args, st):
+    """:func:`explicit_march` on a KernelArguments."""
+    # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
+    sys, ws, out, q0, f0 = unpacked(args)
     sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
     nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
@@ -237,10 +250,3 @@ def explicit_march(sys, st, ws, out, q0, f0):
             out.f[row, ii] = f1[o_rows[ii]]
     counters[C_STEPS] = k
     return status
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def explicit_march_packed(args, st):
-    """:func:`explicit_march` on a kernels.arguments.KernelArguments."""
-    sys, ws, out, q0, f0 = unpacked(args)
-    return explicit_march(sys, st, ws, out, q0, f0)

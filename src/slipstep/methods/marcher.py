@@ -9,13 +9,15 @@ is reused across the marches of one layout (the periods of a steady-state search
 iterations of shooting, the points of an FRF: :meth:`Marcher.retarget`): no allocation and no
 type dispatch per march.
 
-The kernel: the event-driven march (kernels/events.py), the quasi-static march of Method 4
-(kernels/quasi_static.py) or the implicit march (kernels/march.py), called through its packed
-twin (kernels/arguments.py: the arrays unboxed once).
+The kernel: the one its method names (registry.Method.kernel: the event-driven march of
+kernels/events.py, the quasi-static march of Method 4 of kernels/quasi_static.py or the implicit
+march of kernels/march.py), a function of the structure backend giving the numba kernel
+``kernel(args, st)`` on the packed arguments (kernels/arguments.py: the arrays unboxed once).
 """
 
 from __future__ import annotations
 
+import pkgutil
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -23,11 +25,9 @@ import numba
 import numpy as np
 
 from slipstep.errors import Status
-from slipstep.kernels import explicit as E
 from slipstep.kernels import march as K
 from slipstep.kernels.arguments import KernelArguments, pack_arguments
-from slipstep.kernels.events import event_arguments, event_march, event_march_packed
-from slipstep.kernels.quasi_static import quasi_static_kernel, quasi_static_march
+from slipstep.kernels.events import event_arguments
 from slipstep.methods.live import call_kernel
 from slipstep.methods import save as SV
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache, reset_outputs, saved_rows
@@ -38,28 +38,15 @@ from slipstep.methods.start import consistent_start
 from slipstep.methods.state import State
 from slipstep.model.system import to_user_order
 
-#: each march kernel's twin taking a kernels.arguments.KernelArguments (its arrays unboxed once,
-#: not on every call), as a function of the march settings: the implicit and quasi-static marches
-#: have one twin per structure backend (kernels.march.implicit_kernel,
-#: kernels.quasi_static.quasi_static_kernel: only the backend a run takes is compiled);
-#: :class:`KernelEntry` calls the twin of a kernel that has one
-PACKED_TWINS = {
-    K.march: lambda st: K.implicit_kernel(st.structure),
-    quasi_static_march: lambda st: quasi_static_kernel(st.structure),
-    event_march: lambda st: event_march_packed,
-    E.explicit_march: lambda st: E.explicit_march_packed,
-}
-
 
 def march_kernel(method: Method):
-    """The kernel that marches ``method`` after the preload: the event-driven march
-    (kernels/events.py), the quasi-static march of Method 4 (kernels/quasi_static.py: no
-    inertia, fixed step, piecewise-linear solve) or the implicit march (kernels/march.py)."""
-    if method.solver == K.EVENTS:
-        return event_march
-    if method.quasi_static and method.solver == K.PIECEWISE_LINEAR and not method.adaptive:
-        return quasi_static_march
-    return K.march
+    """The kernel entry that marches ``method`` after the preload (Method.kernel, loaded): a
+    function of the structure backend (kernels.structure_ops codes) giving the numba kernel
+    ``kernel(args, st)`` (e.g. kernels.march.implicit_kernel). ValueError for a method with a
+    runner of its own (Method.kernel None: ``events``)."""
+    if method.kernel is None:
+        raise ValueError(f"method {method.name!r} has no march kernel (a runner of its own)")
+    return pkgutil.resolve_name(method.kernel)
 
 
 class Trace(NamedTuple):
@@ -96,9 +83,11 @@ class Segment:
 class KernelEntry:
     """One runner's call of a march kernel: the packed arguments (kernels/arguments.py, built
     when first seen and again only when the runner replaces one of its arrays) and the compiled
-    overload of the kernel (after the first call: no type dispatch)."""
+    overload of the kernel (after the first call: no type dispatch). ``packed`` False: the
+    kernel takes the argument tuple itself (the condensed sparse march)."""
 
-    def __init__(self):
+    def __init__(self, packed: bool = True):
+        self.packed_call = packed
         self.packed = None  # (sys, ws, out, q0, f0, their KernelArguments)
         self.kernel = None  # (dispatcher, compiled entry, layout)
 
@@ -111,14 +100,14 @@ class KernelEntry:
         return self.packed[-1], settings
 
     def call(self, dispatcher, args: tuple, out: K.Outputs, times: np.ndarray, t_end: float, progress: bool):
-        """Reset the outputs, call ``dispatcher`` (its packed twin when it has one) on ``args``
-        (live.call_kernel: interruptible, with a progress bar when asked); (Status, kernel time [s])."""
+        """Reset the outputs, call the numba kernel ``dispatcher`` on ``args`` (sys, settings, ws,
+        out, q0, f0), packed unless the entry is not (live.call_kernel: interruptible, with a
+        progress bar when asked); (Status, kernel time [s])."""
         out.counters[:] = 0
         reset_outputs(out)
-        twin = PACKED_TWINS.get(dispatcher)
-        if twin is not None:
-            dispatcher, args = twin(args[1]), self.packed_arguments(args)
-        layout = args[0]._type if twin is not None else None  # a new KernelArguments may hold other layouts
+        if self.packed_call:
+            args = self.packed_arguments(args)
+        layout = args[0]._type if self.packed_call else None  # a new KernelArguments may hold other layouts
         known = self.kernel is not None and self.kernel[0] is dispatcher and self.kernel[2] == layout
         kernel = self.kernel[1] if known else dispatcher
         cap = int(out.plan[K.S_CAPACITY])
@@ -148,7 +137,8 @@ class Marcher:
     """The buffers and the kernel of one :class:`RunPlan` (module docstring).
 
     ws: the kernel workspace (kernel DOF order); out: the output rows; settings: the kernel
-    settings of the next march (its t_start and t_end set by :meth:`advance`); q0, f0: the
+    settings of the next march (its t_start and t_end set by :meth:`advance`); kernel: the
+    kernel entry of the plan's method (:func:`march_kernel`); q0, f0: the
     first point's contact displacements and forces; progress: draw a progress bar on stderr
     for marches longer than a second (the CLI sets it)."""
 
@@ -180,7 +170,7 @@ class Marcher:
     # -- marching -------------------------------------------------------------------------
     def advance(self, state: State, t_end: float | None = None, kernel=None) -> Segment:
         """March from ``state`` (at state.t) to ``t_end`` [s] (default state.t + plan.t_end).
-        ``kernel``: another kernel of the same arguments (tests/test_quasi_static.py)."""
+        ``kernel``: another kernel entry of the same arguments (tests/test_quasi_static.py)."""
         plan = self.plan
         t_end = state.t + plan.t_end if t_end is None else t_end
         self.load(state)
@@ -189,7 +179,7 @@ class Marcher:
             st = self.settings = K.replace_settings(st, t_start=state.t, t_end=t_end)
         self.out.times[K.S_FROM] = state.t + plan.save_plan.t_from  # the last periods of this march
         status, kernel_time = self.entry.call(
-            self.kernel if kernel is None else kernel,
+            (self.kernel if kernel is None else kernel)(st.structure),
             self.kernel_arguments(),
             self.out,
             self._progress_times(t_end),

@@ -3,7 +3,7 @@ control, the paper's Methods 1-4 and their variants) x time-integration schemes 
 x variants (fixed / adaptive step, Newton / piecewise-linear solve).
 
 * :data:`METHODS`: name -> :class:`Method` (paper label, solver code, step control, the
-  scheme variant it is); :data:`ALIASES`: the paper's numbers.
+  scheme variant it is, the kernel that marches it); :data:`ALIASES`: the paper's numbers.
 * :data:`SCHEMES`: name -> :class:`SchemeEntry` (the integrator class, its parameters with THE
   defaults, used by ``slipstep.newmark()/hht()/generalized_alpha()`` and by the integrator
   classes alike); :data:`SCHEME_ALIASES`.
@@ -13,7 +13,8 @@ The CLI help (``slipstep run --help``), ``slipstep methods`` and the method and 
 the documentation's methods page are generated from here (the tables by
 slipstep.integrators.tables, which adds what each integrator class says of its scheme;
 ``slipstep methods --markdown`` prints them; tests/test_registry.py checks the page and the command).
-The registry names each integrator class by its path (``module:Class``) and never imports it.
+The registry names each integrator class and each method's march kernel by its path
+(``module:name``) and never imports them (no numba here).
 """
 
 from __future__ import annotations
@@ -31,6 +32,10 @@ from slipstep.kernels.codes import (
 )
 
 
+#: the implicit march (kernels/march.py): every step solver, fixed or adaptive step, the preload
+IMPLICIT_KERNEL = "slipstep.kernels.march:implicit_kernel"
+
+
 @dataclass(frozen=True)
 class Method:
     name: str
@@ -43,6 +48,10 @@ class Method:
     #: the paper's CPU time relative to Method 1 on its case (Section 6, Fig. 8; physics.md 7):
     #: (wording, value), e.g. ("about", 0.8) or ("below", 0.1); None for methods beyond the paper
     paper_time_ratio: tuple[str, float] | None = None
+    #: the kernel that marches it after the preload, ``module:function`` with function(backend) -> the
+    #: numba kernel(args, st) of that structure backend (args: kernels.arguments.KernelArguments;
+    #: methods.marcher.march_kernel loads it); None: a runner of its own, no march kernel
+    kernel: str | None = IMPLICIT_KERNEL
 
     @property
     def variant(self) -> str | None:
@@ -103,6 +112,7 @@ METHODS: dict[str, Method] = {
             True,
             "quasi-static time marching (no inertia), piecewise-linear state loop",
             paper_time_ratio=("below", 0.1),
+            kernel="slipstep.kernels.quasi_static:quasi_static_kernel",
         ),
         Method(
             "full-newton",
@@ -130,6 +140,7 @@ METHODS: dict[str, Method] = {
             True,
             "event-driven quasi-static: exact state-transition instants by root finding in each linear phase, "
             "outputs on the steps_per_period grid (harmonic excitation, piecewise-linear laws)",
+            kernel="slipstep.kernels.events:event_kernel",
         ),
         Method(
             "events",
@@ -140,6 +151,7 @@ METHODS: dict[str, Method] = {
             "exact event-driven dynamics: each linear phase by its exact propagator (modal form, harmonic and "
             "constant loads in closed form), state changes located by root finding on the exact solution "
             "(harmonic excitation, piecewise-linear laws)",
+            kernel=None,  # methods/exact_events.py: ExactEventRun
         ),
         Method(
             "newmark-adaptive-stick",

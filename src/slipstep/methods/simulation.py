@@ -18,7 +18,7 @@ import numpy as np
 
 from slipstep.errors import InputError, Interrupted, SolverError, Status
 from slipstep.kernels import march as K
-from slipstep.kernels.codes import EXACT_EVENTS
+from slipstep.kernels.codes import EXACT_EVENTS, SOLVER_NAMES
 from slipstep.methods import accuracy, sensitivity_twin
 from slipstep.methods.invariants import check_march
 from slipstep.methods.accuracy import check_divergence  # noqa: F401  (re-exported)
@@ -33,7 +33,6 @@ from slipstep.methods.buffers import (  # noqa: F401  (re-exported: the former h
     workspace_bytes as _workspace_bytes,
 )
 from slipstep.methods.marcher import (  # noqa: F401  (re-exported)
-    PACKED_TWINS,
     Marcher,
     Segment,
     _layout_key,
@@ -66,15 +65,6 @@ from slipstep.output.results import STATE_NAMES, build_dataset
 from slipstep.model.system import System
 
 _motion_signal, _force_signal = motion_signal, force_signal  # (their former names)
-
-SOLVER_NAMES = {
-    K.MODIFIED_NEWTON: "modified-newton",
-    K.FULL_NEWTON: "full-newton",
-    K.PIECEWISE_LINEAR: "piecewise-linear",
-    K.MODIFIED_NEWTON_STATE: "modified-newton-state",
-    K.EVENTS: "events",
-    EXACT_EVENTS: "exact-events",
-}
 
 
 class Runner:
@@ -347,7 +337,7 @@ class Simulation(Runner):
 
     def march(self, kernel=None, check: bool = True) -> Status:
         """March from the start (the preload, or the state of :meth:`start_from`) over t_end:
-        Marcher.advance (``kernel``: another kernel of the same arguments, as
+        Marcher.advance (``kernel``: another kernel entry of the same arguments, as
         tests/test_quasi_static.py does); returns the status (also in self.status). ``check``
         False leaves out the contact invariants (slipstep.methods.invariants.check_march) for a
         caller that checks the march it keeps (shooting's Newton iterates)."""

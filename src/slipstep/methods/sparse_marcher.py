@@ -2,7 +2,7 @@
 (methods/sparse.py, kernels/sparse.py): ``Marcher(plan)`` returns one for such a plan. The
 verb and its results are the Marcher's; what differs is the workspace (a SparseWorkspace
 holding the factorisations of the nominal step and of a shorter last step, prepared before
-each march) and the kernel (kernels.sparse.sparse_march). The state cache of the condensed
+each march) and the kernel (kernels.sparse.sparse_march: :func:`sparse_kernel`). The state cache of the condensed
 factorisations is kept across marches of one factorisation (its entries depend on the
 contact state and the step size alone)."""
 
@@ -30,8 +30,8 @@ class SparseMarcher(Marcher):
         nq = cs.A.shape[0]
         self.q0, self.f0 = np.zeros(nq), np.zeros(nq)
         self.settings = plan.settings
-        self.kernel = KS.sparse_march
-        self.entry = KernelEntry()
+        self.kernel = sparse_kernel
+        self.entry = KernelEntry(packed=False)
         self._event_arguments = None
 
     def advance(self, state: State, t_end: float | None = None, kernel=None) -> Segment:
@@ -70,3 +70,9 @@ class SparseMarcher(Marcher):
             raise ValueError("retarget: the plan has another array layout (build a new Marcher)")
         self.out = allocate_outputs(plan.compiled, plan.capacity, plan.options.max_memory, plan.save_plan, plan.t_end)
         self.plan, self.settings = plan, plan.settings
+
+
+def sparse_kernel(backend: int):
+    """The kernel entry of a sparse plan: kernels.sparse.sparse_march (one backend), called on the
+    argument tuple itself (not packed: KernelEntry(packed=False))."""
+    return KS.sparse_march

@@ -18,10 +18,48 @@ t = 0 at the start of the steady-state period.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class FrfSolver:
+    """One FRF solver: its name (``solver=``), what runs it (``module:function``, loaded by
+    pkgutil.resolve_name), whether that is a steady-state solver of one point, called
+    ``f(system, initial=..., **options)`` per frequency (slipstep.frequency.response.sweep), and
+    what it is in one line (the CLI's ``--solver`` help, the documentation)."""
+
+    name: str
+    runs: str
+    description: str
+    steady: bool = False
+
+
 #: The one table of the FRF solvers (``solver=`` of slipstep.frequency.frf, ``slipstep frf --solver``,
-#: a sweep's ``[outputs.frf] solver``): auto chooses one of the others (slipstep.frequency.choice);
-#: march and shoot are the steady-state solvers (slipstep.steady), hbm harmonic balance.
-FRF_SOLVERS = ("auto", "march", "shoot", "hbm")
+#: a sweep's ``[outputs.frf] solver``; slipstep.frequency.response derives its STEADY_SOLVERS from it):
+#: auto chooses one of the others, march and shoot solve each point's steady state, hbm is harmonic balance.
+FRF_SOLVERS: dict[str, FrfSolver] = {
+    s.name: s
+    for s in (
+        FrfSolver(
+            "auto",
+            "slipstep.frequency.choice:choose",
+            "chosen for the system: shoot, or hbm where a time-domain steady state costs minutes; printed with "
+            "its reason",
+        ),
+        FrfSolver("march", "slipstep.steady:march_to_steady", "march each point until its period repeats", True),
+        FrfSolver(
+            "shoot", "slipstep.steady:shoot", "Newton on the one-period map; reports the Floquet multipliers", True
+        ),
+        FrfSolver("hbm", "slipstep.hbm.frf:frf", "harmonic balance with continuation through turning points"),
+    )
+}
+
+
+def solver_help() -> str:
+    """'auto (...), march (...), shoot (...) or hbm (...)': every FRF solver with its description."""
+    items = [f"{s.name} ({s.description})" for s in FRF_SOLVERS.values()]
+    return ", ".join(items[:-1]) + " or " + items[-1]
+
 
 FRF_SCHEMA: dict[str, tuple[tuple[str, ...], str, str]] = {
     # name: (dims, units, long_name)
