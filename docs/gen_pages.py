@@ -533,8 +533,7 @@ def methods_reference() -> str:
         )
         when = METHOD_ADVICE.get(m.name, "**no advice yet: add it to METHOD_ADVICE in slipstep.methods.registry**")
         L.append(
-            f"| `{m.name}` | {m.paper_label} | {also} | {when} | {m.description} "
-            f"| {SOLVER_NAMES[m.solver]} | {step} |"
+            f"| `{m.name}` | {m.paper_label} | {also} | {when} | {m.description} | {SOLVER_NAMES[m.solver]} | {step} |"
         )
     L += [
         "",

@@ -42,6 +42,7 @@ from slipstep.kernels.codes import (
 )
 from slipstep.kernels import laws
 from slipstep.kernels.arguments import pack_arguments, unpacked
+from slipstep.kernels.lean_compiler import LeanCompiler
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.cache import find_slot
 from slipstep.kernels.contact import contact_stiffness, piecewise_law
@@ -397,12 +398,11 @@ def event_kernel(backend: int):
     return event_march_packed
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def event_march_packed(args, st):
     """:func:`event_march` on a KernelArguments."""
     # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
     sys, ws, out, q0, f0 = unpacked(args)
-    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     Kst, A = sys.K, sys.A
     nrow, lcode, lpar, fdir = sys.normal_row, sys.law, sys.law_par, sys.first_direction
     ndir, trow, kt = sys.n_directions, sys.tangential_row, sys.kt

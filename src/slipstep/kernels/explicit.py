@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels.arguments import pack_arguments, unpacked
-from slipstep.kernels.borrow import borrowed
+from slipstep.kernels.lean_compiler import LeanCompiler
 from slipstep.kernels.codes import DIVERGED
 from slipstep.kernels.contact import gather, law, scatter
 from slipstep.kernels.linalg import lu_factor, lu_solve
@@ -119,12 +119,11 @@ def explicit_kernel(backend: int):
     return explicit_march_packed
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=LeanCompiler)
 def explicit_march_packed(args, st):
     """:func:`explicit_march` on a KernelArguments."""
     # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
     sys, ws, out, q0, f0 = unpacked(args)
-    sys, ws, out, q0, f0 = borrowed(sys), borrowed(ws), borrowed(out), borrowed(q0), borrowed(f0)
     M, Cd, Kst, A, AT, B, g = sys.M, sys.C, sys.K, sys.A, sys.AT, sys.B, sys.g
     nrow, lcode, lpar, fdir, ndir, trow, kt = contact_table(sys)
     x, v, a, w, state = ws.x, ws.v, ws.a, ws.w, ws.state

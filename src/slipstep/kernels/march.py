@@ -423,12 +423,6 @@ def _implicit_kernel(backend):
         """:func:`march` of this backend on a KernelArguments."""
         # ---- the arguments' arrays without reference counting (kernels/arguments.py, kernels/borrow.py) ----
         sys, ws, out, q0, f0 = unpacked(args)
-        # (one statement each: a tuple of the five would be one more copy of every array for LLVM)
-        sys = borrowed(sys)
-        ws = borrowed(ws)
-        out = borrowed(out)
-        q0 = borrowed(q0)
-        f0 = borrowed(f0)
         A = sys.A
         cl = contact_table(sys)
         cache = state_cache(ws)

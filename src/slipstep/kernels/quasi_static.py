@@ -89,12 +89,6 @@ def _quasi_static_kernel(backend):
     def quasi_static_march_packed(args, st):
         """:func:`quasi_static_march` of this backend on a KernelArguments."""
         sys, ws, out, q0, f0 = unpacked(args)
-        # one statement each (kernels/march.py)
-        sys = borrowed(sys)
-        ws = borrowed(ws)
-        out = borrowed(out)
-        q0 = borrowed(q0)
-        f0 = borrowed(f0)
         cl = contact_table(sys)
         cache = state_cache(ws)
         sv = step_vectors(ws)
