@@ -10,8 +10,8 @@ the 40 s of LLVM function passes of that kernel (``NUMBA_LLVM_PASS_TIMINGS=1``);
 issue 5953 measures the same growth with tuples of arrays.
 
 :class:`FoldAggregateCopies` runs after type inference, before lowering: a variable of a tuple
-type that is assigned exactly once, from another variable of the same type that is itself
-assigned exactly once, is replaced by that variable everywhere and its assignment removed. Both
+or array type that is assigned exactly once, from another variable of the same type that is
+itself assigned exactly once, is replaced by that variable everywhere and its assignment removed. Both
 being single-assignment, the source holds the same value at every use of the copy (its one
 definition precedes the copy's, which precedes every use), so the kernel computes exactly what
 it computed before, with fewer stack slots. Use it with
@@ -29,8 +29,8 @@ from numba.core.typed_passes import NoPythonSupportedFeatureValidation
 
 @register_pass(mutates_CFG=False, analysis_only=False)
 class FoldAggregateCopies(FunctionPass):
-    """Replace the single-assignment copies of tuple-typed variables by their source (module
-    docstring)."""
+    """Replace the single-assignment copies of tuple- and array-typed variables by their source
+    (module docstring)."""
 
     _name = "slipstep_fold_aggregate_copies"
 

@@ -135,12 +135,13 @@ def compile_ahead(system: System, names: list[str], options: dict):
 
     compare() builds every runner first (each one's static preload marches the implicit kernel:
     compiled here, then cached), then starts this helper on the methods in reverse order while it
-    runs them in order: the last methods' kernels (the event-driven march, the quasi-static march)
-    are compiled by the helper while this process compiles the first ones', and this process
-    loads them from the cache when it gets there. Nothing but numba's cache is shared: a
-    kernel both processes reach is compiled twice (numba writes its cache files atomically), and
-    the results are this process's alone. On an empty cache it takes about 30 % off the wall time
-    of ``slipstep compare paper`` on two cores (docs/measured.md, "Compile time")."""
+    runs them in order: the last method's kernel (on the paper case the event-driven march) is
+    compiled by the helper while this process compiles the first ones' and the quasi-static
+    march, and this process loads it from the cache when it gets there. Nothing but numba's cache
+    is shared: a kernel both processes reach is compiled twice (numba writes its cache files
+    atomically), and the results are this process's alone. With the lean compiler, on an empty
+    cache on two cores, ``slipstep compare paper`` took 132 s of wall time against 208 s before
+    both changes (docs/measured.md, "Compile time")."""
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if cpus < 2:
         return None
