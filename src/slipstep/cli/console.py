@@ -104,8 +104,11 @@ def _save_traceback(exc: BaseException) -> str | None:
 @contextlib.contextmanager
 def user_errors():
     """Show warnings as yellow lines on stderr (stdout stays clean for --json) and turn a failure
-    into its one-line message and exit code (see :func:`report_failure`)."""
-    with warnings.catch_warnings(record=True) as caught:
+    into its one-line message and exit code (see :func:`report_failure`). A march compiled within
+    has its out-of-line kernels compiled ahead by a second process (methods/compile_ahead.py)."""
+    from slipstep.methods import compile_ahead
+
+    with warnings.catch_warnings(record=True) as caught, compile_ahead.enabled():
         warnings.simplefilter("always")
         for category in _SILENT_WARNINGS:
             warnings.simplefilter("ignore", category)

@@ -128,13 +128,11 @@ def _dot(a, b):
 @njit(cache=True, nogil=True, error_model="numpy")
 def scaled_matrix(Keff, L):
     """B = L^-1 K_eff L^-T as a dense n x n matrix (zero rows and columns for zero pivots):
-    B_ij = K_ij / (L_ii L_jj) for a diagonal L (a lumped mass), else two triangular solves."""
+    B_ij = K_ij / (L_ii L_jj) for a diagonal L (a lumped mass), else two triangular solves per
+    column (:func:`lower_solve`; n <= DENSE_LIMIT here, and no LAPACK wrapper to compile)."""
     n = Keff.shape[0]
     diagonal = True
-    regular = True
     for i in range(n):
-        if L[i, i] == 0.0:
-            regular = False
         for j in range(i):
             if L[i, j] != 0.0:
                 diagonal = False
@@ -147,9 +145,6 @@ def scaled_matrix(Keff, L):
             for j in range(n):
                 B[i, j] = Keff[i, j] * d[i] * d[j]
         return B
-    if regular:  # LAPACK: X = L^-1 K_eff, B = (L^-1 X^T)^T
-        X = np.linalg.solve(L, Keff)
-        return np.ascontiguousarray(np.linalg.solve(L, np.ascontiguousarray(X.T)).T)
     X = np.empty((n, n))
     col = np.empty(n)
     out = np.empty(n)

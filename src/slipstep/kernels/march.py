@@ -602,9 +602,40 @@ def _implicit_kernel(backend):
         keep_alive((own_conv, own_kd, own_mdiag, own_tan, own_pred))
         return status
 
-
-
     return march_packed
+
+
+def implicit_callees(backend: int, sys, ws) -> list[tuple[str, tuple]]:
+    """The out-of-line kernels that numba compiles while it types :func:`implicit_kernel` of the
+    dense or low-rank backend (empty for the banded one), as ("module:name", argument types) in
+    the order the typing meets them, with the numba types of their call sites in the march for
+    the CompiledSystem ``sys`` and the Workspace ``ws`` (the types hold the arrays' dtypes and
+    ranks and the tuples' classes, not their sizes): what another process can compile ahead into
+    numba's cache (methods/compile_ahead.py). tests/test_compile_ahead.py checks that these are
+    the types the march's typing asks for."""
+    from numba import typeof, types  # the Python side only: the kernels above never call this
+
+    if backend not in (DENSE, LOW_RANK):
+        return []
+    own = "_dense" if backend == DENSE else "_low_rank"
+    solvers = "slipstep.kernels.step_solvers:"
+    table = contact_table(sys)  # (register_jitable: a Python function here)
+    cl_type, cache, sv = typeof(table), typeof(state_cache.py_func(ws)), typeof(step_vectors.py_func(ws))  # not compiled
+    cl = tuple(typeof(a) for a in table)
+    f, b, i = types.float64, types.boolean, types.int64
+    f1, f2, i1 = types.float64[::1], types.float64[:, ::1], types.int64[::1]  # arrays of the march's own
+    solve = (typeof(sys), cl_type, cache, f2, f2, f)  # sys, cl, cache, Lin, J, kfac
+    return [
+        (__name__ + ":_state_step_limit",
+         (typeof(sys.K), typeof(ws.mass_factor), typeof(sys.A), *cl, typeof(ws.state), typeof(ws.tmin_keys),
+          typeof(ws.tmin_used), typeof(ws.tmin_value), f, f)),
+        (solvers + "_full_newton" + own, (*solve, sv, b, i, f1, f, i1)),
+        (solvers + "_stick_factorisation" + own, (*solve, b, f, i1)),
+        (solvers + "_modified_newton_dense", (f2, i1, f2, f, typeof(()), f2, f2, cl_type, sv, i, f1, f, b, i1)),
+        (solvers + "_stick_fallback" + own, (*solve, sv, b, i, f1, f, i, i1)),
+        (solvers + "_state_factorisation" + own, (*solve, typeof(ws.state), b, f, i1)),
+        (__name__ + ":_local_error", (types.literal(backend), typeof(sys), f1, typeof(sys.A), f1, f1, f1, *(f,) * 6)),
+    ]
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -29,6 +29,7 @@ from slipstep.kernels import march as K
 from slipstep.kernels.arguments import KernelArguments, pack_arguments
 from slipstep.kernels.events import event_arguments
 from slipstep.methods.live import call_kernel
+from slipstep.methods import compile_ahead
 from slipstep.methods import save as SV
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache, reset_outputs, saved_rows
 from slipstep.methods.divergence import check_divergence
@@ -178,14 +179,13 @@ class Marcher:
         if st.t_start != state.t or st.t_end != t_end:
             st = self.settings = K.replace_settings(st, t_start=state.t, t_end=t_end)
         self.out.times[K.S_FROM] = state.t + plan.save_plan.t_from  # the last periods of this march
+        dispatcher, arguments = (self.kernel if kernel is None else kernel)(st.structure), self.kernel_arguments()
+        if kernel is None:
+            compile_ahead.start(plan.method.kernel, dispatcher, arguments)
         status, kernel_time = self.entry.call(
-            (self.kernel if kernel is None else kernel)(st.structure),
-            self.kernel_arguments(),
-            self.out,
-            self._progress_times(t_end),
-            t_end,
-            self.progress,
+            dispatcher, arguments, self.out, self._progress_times(t_end), t_end, self.progress
         )
+        compile_ahead.stop()  # the kernel is compiled now
         if not plan.method.quasi_static:
             status = check_divergence(status, plan.compiled, self.out, plan.save_plan)
         n_steps = int(self.out.counters[K.C_STEPS])

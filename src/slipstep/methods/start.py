@@ -21,11 +21,13 @@ from slipstep.kernels import banded as BD
 from slipstep.kernels import march as K
 from slipstep.kernels import sparse as KS
 from slipstep.kernels.contact import STICK, contact_law, generalised_force, local_displacement
+from slipstep.methods import compile_ahead
 from slipstep.methods import massless as ML
 from slipstep.methods.buffers import allocate_outputs, allocate_workspace, reset_cache
 from slipstep.methods.eigen import band_mass_lu
 from slipstep.methods import sparse as SB
 from slipstep.methods.plan import RunPlan
+from slipstep.methods.registry import IMPLICIT_KERNEL
 from slipstep.methods.state import StartTerms, State
 from slipstep.model.excitation import evaluate_compiled, force_signal, motion_signal
 from slipstep.output.results import STATE_NAMES
@@ -65,7 +67,15 @@ def static_equilibrium(plan: RunPlan, workspace: K.Workspace | None = None) -> S
     q, f = np.zeros(nq), np.zeros(nq)
     ramp = allocate_outputs(cs, opt.preload_increments)
     if np.any(cs.constant_force != 0) or np.any(cs.g != 0):
+        if not sparse:  # the first march of a run: its callees compiled in a second process
+            compile_ahead.start(
+                IMPLICIT_KERNEL,
+                K.implicit_kernel(settings.structure),
+                (cs, settings, ws, ramp, q, f),
+                _start_kernels(cs),
+            )
         status = (KS.sparse_march if sparse else K.march)(cs, settings, ws, ramp, q, f)
+        compile_ahead.stop()
         counters = ramp.counters
         q[:], f[:] = ramp.q[counters[K.C_STEPS]], ramp.f[counters[K.C_STEPS]]
     else:
@@ -123,6 +133,19 @@ def _static_start(plan: RunPlan, ws: K.Workspace, settings: K.MarchSettings) -> 
     if status != K.OK:
         raise SolverError(f"the static equilibrium at t = 0 (p(0), f_e(0)) failed: {Status(status).message}")
     return out.q[1].copy(), out.f[1].copy()
+
+
+def _start_kernels(cs) -> list[tuple[str, tuple]]:
+    """The kernels :func:`consistent_start` calls after the preload, as ("module:name", argument
+    types) for methods/compile_ahead.py."""
+    from numba import typeof, types
+
+    f1, contact = types.float64[::1], "slipstep.kernels.contact:"
+    return [
+        (contact + "local_displacement", (typeof(cs), f1, f1, f1)),
+        (contact + "contact_law", (typeof(cs), f1, f1, f1, f1, types.int8[::1])),
+        (contact + "generalised_force", (typeof(cs), f1, f1)),
+    ]
 
 
 def consistent_start(plan: RunPlan, x, v=None, w=None, contact_state=None, t: float = 0.0, a=None) -> State:
