@@ -218,20 +218,6 @@ def _accuracy_redo(err, dt, attempt, max_redo):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stick_diagonal(A, nrow, kn, fdir, ndir, trow, kt):
-    """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF (the residual floor's scale)."""
-    n = A.shape[1]
-    out = np.zeros(n)
-    for c in range(kn.shape[0]):
-        for i in range(n):
-            out[i] += kn[c] * A[nrow[c], i] ** 2
-        for d in range(fdir[c], fdir[c] + ndir[c]):
-            for i in range(n):
-                out[i] += kt[d] * A[trow[d], i] ** 2
-    return out
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _convergence_parameters(backend, sys, tol):
     """The Newton tolerances conv (step_solvers.CV_*): tol, tol L and per DOF j tol L / max_r |A_rj|
     (a rotation: L over its lever arm; tol L for a DOF no contact sees); CV_FLOOR is set per dt."""
@@ -438,11 +424,7 @@ def _implicit_kernel(backend):
         nd = state.shape[0]
         beta, gamma, am, af = st.beta, st.gamma, st.alpha_m, st.alpha_f
         own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton convergence tolerances (step_solvers.CV_*)
-        if backend == BANDED:  # banded backend (issue 10): A in CSR, M in band storage
-            own_kd = so.stick_diagonal_banded(sys)
-        else:
-            own_kd = _stick_diagonal(A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions,
-                                     sys.tangential_row, sys.kt)
+        own_kd = so.stick_diagonal(sys)
         own_mdiag = so.mass_diagonal(backend, sys)
         state_rtol = st.state_rtol
         singular_rtol = st.singular_rtol

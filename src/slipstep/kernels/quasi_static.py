@@ -43,7 +43,6 @@ import numpy as np
 from numba import njit
 
 from slipstep.kernels import structure_ops as so
-from slipstep.kernels.structure_ops import BANDED
 from slipstep.kernels.arguments import pack_arguments, unpacked
 from slipstep.kernels.borrow import borrowed, keep_alive
 from slipstep.kernels.codes import (
@@ -51,7 +50,7 @@ from slipstep.kernels.codes import (
     STATE_CYCLING,
 )
 from slipstep.kernels.march import (
-    S_CAPACITY, S_FAIL, S_ROWS, _accept_contacts, _convergence_parameters, _loads_and_motions, _stick_diagonal, _store,
+    S_CAPACITY, S_FAIL, S_ROWS, _accept_contacts, _convergence_parameters, _loads_and_motions, _store,
     _store_positions,
 )
 from slipstep.kernels.settings import contact_table, state_cache, step_vectors
@@ -97,12 +96,7 @@ def _quasi_static_kernel(backend):
         fe1, f1, q1, w1, state1, dx, p, qbase, r0 = ws.fe1, ws.f1, ws.q1, ws.w1, ws.state1, ws.dx, ws.p, ws.qbase, ws.r0
         counters = out.counters
         own_conv = _convergence_parameters(backend, sys, st.tol)  # the Newton tolerances of the fallback
-        if backend == BANDED:
-            own_kd = so.stick_diagonal_banded(sys)
-        else:
-            own_kd = _stick_diagonal(
-                sys.A, sys.normal_row, sys.kn, sys.first_direction, sys.n_directions, sys.tangential_row, sys.kt
-            )
+        own_kd = so.stick_diagonal(sys)
         conv, kd_stick = borrowed(own_conv), borrowed(own_kd)
         has_circle = np.any(cl.lcode == LAW_CIRCLE)
         has_stiffness = so.has_nonzero(backend, sys, 2)

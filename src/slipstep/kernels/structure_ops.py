@@ -264,8 +264,9 @@ def motion_base(sys, p, q):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def stick_diagonal_banded(sys):
-    """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF, A in CSR."""
+def stick_diagonal(sys):
+    """diag K_D(all stick) = sum_c k_n A_v^2 + sum_d k_t A_u^2 per DOF (the residual floor's
+    scale), over the non-zeros of A in CSR (held by every backend's CompiledSystem)."""
     out = np.zeros(sys.AT_ptr.shape[0] - 1)
     ptr, idx, val = sys.A_ptr, sys.A_idx, sys.A_val
     for c in range(sys.kn.shape[0]):

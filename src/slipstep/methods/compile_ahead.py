@@ -55,8 +55,10 @@ def start(kernel: str, dispatcher, arguments: tuple, then: tuple = ()) -> None:
     q0, f0), where it pays (module docstring); ``then``: ("module:name", argument types) of the
     kernels the caller needs after the march, compiled by the helper after the callees."""
     global _helper
+    if not _enabled or kernel not in CALLEES:
+        return
     backend = arguments[1].structure
-    if not _enabled or (kernel, backend) in _started or kernel not in CALLEES or _cpus() < 2:
+    if (kernel, backend) in _started or _cpus() < 2:
         return
     _started.add((kernel, backend))
     from numba import typeof  # here: the command line enters enabled() before it needs numba
