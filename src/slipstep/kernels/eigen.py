@@ -213,7 +213,7 @@ def krylov_largest_modulus(Keff, L, rtol, max_basis, max_restarts):
     H = np.zeros((m, m))
     u = np.empty(n)
     tmp = np.empty(n)
-    seed = _next_random(20261201, u)
+    seed = _next_random(np.int64(20261201), u)  # np.int64: one specialisation, not one per literal
     for i in range(n):
         u[i] += 1.5  # a component along every direction, whatever the LCG gives
     nrm = np.sqrt(_dot(u, u))
@@ -229,12 +229,12 @@ def krylov_largest_modulus(Keff, L, rtol, max_basis, max_restarts):
             for k in range(n):
                 u[k] = W[j - 1, k]
             ref = np.sqrt(_dot(u, u))
-            nrm = _orthogonalise(V, j, u)
+            nrm = _orthogonalise(V, np.int64(j), u)
             tries = 0
             while not nrm > 1e-10 * ref and tries < 3:  # invariant subspace found: a fresh direction
                 seed = _next_random(seed, u)
                 ref = np.sqrt(_dot(u, u))
-                nrm = _orthogonalise(V, j, u)
+                nrm = _orthogonalise(V, np.int64(j), u)
                 tries += 1
             if not nrm > 1e-10 * ref:
                 break
@@ -276,7 +276,7 @@ def krylov_largest_modulus(Keff, L, rtol, max_basis, max_restarts):
                     break
                 for i in range(j):
                     c[i] = S[i, col].real if part == 0 else S[i, col].imag
-                cn = _orthogonalise(C, count, c)
+                cn = _orthogonalise(C, np.int64(count), c)
                 if cn > 1e-8:
                     for i in range(j):
                         C[count, i] = c[i] / cn

@@ -590,7 +590,8 @@ def _implicit_kernel(backend):
 def implicit_callees(backend: int, sys, ws) -> list[tuple[str, tuple]]:
     """The out-of-line kernels that numba compiles while it types :func:`implicit_kernel` of the
     dense or low-rank backend (empty for the banded one), as ("module:name", argument types) in
-    the order the typing meets them, with the numba types of their call sites in the march for
+    the order the typing meets them (the first, the Krylov routine, is the biggest part of the
+    second, T_min's step limit), with the numba types of their call sites in the march for
     the CompiledSystem ``sys`` and the Workspace ``ws`` (the types hold the arrays' dtypes and
     ranks and the tuples' classes, not their sizes): what another process can compile ahead into
     numba's cache (methods/compile_ahead.py). tests/test_compile_ahead.py checks that these are
@@ -608,6 +609,8 @@ def implicit_callees(backend: int, sys, ws) -> list[tuple[str, tuple]]:
     f1, f2, i1 = types.float64[::1], types.float64[:, ::1], types.int64[::1]  # arrays of the march's own
     solve = (typeof(sys), cl_type, cache, f2, f2, f)  # sys, cl, cache, Lin, J, kfac
     return [
+        ("slipstep.kernels.eigen:krylov_largest_modulus",  # inside the next: its biggest part
+         (f2, f2, f, types.literal(MAX_BASIS), types.literal(MAX_RESTARTS))),
         (__name__ + ":_state_step_limit",
          (typeof(sys.K), typeof(ws.mass_factor), typeof(sys.A), *cl, typeof(ws.state), typeof(ws.tmin_keys),
           typeof(ws.tmin_used), typeof(ws.tmin_value), f, f)),

@@ -7,10 +7,12 @@ paper`` on an empty cache: the T_min eigenvalue routines, full Newton, the facto
 stick fallback), then lowers the march itself. On a machine with two CPUs the second one idles.
 :func:`start` gives it those callees: it starts ``python -m slipstep.methods.compile_ahead``,
 which compiles them, with the argument types of their call sites (the kernel module's list,
-e.g. :func:`slipstep.kernels.march.implicit_callees`), in the reverse of the order in which the
-march's typing meets them. numba writes each into its on-disk cache (atomically), and this
-process's typing loads from there every callee the helper compiled before it got there; the two
-meet in the middle. Nothing else is shared, the results are this process's alone, and a callee
+e.g. :func:`slipstep.kernels.march.implicit_callees`): the first of the list (a part of the
+first callee the typing meets: T_min's Krylov routine), then the others in the reverse of the
+order in which the march's typing meets them, then the kernels the caller needs after the march.
+numba writes each into its on-disk cache (atomically), and this process's typing loads from
+there every callee the helper compiled before it got there; the two meet in the middle. On the
+paper case this process still compiles the march itself (about 34 s) and most of T_min's routines. Nothing else is shared, the results are this process's alone, and a callee
 both reach is compiled twice (no harm but the time).
 
 Only where it pays: within :func:`enabled` (every command of the command line), the
@@ -53,7 +55,8 @@ def start(kernel: str, dispatcher, arguments: tuple, then: tuple = ()) -> None:
     """Start the helper on the callees of ``dispatcher`` (the numba kernel of the registry's
     ``kernel`` for one backend) before its first call on ``arguments`` (sys, settings, ws, out,
     q0, f0), where it pays (module docstring); ``then``: ("module:name", argument types) of the
-    kernels the caller needs after the march, compiled by the helper after the callees."""
+    kernels the caller needs after the march, compiled by the helper after the callees (module
+    docstring: the order)."""
     global _helper
     if not _enabled or kernel not in CALLEES:
         return
@@ -83,7 +86,7 @@ def start(kernel: str, dispatcher, arguments: tuple, then: tuple = ()) -> None:
         stderr=subprocess.DEVNULL,
     )
     with contextlib.suppress(OSError):
-        _helper.stdin.write(pickle.dumps(callees[::-1] + list(then)))
+        _helper.stdin.write(pickle.dumps(callees[:1] + callees[:0:-1] + list(then)))
         _helper.stdin.close()
 
 
