@@ -587,30 +587,37 @@ def _implicit_kernel(backend):
     return march_packed
 
 
-def implicit_callees(backend: int, sys, ws) -> list[tuple[str, tuple]]:
+def implicit_callees(backend: int, sys, ws) -> tuple[list, list]:
     """The out-of-line kernels that numba compiles while it types :func:`implicit_kernel` of the
-    dense or low-rank backend (empty for the banded one), as ("module:name", argument types) in
-    the order the typing meets them (the first, the Krylov routine, is the biggest part of the
-    second, T_min's step limit), with the numba types of their call sites in the march for
-    the CompiledSystem ``sys`` and the Workspace ``ws`` (the types hold the arrays' dtypes and
-    ranks and the tuples' classes, not their sizes): what another process can compile ahead into
-    numba's cache (methods/compile_ahead.py). tests/test_compile_ahead.py checks that these are
-    the types the march's typing asks for."""
+    dense or low-rank backend (none for the banded one), as two lists of ("module:name", argument
+    types), with the numba types of their call sites in the march for the CompiledSystem ``sys``
+    and the Workspace ``ws`` (the types hold the arrays' dtypes and ranks and the tuples' classes,
+    not their sizes): what another process can compile ahead into numba's cache
+    (methods/compile_ahead.py). ``first``: what the typing meets soon after it starts (the
+    convergence parameters and the two diagonals of its first lines, then the Krylov routine, the
+    biggest part of T_min's step limit), small enough for a helper to have compiled them by then;
+    ``rest``: the others, in the order the typing meets them. tests/test_compile_ahead.py checks
+    that these are the types the march's typing asks for."""
     from numba import typeof, types  # the Python side only: the kernels above never call this
 
     if backend not in (DENSE, LOW_RANK):
-        return []
+        return [], []
     own = "_dense" if backend == DENSE else "_low_rank"
     solvers = "slipstep.kernels.step_solvers:"
+    structure = "slipstep.kernels.structure_ops:"
     table = contact_table(sys)  # (register_jitable: a Python function here)
     cl_type, cache, sv = typeof(table), typeof(state_cache.py_func(ws)), typeof(step_vectors.py_func(ws))  # not compiled
     cl = tuple(typeof(a) for a in table)
     f, b, i = types.float64, types.boolean, types.int64
     f1, f2, i1 = types.float64[::1], types.float64[:, ::1], types.int64[::1]  # arrays of the march's own
     solve = (typeof(sys), cl_type, cache, f2, f2, f)  # sys, cl, cache, Lin, J, kfac
-    return [
-        ("slipstep.kernels.eigen:krylov_largest_modulus",  # inside the next: its biggest part
-         (f2, f2, f, types.literal(MAX_BASIS), types.literal(MAX_RESTARTS))),
+    first = [
+        (__name__ + ":_convergence_parameters", (types.literal(backend), typeof(sys), f)),
+        (structure + "stick_diagonal", (typeof(sys),)),
+        (structure + "mass_diagonal", (types.literal(backend), typeof(sys))),
+        ("slipstep.kernels.eigen:krylov_largest_modulus", (f2, f2, f, types.literal(MAX_BASIS), types.literal(MAX_RESTARTS))),
+    ]
+    rest = [
         (__name__ + ":_state_step_limit",
          (typeof(sys.K), typeof(ws.mass_factor), typeof(sys.A), *cl, typeof(ws.state), typeof(ws.tmin_keys),
           typeof(ws.tmin_used), typeof(ws.tmin_value), f, f)),
@@ -621,6 +628,7 @@ def implicit_callees(backend: int, sys, ws) -> list[tuple[str, tuple]]:
         (solvers + "_state_factorisation" + own, (*solve, typeof(ws.state), b, f, i1)),
         (__name__ + ":_local_error", (types.literal(backend), typeof(sys), f1, typeof(sys.A), f1, f1, f1, *(f,) * 6)),
     ]
+    return first, rest
 
 
 @njit(cache=True, error_model="numpy", inline="always")

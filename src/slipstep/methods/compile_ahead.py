@@ -6,10 +6,10 @@ every out-of-line kernel it calls (on the paper case about 40 s of the 80 s of `
 paper`` on an empty cache: the T_min eigenvalue routines, full Newton, the factorisations, the
 stick fallback), then lowers the march itself. On a machine with two CPUs the second one idles.
 :func:`start` gives it those callees: it starts ``python -m slipstep.methods.compile_ahead``,
-which compiles them, with the argument types of their call sites (the kernel module's list,
-e.g. :func:`slipstep.kernels.march.implicit_callees`): the first of the list (a part of the
-first callee the typing meets: T_min's Krylov routine), then the others in the reverse of the
-order in which the march's typing meets them, then the kernels the caller needs after the march.
+which compiles them, with the argument types of their call sites (the kernel module's lists,
+e.g. :func:`slipstep.kernels.march.implicit_callees`): first the few the march's typing meets
+soon after it starts, then the others in the reverse of the order in which the typing meets
+them, then the kernels the caller needs after the march.
 numba writes each into its on-disk cache (atomically), and this process's typing loads from
 there every callee the helper compiled before it got there; the two meet in the middle. On the
 paper case this process still compiles the march itself (about 34 s) and most of T_min's routines. Nothing else is shared, the results are this process's alone, and a callee
@@ -31,7 +31,7 @@ import subprocess
 import sys
 
 #: the kernel of a method (registry Method.kernel) -> the function that lists the out-of-line kernels
-#: its typing compiles, ``callees(backend, sys, ws) -> [("module:name", argument types)]``
+#: its typing compiles, ``callees(backend, sys, ws) -> (first, rest)``, lists of ("module:name", argument types)
 CALLEES = {"slipstep.kernels.march:implicit_kernel": "slipstep.kernels.march:implicit_callees"}
 
 _enabled = False
@@ -75,8 +75,8 @@ def start(kernel: str, dispatcher, arguments: tuple, then: tuple = ()) -> None:
     )
     if in_disk_cache(dispatcher, march_types):
         return
-    callees = pkgutil.resolve_name(CALLEES[kernel])(backend, sys_, ws)
-    if not callees:
+    first, rest = pkgutil.resolve_name(CALLEES[kernel])(backend, sys_, ws)
+    if not first + rest:
         return
     stop()
     _helper = subprocess.Popen(
@@ -86,7 +86,7 @@ def start(kernel: str, dispatcher, arguments: tuple, then: tuple = ()) -> None:
         stderr=subprocess.DEVNULL,
     )
     with contextlib.suppress(OSError):
-        _helper.stdin.write(pickle.dumps(callees[:1] + callees[:0:-1] + list(then)))
+        _helper.stdin.write(pickle.dumps(first + rest[::-1] + list(then)))
         _helper.stdin.close()
 
 
