@@ -12,8 +12,9 @@ soon after it starts, then the others in the reverse of the order in which the t
 them, then the kernels the caller needs after the march.
 numba writes each into its on-disk cache (atomically), and this process's typing loads from
 there every callee the helper compiled before it got there; the two meet in the middle. On the
-paper case this process still compiles the march itself (about 34 s) and most of T_min's routines. Nothing else is shared, the results are this process's alone, and a callee
-both reach is compiled twice (no harm but the time).
+paper case this process still types and lowers the march itself (about 25 s) and compiles the
+rest of T_min's routines and one or two step solvers. Nothing else is shared, the results are
+this process's alone, and a callee both reach is compiled twice (no harm but the time).
 
 Only where it pays: within :func:`enabled` (every command of the command line), the
 first march of a kernel in the process, the march not in numba's cache, two CPUs or more; the
