@@ -4,9 +4,11 @@
 import math
 import multiprocessing
 import os
+import queue
+import threading
 
 import slipstep
-from slipstep.study.compare import compare, compile_ahead, fresh_process_times
+from slipstep.study.compare import CompilingHelper, compare, compile_ahead, fresh_process_times
 
 
 def test_fresh_process_times_every_method_repeats_times():
@@ -31,12 +33,47 @@ def test_a_fresh_process_that_cannot_start_says_why_and_compare_times_here():
 
 def test_the_compile_ahead_process_marches_the_methods_and_ends_cleanly():
     paper = slipstep.load_system("paper")
-    process = compile_ahead(paper, ["quasi-static", "newmark"], {"step_rule": "t-min"})
+    helper = compile_ahead(paper, ["quasi-static", "newmark"], {"step_rule": "t-min"})
     if len(os.sched_getaffinity(0)) < 2:
-        assert process is None  # one CPU: nothing to compile beside
+        assert helper is None  # one CPU: nothing to compile beside
         return
-    process.join(timeout=600)
-    assert process.exitcode == 0
+    helper.process.join(timeout=600)
+    assert helper.process.exitcode == 0
+    said = [helper.progress.get(timeout=10) for _ in range(4)]
+    assert said == [("start", "quasi-static"), ("done", "quasi-static"), ("start", "newmark"), ("done", "newmark")]
+
+
+def test_the_command_waits_for_the_method_the_helper_is_marching_and_only_for_it():
+    """CompilingHelper on a thread and a queue that play the helper process: it marches "events"
+    until released."""
+    progress, release = queue.Queue(), threading.Event()
+
+    def helper_body():
+        progress.put(("start", "events"))
+        release.wait(60)
+        progress.put(("done", "events"))
+
+    thread = threading.Thread(target=helper_body)
+    thread.start()
+    helper = CompilingHelper(thread, progress)
+    while helper.marching != "events":
+        helper._read(wait=1.0)
+    helper.wait_for("newmark")  # not the helper's: returns at once, the helper still at "events"
+    assert helper.marching == "events" and thread.is_alive()
+    threading.Timer(0.2, release.set).start()
+    helper.wait_for("events")  # returns on the helper's ("done", "events")
+    assert helper.marching is None
+    thread.join(5)
+
+
+def test_waiting_ends_when_the_helper_ends_without_a_word():
+    progress = queue.Queue()
+    thread = threading.Thread(target=lambda: progress.put(("start", "events")))  # then it dies
+    thread.start()
+    thread.join(5)
+    helper = CompilingHelper(thread, progress)
+    helper.wait_for("events")
+    assert helper.marching == "events"  # said it started, never that it was done: not waited for
 
 
 def test_compare_stops_the_compile_ahead_process_when_its_runs_are_done():

@@ -34,9 +34,12 @@ import json
 import math
 import multiprocessing
 import os
+import queue
 import signal
+import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from statistics import median
 
@@ -128,40 +131,83 @@ def fresh_process_times(system: System, names: list[str], periods: float, repeat
     return samples, "a fresh process"
 
 
-def compile_ahead(system: System, names: list[str], options: dict):
+@dataclass
+class CompilingHelper:
+    """The process of :func:`compile_ahead` and what it has said so far: the method it marches
+    now (``progress``: a queue of ("start" | "done", method name))."""
+
+    process: multiprocessing.process.BaseProcess
+    progress: object
+    marching: str | None = None
+
+    def wait_for(self, name: str, timeout: float = 600.0) -> None:
+        """If the helper is marching ``name`` now, wait until it is done (the kernel then in
+        numba's cache, loaded here): compiling it in this process too would only take its time
+        twice. Returns at once for a method the helper is not marching, and when the helper
+        ends or ``timeout`` [s] passes."""
+        self._read(wait=0.0)
+        deadline = time.monotonic() + timeout
+        while self.marching == name and self.process.is_alive() and time.monotonic() < deadline:
+            self._read(wait=1.0)
+
+    def _read(self, wait: float) -> None:
+        """Take the helper's messages: the first within ``wait`` [s] (none: do not wait), then
+        those already there."""
+        try:
+            while True:
+                kind, name = self.progress.get(timeout=wait) if wait > 0 else self.progress.get_nowait()
+                self.marching = name if kind == "start" else None
+                wait = 0.0
+        except (queue.Empty, OSError, ValueError):
+            pass
+
+    def stop(self) -> None:
+        """Terminate the helper (its work is done or no longer needed) and wait for it."""
+        self.process.terminate()
+        self.process.join(timeout=10)
+
+
+def compile_ahead(system: System, names: list[str], options: dict) -> CompilingHelper | None:
     """Start a process that marches ``names`` briefly, in that order, so that numba compiles their
     kernels into its on-disk cache while this process compiles the others; return it (the caller
-    terminates it when it needs it no more), or None on a machine with one CPU.
+    stops it when it needs it no more), or None on a machine with one CPU.
 
     compare() builds every runner first (each one's static preload marches the implicit kernel:
     compiled here, then cached), then starts this helper on the methods in reverse order while it
     runs them in order: the last method's kernel (on the paper case the event-driven march) is
     compiled by the helper while this process compiles the first ones' and the quasi-static
-    march, and this process loads it from the cache when it gets there. Nothing but numba's cache
-    is shared: a kernel both processes reach is compiled twice (numba writes its cache files
+    march, and this process loads it from the cache when it gets there, after waiting for the
+    helper if it is still at it (:meth:`CompilingHelper.wait_for`). Nothing but numba's cache
+    is shared: a kernel both processes compile is compiled twice (numba writes its cache files
     atomically), and the results are this process's alone. With the lean compiler, on an empty
     cache on two cores, ``slipstep compare paper`` took 132 s of wall time against 208 s before
     both changes (docs/measured.md, "Compile time")."""
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if cpus < 2:
         return None
-    process = multiprocessing.get_context("spawn").Process(
-        target=_march_briefly, args=(system, names, options), name="slipstep-compile-ahead", daemon=True
+    context = multiprocessing.get_context("spawn")
+    progress = context.Queue()
+    process = context.Process(
+        target=_march_briefly, args=(system, names, options, progress), name="slipstep-compile-ahead", daemon=True
     )
     process.start()
-    return process
+    return CompilingHelper(process, progress)
 
 
-def _march_briefly(system: System, names: list[str], options: dict) -> None:
+def _march_briefly(system: System, names: list[str], options: dict, progress) -> None:
     """:func:`compile_ahead`'s body: a few steps of each method (their kernels compiled and cached),
-    silent: Ctrl-C is the caller's (it terminates this process), warnings are the caller's runs'."""
+    each between a ("start", name) and a ("done", name) on ``progress``; silent: Ctrl-C is the
+    caller's (it terminates this process), warnings are the caller's runs'."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     warnings.simplefilter("ignore")
     for name in names:
+        progress.put(("start", name))
         try:
             Simulation(system, name, **{**options, "periods": 0.05}).run()
         except Exception:  # noqa: BLE001  (a warm-up only: this process's failures are the caller's to find)
             pass
+        finally:
+            progress.put(("done", name))
 
 
 def _times_of_new_runners(system: System, names: list[str], periods: float, repeats: int, options: dict) -> dict:
@@ -201,12 +247,15 @@ def compare(
         raise InputError("cutoff_Hz", f"is {cutoff_Hz!r}", "give a frequency > 0 [Hz], or None to choose it")
     sims = {name: Simulation(system, name, periods=periods, **options) for name in names}
     helper = compile_ahead(system, names[::-1], options) if fresh_process else None
+    results = {}
     try:
-        results = {name: sim.run() for name, sim in sims.items()}  # the results (and the first, compiling call)
+        for name, sim in sims.items():
+            if helper is not None:
+                helper.wait_for(name)
+            results[name] = sim.run()  # the results (and the first, compiling call)
     finally:
         if helper is not None:
-            helper.terminate()
-            helper.join(timeout=10)
+            helper.stop()
     times, timed_in = fresh_process_times(system, names, periods, repeats, options) if fresh_process else (None, "")
     if times is None:
         times, timed_in = time_kernels(sims, repeats), "this process" + (f" ({timed_in})" if timed_in else "")
