@@ -137,8 +137,6 @@ class InlineWithOneScopeCopy(InlineInlinables):
         # numba's pass imports the worker class when it runs (and so do the nested passes it
         # starts): swap it for the duration of this pass
         worker = inline_closurecall.InlineWorker
-        if worker is _OneScopeCopyInliner:
-            return super().run_pass(state)
         inline_closurecall.InlineWorker = _OneScopeCopyInliner
         try:
             return super().run_pass(state)
